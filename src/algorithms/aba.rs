@@ -1,0 +1,180 @@
+//! Forward dynamics in O(n) by the articulated-body algorithm (Featherstone, RBDA Table 7.1).
+//!
+//! Pass 1, outward (body `i` coordinates):
+//! ```text
+//! v_i = ⁱX_λ v_λ + S_i q̇_i,   c_i = c_J + v_i ×̂ S_i q̇_i
+//! I^A_i = I_i,                 p^A_i = v_i ×* I_i v_i − f^x_i
+//! ```
+//! Pass 2, inward:
+//! ```text
+//! U_i = I^A_i S_i,   D_i = S_iᵀ U_i,   u_i = τ_i − S_iᵀ p^A_i
+//! I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,   p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i
+//! I^A_λ += ⁱX_λᵀ I^a ⁱX_λ,        p^A_λ += ⁱX_λᵀ p^a
+//! ```
+//! Pass 3, outward, from `a_0 = a_base − g`:
+//! ```text
+//! a' = ⁱX_λ a_λ + c_i,   q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),   a_i = a' + S_i q̈_i
+//! ```
+//! Mimic joints tie coordinates across bodies, which the recursion cannot express: models with
+//! them are refused (use the `crba` or `rnea_columns` method).
+
+use super::kinematics::update_joints;
+use super::validate::{check_externals, check_q, check_result, check_v};
+use super::{pivot_is_sound, Externals};
+use crate::error::DynamicsError;
+use crate::model::Model;
+use crate::spatial::{Force, Matrix6, Motion};
+use crate::Workspace;
+
+/// `q̈ = FD(q, q̇, τ)` into `ws.qdd()`.
+pub fn aba<'w>(
+    model: &Model,
+    ws: &'w mut Workspace,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    ext: &Externals<'_>,
+) -> Result<&'w [f64], DynamicsError> {
+    if let Some(b) = model.bodies.iter().find(|b| b.joint.is_mimic()) {
+        return Err(DynamicsError::Unsupported {
+            method: "aba",
+            reason: format!(
+                "joint '{}' mimics another joint; use 'crba' or 'rnea_columns'",
+                b.joint.name
+            ),
+        });
+    }
+    check_q(model, q)?;
+    check_v(model, "v", v)?;
+    check_v(model, "tau", tau)?;
+    check_externals(model, ext)?;
+    update_joints(model, ws, q);
+    velocity_pass(model, ws, v, ext);
+    articulated_pass(model, ws, tau)?;
+    acceleration_pass(model, ws, ext);
+    check_result(model, "acceleration", ws.qdd.as_slice())?;
+    Ok(ws.qdd.as_slice())
+}
+
+/// Pass 1: velocities, velocity-product accelerations, initial articulated quantities.
+fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
+    for (i, body) in model.bodies.iter().enumerate() {
+        let c = body.joint.coords;
+        let nv = ws.s[i].nv;
+        let rates = &v[c.v_index..c.v_index + nv];
+        let v_joint = ws.s[i].apply(rates, 1.0);
+        let v_parent = body.parent.map_or(ext.root_velocity, |p| ws.v[p]);
+        let v_i = ws.x_up[i].apply_motion(&v_parent) + v_joint;
+        let c_joint = body
+            .joint
+            .kind
+            .bias(&ws.q_joint[i][..body.joint.kind.nq()], rates);
+        ws.v[i] = v_i;
+        ws.c[i] = c_joint + v_i.cross_motion(&v_joint);
+        ws.ia[i] = body.inertia.to_matrix();
+        ws.pa[i] = v_i.cross_force(&body.inertia.apply(&v_i));
+        if let Some(w) = ext.wrenches {
+            ws.pa[i] -= w[i];
+        }
+    }
+}
+
+/// Pass 2: articulated-body inertias and bias forces, from the leaves inward.
+fn articulated_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) -> Result<(), DynamicsError> {
+    for (i, body) in model.bodies.iter().enumerate().rev() {
+        let s = ws.s[i];
+        let nv = s.nv;
+        let c = body.joint.coords;
+        let ia = ws.ia[i];
+        // U = I^A S, D = Sᵀ U, u = τ − Sᵀ p^A.
+        let mut u_cols = [Force::zero(); 6];
+        let mut d = Matrix6::identity();
+        let mut u = [0.0; 6];
+        for k in 0..nv {
+            u_cols[k] = Force::from_vector(&(ia * s.cols[k].to_vector()));
+        }
+        for k in 0..nv {
+            for k2 in 0..nv {
+                d[(k2, k)] = s.project(k2, &u_cols[k]);
+            }
+            u[k] = tau[c.v_index + k] - s.project(k, &ws.pa[i]);
+        }
+        let d_inv =
+            invert_spd(&d, nv, &ia).ok_or_else(|| DynamicsError::SingularArticulatedInertia {
+                joint: body.joint.name.clone(),
+                pivot: smallest_pivot(&d, nv),
+            })?;
+        ws.u[i] = u_cols;
+        ws.d_inv[i] = d_inv;
+        ws.u_bias[i] = u;
+        if let Some(p) = body.parent {
+            // I^a = I^A − U D⁻¹ Uᵀ,  p^a = p^A + I^a c + U D⁻¹ u.
+            let mut ia_a = ia;
+            let mut pa_a = ws.pa[i];
+            for k in 0..nv {
+                let mut d_inv_u = 0.0;
+                let mut w = Force::zero();
+                for k2 in 0..nv {
+                    d_inv_u += d_inv[(k, k2)] * u[k2];
+                    w += u_cols[k2] * d_inv[(k, k2)];
+                }
+                // Σ_k U_k (D⁻¹ Uᵀ)_k: w is row k of D⁻¹ applied to U's columns.
+                ia_a -= u_cols[k].to_vector() * w.to_vector().transpose();
+                pa_a += u_cols[k] * d_inv_u;
+            }
+            pa_a += Force::from_vector(&(ia_a * ws.c[i].to_vector()));
+            ws.ia[p] += ws.x_up[i].transpose_apply_matrix6(&ia_a);
+            ws.pa[p] += ws.x_up[i].transpose_apply_force(&pa_a);
+        }
+    }
+    Ok(())
+}
+
+/// Pass 3: accelerations, from the root outward.
+fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
+    let a_root = ext.root_acceleration - Motion::new(nalgebra::Vector3::zeros(), model.gravity);
+    for (i, body) in model.bodies.iter().enumerate() {
+        let nv = ws.s[i].nv;
+        let c = body.joint.coords;
+        let a_parent = body.parent.map_or(a_root, |p| ws.a[p]);
+        let a_prime = ws.x_up[i].apply_motion(&a_parent) + ws.c[i];
+        let mut rhs = [0.0; 6];
+        for k in 0..nv {
+            rhs[k] = ws.u_bias[i][k] - a_prime.dot(&ws.u[i][k]);
+        }
+        let mut a_i = a_prime;
+        for k in 0..nv {
+            let qdd: f64 = (0..nv).map(|k2| ws.d_inv[i][(k, k2)] * rhs[k2]).sum();
+            ws.qdd[c.v_index + k] = qdd;
+            a_i += ws.s[i].cols[k] * qdd;
+        }
+        ws.a[i] = a_i;
+    }
+}
+
+/// Inverse of the symmetric positive definite top-left `nv × nv` block of `d` (the rest of `d`
+/// is the identity), or `None` when a Cholesky pivot is not clearly positive relative to the
+/// scale of the articulated inertia `ia`.
+fn invert_spd(d: &Matrix6, nv: usize, ia: &Matrix6) -> Option<Matrix6> {
+    // D's scale is that of the articulated inertia; a pivot within a few ulps of it is zero.
+    let reference = 64.0 * ia.amax();
+    if nv == 1 {
+        let pivot = d[(0, 0)];
+        if !pivot_is_sound(pivot, reference) {
+            return None;
+        }
+        let mut inv = Matrix6::identity();
+        inv[(0, 0)] = 1.0 / pivot;
+        return Some(inv);
+    }
+    let chol = d.cholesky()?;
+    let l = chol.l_dirty();
+    if (0..nv).any(|k| !pivot_is_sound(l[(k, k)] * l[(k, k)], reference)) {
+        return None;
+    }
+    Some(chol.inverse())
+}
+
+fn smallest_pivot(d: &Matrix6, nv: usize) -> f64 {
+    (0..nv).map(|k| d[(k, k)]).fold(f64::INFINITY, f64::min)
+}

@@ -1,0 +1,39 @@
+//! The position-dependent part shared by every algorithm: joint transforms and motion
+//! subspaces (`jcalc` for each joint, then `ⁱX_λ(i) = X_J X_tree`).
+
+use crate::model::{Joint, Model};
+use crate::spatial::Transform;
+use crate::Workspace;
+
+/// Fills `ws.q_joint`, `ws.x_up` and `ws.s` for configuration `q` (already validated).
+pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
+    for (i, body) in model.bodies.iter().enumerate() {
+        let nq = body.joint.kind.nq();
+        joint_positions(&body.joint, q, &mut ws.q_joint[i]);
+        let (x_j, s) = body.joint.kind.jcalc(&ws.q_joint[i][..nq]);
+        ws.x_up[i] = x_j.compose(&body.x_tree);
+        ws.s[i] = s;
+    }
+}
+
+/// The joint's own coordinates `scale · q[q_index..] + offset` (a mimic follower reads its
+/// leader's coordinate; for every other joint scale is 1 and offset 0).
+fn joint_positions(joint: &Joint, q: &[f64], out: &mut [f64; 7]) {
+    let c = joint.coords;
+    let nq = joint.kind.nq();
+    for (o, x) in out[..nq].iter_mut().zip(&q[c.q_index..c.q_index + nq]) {
+        *o = c.scale * x + c.offset;
+    }
+}
+
+/// Placement of every body in the root (world) frame, `ⁱX_0`, for configuration `q` (already
+/// validated). Writes into `out` (one per body).
+pub fn body_placements(model: &Model, ws: &mut Workspace, q: &[f64], out: &mut [Transform]) {
+    update_joints(model, ws, q);
+    for (i, body) in model.bodies.iter().enumerate() {
+        out[i] = match body.parent {
+            Some(p) => ws.x_up[i].compose(&out[p]),
+            None => ws.x_up[i],
+        };
+    }
+}

@@ -1,0 +1,63 @@
+//! The dynamics algorithms, one file each, all of the form `f(model, workspace, inputs…)`.
+//!
+//! | file | computes |
+//! |---|---|
+//! | [`rnea`] | inverse dynamics `τ = H(q) q̈ + C(q, q̇)` (recursive Newton–Euler) |
+//! | [`bias`] | `C(q, q̇)`: gravity, Coriolis and centrifugal terms, external forces |
+//! | [`gravity`] | `g(q)`: the gravity part of `C` |
+//! | [`crba`] | `H(q)` (composite rigid-body algorithm) |
+//! | [`aba`] | forward dynamics in O(n) (articulated-body algorithm) |
+//! | [`rnea_columns`] | forward dynamics from n+1 inverse-dynamics calls (the handout's method) |
+//! | [`forward_dynamics`] | forward dynamics by a chosen [`ForwardDynamicsMethod`] |
+//! | [`ltl`], [`cholesky`] | the factorisations that solve `H q̈ = τ − C` |
+
+// The algorithms index per-coordinate arrays the way the equations do.
+#![allow(clippy::needless_range_loop)]
+
+pub mod aba;
+pub mod bias;
+pub mod cholesky;
+pub mod crba;
+pub mod forward_dynamics;
+pub mod gravity;
+pub mod kinematics;
+pub mod ltl;
+pub mod rnea;
+pub mod rnea_columns;
+mod validate;
+
+pub use aba::aba;
+pub use bias::bias;
+pub use crba::crba;
+pub use forward_dynamics::{forward_dynamics, ForwardDynamicsMethod};
+pub use gravity::gravity;
+pub use rnea::{rnea, rnea_with};
+
+use crate::spatial::{Force, Motion};
+
+/// What acts on the tree besides the joint forces.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Externals<'a> {
+    /// External wrench on each body (one per body, in model body order), expressed in that
+    /// body's own frame (about the body frame origin). `None`: no external forces.
+    pub wrenches: Option<&'a [Force]>,
+    /// Spatial velocity of the root (world) frame, in root coordinates. Zero for a base fixed in
+    /// an inertial frame.
+    pub root_velocity: Motion,
+    /// Spatial acceleration of the root frame, in root coordinates, not counting gravity.
+    pub root_acceleration: Motion,
+}
+
+/// A factorisation pivot is sound when it is finite and positive and has kept some digits
+/// relative to `reference` (the diagonal entry or scale it came from): a pivot at or below
+/// `reference · ε` means the matrix is singular, indefinite or numerically so.
+pub(crate) fn pivot_is_sound(pivot: f64, reference: f64) -> bool {
+    pivot.is_finite() && pivot > reference * f64::EPSILON
+}
+
+impl Externals<'_> {
+    /// No external wrench, base at rest in an inertial frame.
+    pub fn none() -> Self {
+        Self::default()
+    }
+}

@@ -1,0 +1,114 @@
+//! Inverse dynamics by the recursive Newton–Euler algorithm (handout eqs. 13–16; Featherstone,
+//! RBDA Table 5.1).
+//!
+//! Outward pass, for each body `i` with parent `λ(i)` (quantities in body `i` coordinates):
+//!
+//! ```text
+//! v_i = ⁱX_λ v_λ + S_i q̇_i                          (13)
+//! a_i = ⁱX_λ a_λ + S_i q̈_i + c_J + v_i ×̂ S_i q̇_i     (14)
+//! f_i = I_i a_i + v_i ×* I_i v_i − f^x_i              (15, first part)
+//! ```
+//!
+//! with the root's `v_0` and `a_0 = a_base − g` (gravity as a fictitious upward acceleration of
+//! the world, the handout's eq. 21). Inward pass:
+//!
+//! ```text
+//! τ_i = S_iᵀ f_i                                      (16)
+//! f_λ += ⁱX_λᵀ f_i                                    (15, second part)
+//! ```
+//!
+//! A mimic follower uses `q̇_i = μ q̇_leader`, `q̈_i = μ q̈_leader` and adds `μ S_iᵀ f_i` to the
+//! leader's `τ`. External wrenches `f^x_i` are given in body `i`'s own frame.
+
+use super::kinematics::update_joints;
+use super::validate::{check_externals, check_q, check_result, check_v};
+use super::Externals;
+use crate::error::DynamicsError;
+use crate::model::Model;
+use crate::spatial::Motion;
+use crate::Workspace;
+
+/// `τ = RNEA(q, q̇, q̈)` with gravity, no external wrenches, base at rest. Returns `ws.tau()`.
+pub fn rnea<'w>(
+    model: &Model,
+    ws: &'w mut Workspace,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+) -> Result<&'w [f64], DynamicsError> {
+    rnea_with(model, ws, q, v, a, &Externals::none())
+}
+
+/// `τ = RNEA(q, q̇, q̈)` with external wrenches and base motion. Returns `ws.tau()`.
+pub fn rnea_with<'w>(
+    model: &Model,
+    ws: &'w mut Workspace,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    ext: &Externals<'_>,
+) -> Result<&'w [f64], DynamicsError> {
+    check_q(model, q)?;
+    check_v(model, "v", v)?;
+    check_v(model, "a", a)?;
+    check_externals(model, ext)?;
+    update_joints(model, ws, q);
+    rnea_passes(model, ws, Some(v), Some(a), ext);
+    check_result(model, "tau", ws.tau.as_slice())?;
+    Ok(ws.tau.as_slice())
+}
+
+/// The two passes, on joints already updated for `q`; `None` for `v` or `a` means zero.
+/// Writes `ws.v`, `ws.a`, `ws.f` and `ws.tau`.
+pub(crate) fn rnea_passes(
+    model: &Model,
+    ws: &mut Workspace,
+    v: Option<&[f64]>,
+    a: Option<&[f64]>,
+    ext: &Externals<'_>,
+) {
+    let a_root = ext.root_acceleration - Motion::new(nalgebra::Vector3::zeros(), model.gravity);
+    for (i, body) in model.bodies.iter().enumerate() {
+        let (x, s, c) = (&ws.x_up[i], &ws.s[i], body.joint.coords);
+        let nv = s.nv;
+        let (v_parent, a_parent) = match body.parent {
+            Some(p) => (ws.v[p], ws.a[p]),
+            None => (ext.root_velocity, a_root),
+        };
+        let (v_joint, c_joint) = match v {
+            Some(v) => {
+                let rates = &v[c.v_index..c.v_index + nv];
+                let q_joint = &ws.q_joint[i][..body.joint.kind.nq()];
+                (
+                    s.apply(rates, c.scale),
+                    body.joint.kind.bias(q_joint, rates),
+                )
+            }
+            None => (Motion::zero(), Motion::zero()),
+        };
+        let v_i = x.apply_motion(&v_parent) + v_joint;
+        let mut a_i = x.apply_motion(&a_parent) + c_joint + v_i.cross_motion(&v_joint);
+        if let Some(a) = a {
+            a_i += s.apply(&a[c.v_index..c.v_index + nv], c.scale);
+        }
+        let inertia = &body.inertia;
+        let mut f_i = inertia.apply(&a_i) + v_i.cross_force(&inertia.apply(&v_i));
+        if let Some(w) = ext.wrenches {
+            f_i -= w[i];
+        }
+        ws.v[i] = v_i;
+        ws.a[i] = a_i;
+        ws.f[i] = f_i;
+    }
+    ws.tau.fill(0.0);
+    for (i, body) in model.bodies.iter().enumerate().rev() {
+        let c = body.joint.coords;
+        for k in 0..ws.s[i].nv {
+            ws.tau[c.v_index + k] += c.scale * ws.s[i].project(k, &ws.f[i]);
+        }
+        if let Some(p) = body.parent {
+            let f_parent = ws.x_up[i].transpose_apply_force(&ws.f[i]);
+            ws.f[p] += f_parent;
+        }
+    }
+}

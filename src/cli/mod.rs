@@ -1,0 +1,51 @@
+//! Command-line front end: argument parsing and dispatch. The numerics live in the library.
+
+mod eval;
+mod model_info;
+mod source;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+pub use source::ModelArgs;
+
+/// Rigid-body dynamics of URDF robots.
+#[derive(Parser, Debug)]
+#[command(name = "spatial_dynamics", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Print the model's coordinates (joints, their types and indices in q and v).
+    Model {
+        #[command(flatten)]
+        model: ModelArgs,
+        /// Print JSON: {"nq", "nv", "joints": [{"name", "type", "q_index", "nq", "v_index", "nv"}]}.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Answer JSON requests, one per line on stdin, one answer per line on stdout.
+    Eval {
+        #[command(flatten)]
+        model: ModelArgs,
+    },
+}
+
+/// Parses the arguments and runs the command.
+pub fn run() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Model { model, json } => model_info::run(&model, json),
+        Command::Eval { model } => eval::run(&model),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => {
+            eprintln!("spatial_dynamics: {message}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,57 @@
+//! `spatial_dynamics model`: the model's coordinates, as JSON or as a table.
+
+use super::ModelArgs;
+use serde_json::json;
+
+/// Prints the coordinate joints of the model.
+pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
+    let model = args.load()?;
+    if as_json {
+        let joints: Vec<_> = model
+            .coordinate_joints()
+            .map(|j| json!({"name": j.name, "type": j.kind.type_name(), "q_index": j.q_index, "nq": j.nq, "v_index": j.v_index, "nv": j.nv}))
+            .collect();
+        println!(
+            "{}",
+            json!({"nq": model.nq, "nv": model.nv, "joints": joints})
+        );
+        return Ok(());
+    }
+    println!(
+        "robot '{}': nq = {}, nv = {}, {} bodies, root link '{}'",
+        model.name,
+        model.nq,
+        model.nv,
+        model.nbodies(),
+        model.root_link
+    );
+    println!(
+        "{:<24} {:<11} {:>7} {:>4} {:>7} {:>4}",
+        "joint", "type", "q_index", "nq", "v_index", "nv"
+    );
+    for j in model.coordinate_joints() {
+        println!(
+            "{:<24} {:<11} {:>7} {:>4} {:>7} {:>4}",
+            j.name,
+            j.kind.type_name(),
+            j.q_index,
+            j.nq,
+            j.v_index,
+            j.nv
+        );
+    }
+    for b in model.bodies.iter().filter(|b| b.joint.is_mimic()) {
+        let c = b.joint.coords;
+        println!(
+            "mimic: '{}' = {} × '{}' + {}",
+            b.joint.name,
+            c.scale,
+            b.joint.mimics.as_deref().unwrap_or(""),
+            c.offset
+        );
+    }
+    if !model.fused_links.is_empty() {
+        println!("fused (fixed joints): {}", model.fused_links.join(", "));
+    }
+    Ok(())
+}

@@ -1,0 +1,81 @@
+//! Where the model comes from: a URDF file or a built-in example, and the model options.
+
+use clap::Args;
+use spatial_dynamics::model::examples;
+use spatial_dynamics::spatial::Vector3;
+use spatial_dynamics::{urdf, Model, ModelOptions};
+use std::path::PathBuf;
+
+/// Model selection and options shared by every subcommand.
+#[derive(Args, Debug, Clone)]
+pub struct ModelArgs {
+    /// URDF file of the robot.
+    #[arg(long, value_name = "FILE", conflicts_with = "builtin")]
+    pub urdf: Option<PathBuf>,
+    /// A built-in model: default_arm (the default), particle, lamp, mimic_gripper, pendulum:N.
+    #[arg(long, value_name = "NAME")]
+    pub builtin: Option<String>,
+    /// Add a floating joint between the world and the root link.
+    #[arg(long)]
+    pub floating_base: bool,
+    /// Treat <mimic> joints as independent joints.
+    #[arg(long)]
+    pub ignore_mimic: bool,
+    /// Gravity in the world frame, m/s² (default 0,0,-9.81).
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub gravity: Option<String>,
+}
+
+impl ModelArgs {
+    /// Loads the model; the error names the problem.
+    pub fn load(&self) -> Result<Model, String> {
+        let mut options = ModelOptions {
+            floating_base: self.floating_base,
+            ignore_mimic: self.ignore_mimic,
+            ..ModelOptions::default()
+        };
+        if let Some(g) = &self.gravity {
+            options.gravity = parse_gravity(g)?;
+        }
+        let result = match (&self.urdf, &self.builtin) {
+            (Some(path), _) => urdf::model_from_file(path, &options),
+            (None, Some(name)) => urdf::model_from_str(&builtin_urdf(name)?, &options),
+            (None, None) => urdf::model_from_str(examples::DEFAULT_ARM_URDF, &options),
+        };
+        result.map_err(|e| e.to_string())
+    }
+}
+
+fn builtin_urdf(name: &str) -> Result<String, String> {
+    if let Some(n) = name.strip_prefix("pendulum:") {
+        let n: usize = n.parse().map_err(|_| {
+            format!("--builtin {name}: the number of links must be a positive integer")
+        })?;
+        if n == 0 {
+            return Err(format!(
+                "--builtin {name}: the number of links must be at least 1"
+            ));
+        }
+        return Ok(examples::pendulum_urdf(n, 1.0, 1.0));
+    }
+    Ok(match name {
+        "default_arm" => examples::DEFAULT_ARM_URDF,
+        "particle" => examples::PARTICLE_URDF,
+        "lamp" => examples::LAMP_URDF,
+        "mimic_gripper" => examples::MIMIC_GRIPPER_URDF,
+        _ => return Err(format!("unknown built-in model '{name}' (default_arm, particle, lamp, mimic_gripper, pendulum:N)")),
+    }
+    .to_string())
+}
+
+fn parse_gravity(text: &str) -> Result<Vector3, String> {
+    let parts: Result<Vec<f64>, _> = text.split(',').map(|s| s.trim().parse::<f64>()).collect();
+    match parts {
+        Ok(p) if p.len() == 3 && p.iter().all(|x| x.is_finite()) => {
+            Ok(Vector3::new(p[0], p[1], p[2]))
+        }
+        _ => Err(format!(
+            "--gravity '{text}': expected three finite numbers X,Y,Z"
+        )),
+    }
+}

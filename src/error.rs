@@ -1,0 +1,96 @@
+//! Errors, each naming what went wrong and where (which joint, link, coordinate or value).
+
+use std::fmt;
+
+/// A robot description that cannot be turned into a model.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ModelError {
+    /// The file could not be read.
+    Io(String),
+    /// The text is not a URDF the parser understands.
+    Parse(String),
+    /// The description parses but does not make a valid tree of rigid bodies.
+    Invalid(String),
+}
+
+impl fmt::Display for ModelError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ModelError::Io(m) => write!(f, "cannot read the robot description: {m}"),
+            ModelError::Parse(m) => write!(f, "cannot parse the URDF: {m}"),
+            ModelError::Invalid(m) => write!(f, "invalid robot model: {m}"),
+        }
+    }
+}
+
+impl std::error::Error for ModelError {}
+
+/// An algorithm call that cannot give a trustworthy answer. Never returned as NaN.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DynamicsError {
+    /// An input vector has the wrong length.
+    Length {
+        vector: &'static str,
+        expected: usize,
+        got: usize,
+    },
+    /// An input value is NaN or infinite.
+    NonFinite {
+        vector: &'static str,
+        index: usize,
+        coordinate: String,
+        value: f64,
+    },
+    /// A floating joint's quaternion has (nearly) zero norm.
+    BadQuaternion { joint: String, norm: f64 },
+    /// An external wrench is NaN or infinite.
+    NonFiniteWrench { body: String },
+    /// The mass matrix is singular or not positive definite at this coordinate.
+    SingularMassMatrix { coordinate: String, pivot: f64 },
+    /// The articulated inertia seen by a joint is singular (ABA).
+    SingularArticulatedInertia { joint: String, pivot: f64 },
+    /// The method cannot handle this model.
+    Unsupported {
+        method: &'static str,
+        reason: String,
+    },
+    /// The computation overflowed to a non-finite value.
+    NonFiniteResult {
+        quantity: &'static str,
+        coordinate: String,
+    },
+}
+
+impl fmt::Display for DynamicsError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            DynamicsError::Length { vector, expected, got } => {
+                write!(f, "{vector} has {got} values, the model needs {expected}")
+            }
+            DynamicsError::NonFinite { vector, index, coordinate, value } => {
+                write!(f, "{vector}[{index}] ({coordinate}) is {value}, not a finite number")
+            }
+            DynamicsError::BadQuaternion { joint, norm } => write!(
+                f,
+                "the quaternion of floating joint '{joint}' has norm {norm}: it must be a unit quaternion (x, y, z, w)"
+            ),
+            DynamicsError::NonFiniteWrench { body } => {
+                write!(f, "the external wrench on '{body}' is not finite")
+            }
+            DynamicsError::SingularMassMatrix { coordinate, pivot } => write!(
+                f,
+                "the mass matrix is singular or not positive definite at coordinate '{coordinate}' (pivot {pivot:e}): a massless body or one that cannot move along this joint"
+            ),
+            DynamicsError::SingularArticulatedInertia { joint, pivot } => write!(
+                f,
+                "the articulated inertia at joint '{joint}' is singular (pivot {pivot:e}): nothing with mass moves when this joint moves"
+            ),
+            DynamicsError::Unsupported { method, reason } => write!(f, "method '{method}' cannot be used: {reason}"),
+            DynamicsError::NonFiniteResult { quantity, coordinate } => {
+                write!(f, "{quantity} at '{coordinate}' overflowed to a non-finite value")
+            }
+        }
+    }
+}
+
+impl std::error::Error for DynamicsError {}

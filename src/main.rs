@@ -1,0 +1,7 @@
+//! The `spatial_dynamics` command: `model`, `eval` (and, later, the ROS 2 node).
+
+mod cli;
+
+fn main() -> std::process::ExitCode {
+    cli::run()
+}

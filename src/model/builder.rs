@@ -1,0 +1,394 @@
+//! Building a [`Model`] from links and joints, whatever file format they came from: the tree is
+//! ordered, fixed joints are fused, mimic joints are resolved and coordinates are numbered.
+
+use super::{Body, CoordinateMap, Joint, JointKind, JointLimits, LinkFrame, Model};
+use crate::error::ModelError;
+use crate::spatial::{Inertia, Transform, Vector3};
+use std::collections::{HashMap, HashSet};
+
+/// A link: its name and its spatial inertia in the link frame.
+#[derive(Clone, Debug)]
+pub struct BodySpec {
+    pub name: String,
+    pub inertia: Inertia,
+}
+
+/// A joint between two links.
+#[derive(Clone, Debug)]
+pub struct JointSpec {
+    pub name: String,
+    pub parent: String,
+    pub child: String,
+    /// Transform from the parent link frame to the joint frame (which is the child link frame
+    /// when the joint is at zero).
+    pub origin: Transform,
+    /// `None` for a fixed joint.
+    pub kind: Option<JointKind>,
+    /// `(leader joint, multiplier, offset)` for a mimic joint.
+    pub mimic: Option<(String, f64, f64)>,
+    pub limits: JointLimits,
+}
+
+/// Choices made when a model is built.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModelOptions {
+    /// Add a floating joint between the world and the root link.
+    pub floating_base: bool,
+    /// Treat mimic joints as independent joints with coordinates of their own.
+    pub ignore_mimic: bool,
+    /// Gravity in world coordinates (m/s²).
+    pub gravity: Vector3,
+}
+
+impl Default for ModelOptions {
+    fn default() -> Self {
+        ModelOptions {
+            floating_base: false,
+            ignore_mimic: false,
+            gravity: Vector3::new(0.0, 0.0, -9.81),
+        }
+    }
+}
+
+/// Collects links and joints, then builds the model.
+#[derive(Clone, Debug, Default)]
+pub struct ModelBuilder {
+    name: String,
+    links: Vec<BodySpec>,
+    joints: Vec<JointSpec>,
+}
+
+/// Name of the joint added by [`ModelOptions::floating_base`] (Pinocchio's name for it).
+pub const FLOATING_BASE_JOINT: &str = "root_joint";
+
+impl ModelBuilder {
+    /// An empty robot called `name`.
+    pub fn new(name: &str) -> Self {
+        ModelBuilder {
+            name: name.to_string(),
+            ..Default::default()
+        }
+    }
+
+    /// Adds a link.
+    pub fn link(&mut self, link: BodySpec) -> &mut Self {
+        self.links.push(link);
+        self
+    }
+
+    /// Adds a joint.
+    pub fn joint(&mut self, joint: JointSpec) -> &mut Self {
+        self.joints.push(joint);
+        self
+    }
+
+    /// Checks the tree and builds the model.
+    pub fn build(&self, options: &ModelOptions) -> Result<Model, ModelError> {
+        let invalid = |msg: String| Err(ModelError::Invalid(msg));
+        let link_index = self.index_links()?;
+        let mut joint_names = HashSet::new();
+        let mut parent_joint: HashMap<&str, usize> = HashMap::new();
+        let mut children: Vec<Vec<usize>> = vec![Vec::new(); self.links.len()];
+        for (j, joint) in self.joints.iter().enumerate() {
+            if !joint_names.insert(joint.name.as_str()) {
+                return invalid(format!("joint '{}' is defined twice", joint.name));
+            }
+            for (role, link) in [("parent", &joint.parent), ("child", &joint.child)] {
+                if !link_index.contains_key(link.as_str()) {
+                    return invalid(format!(
+                        "joint '{}': its {role} link '{link}' does not exist",
+                        joint.name
+                    ));
+                }
+            }
+            if let Some(&other) = parent_joint.get(joint.child.as_str()) {
+                return invalid(format!(
+                    "link '{}' is the child of two joints, '{}' and '{}'",
+                    joint.child, self.joints[other].name, joint.name
+                ));
+            }
+            parent_joint.insert(&joint.child, j);
+            children[link_index[joint.parent.as_str()]].push(j);
+        }
+        let roots: Vec<&str> = self
+            .links
+            .iter()
+            .map(|l| l.name.as_str())
+            .filter(|l| !parent_joint.contains_key(l))
+            .collect();
+        let root =
+            match roots.as_slice() {
+                [root] => *root,
+                [] => return invalid(
+                    "no root link: every link is some joint's child, so the joints form a cycle"
+                        .into(),
+                ),
+                many => {
+                    return invalid(format!(
+                        "several root links ({}): a URDF must describe one tree",
+                        many.join(", ")
+                    ))
+                }
+            };
+
+        let root_link = &self.links[link_index[root]];
+        check_inertia(root_link)?;
+        let mut state = TreeState::new(&self.name, root_link, options);
+        // Depth-first from the root, children in document order (an explicit stack: a chain of
+        // ten thousand links must not overflow the call stack).
+        let mut stack: Vec<usize> = children[link_index[root]].iter().rev().copied().collect();
+        while let Some(j) = stack.pop() {
+            let joint = &self.joints[j];
+            state.attach(
+                joint,
+                &self.links[link_index[joint.child.as_str()]],
+                options,
+            )?;
+            stack.extend(children[link_index[joint.child.as_str()]].iter().rev());
+        }
+        if state.model.links.len() != self.links.len() {
+            let reached: HashSet<&str> =
+                state.model.links.iter().map(|l| l.name.as_str()).collect();
+            let lost: Vec<&str> = self
+                .links
+                .iter()
+                .map(|l| l.name.as_str())
+                .filter(|l| !reached.contains(l))
+                .collect();
+            return invalid(format!(
+                "links {} are not connected to the root '{root}': their joints form a cycle",
+                lost.join(", ")
+            ));
+        }
+        state.number_coordinates()?;
+        let model = state.model;
+        model.with_gravity(options.gravity)
+    }
+
+    fn index_links(&self) -> Result<HashMap<&str, usize>, ModelError> {
+        let mut index = HashMap::new();
+        for (i, link) in self.links.iter().enumerate() {
+            if index.insert(link.name.as_str(), i).is_some() {
+                return Err(ModelError::Invalid(format!(
+                    "link '{}' is defined twice",
+                    link.name
+                )));
+            }
+        }
+        Ok(index)
+    }
+}
+
+/// The model while it is being built, with the joints' mimic requests.
+struct TreeState {
+    model: Model,
+    mimic: Vec<Option<(String, f64, f64)>>,
+}
+
+impl TreeState {
+    fn new(name: &str, root_link: &BodySpec, options: &ModelOptions) -> Self {
+        let root = root_link.name.as_str();
+        let mut model = Model {
+            name: name.to_string(),
+            bodies: Vec::new(),
+            links: Vec::new(),
+            root_link: root.to_string(),
+            fused_links: Vec::new(),
+            gravity: options.gravity,
+            nq: 0,
+            nv: 0,
+            dof_parent: None,
+        };
+        let mut mimic = Vec::new();
+        if options.floating_base {
+            model.root_link = "world".to_string();
+            model.bodies.push(Body {
+                name: root.to_string(),
+                parent: None,
+                joint: Joint {
+                    name: FLOATING_BASE_JOINT.to_string(),
+                    kind: JointKind::Floating,
+                    coords: CoordinateMap {
+                        q_index: 0,
+                        v_index: 0,
+                        scale: 1.0,
+                        offset: 0.0,
+                    },
+                    mimics: None,
+                    limits: JointLimits::default(),
+                },
+                x_tree: Transform::identity(),
+                inertia: root_link.inertia,
+            });
+            mimic.push(None);
+        }
+        model.links.push(LinkFrame {
+            name: root.to_string(),
+            body: options.floating_base.then_some(0),
+            x_body_link: Transform::identity(),
+        });
+        TreeState { model, mimic }
+    }
+
+    /// Adds `link`, reached from its (already placed) parent through `joint`: a new body for a
+    /// moving joint, a fusion into the parent's body for a fixed one.
+    fn attach(
+        &mut self,
+        joint: &JointSpec,
+        link: &BodySpec,
+        options: &ModelOptions,
+    ) -> Result<(), ModelError> {
+        check_inertia(link)?;
+        let parent = self
+            .model
+            .link(&joint.parent)
+            .expect("parents are placed before children")
+            .clone();
+        // Body frame → parent link frame → joint frame.
+        let x_body_joint = joint.origin.compose(&parent.x_body_link);
+        match joint.kind {
+            None => {
+                if let Some(body) = parent.body {
+                    let fused = x_body_joint.transpose_apply_inertia(&link.inertia);
+                    self.model.bodies[body].inertia += fused;
+                }
+                self.model.fused_links.push(link.name.clone());
+                self.model.links.push(LinkFrame {
+                    name: link.name.clone(),
+                    body: parent.body,
+                    x_body_link: x_body_joint,
+                });
+            }
+            Some(kind) => {
+                let body = self.model.bodies.len();
+                self.model.bodies.push(Body {
+                    name: link.name.clone(),
+                    parent: parent.body,
+                    joint: Joint {
+                        name: joint.name.clone(),
+                        kind,
+                        coords: CoordinateMap {
+                            q_index: 0,
+                            v_index: 0,
+                            scale: 1.0,
+                            offset: 0.0,
+                        },
+                        mimics: None,
+                        limits: joint.limits,
+                    },
+                    x_tree: x_body_joint,
+                    inertia: link.inertia,
+                });
+                self.mimic.push(if options.ignore_mimic {
+                    None
+                } else {
+                    joint.mimic.clone()
+                });
+                self.model.links.push(LinkFrame {
+                    name: link.name.clone(),
+                    body: Some(body),
+                    x_body_link: Transform::identity(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Numbers the coordinates in body order, then points each mimic joint at its leader's.
+    fn number_coordinates(&mut self) -> Result<(), ModelError> {
+        let (mut nq, mut nv) = (0, 0);
+        for (body, mimic) in self.model.bodies.iter_mut().zip(&self.mimic) {
+            if mimic.is_none() {
+                body.joint.coords.q_index = nq;
+                body.joint.coords.v_index = nv;
+                nq += body.joint.kind.nq();
+                nv += body.joint.kind.nv();
+            }
+        }
+        self.model.nq = nq;
+        self.model.nv = nv;
+        for b in 0..self.model.bodies.len() {
+            let Some((leader, multiplier, offset)) = self.mimic[b].clone() else {
+                continue;
+            };
+            let follower = &self.model.bodies[b].joint;
+            let bad = |why: &str| {
+                Err(ModelError::Invalid(format!(
+                    "mimic joint '{}' follows '{leader}': {why}",
+                    follower.name
+                )))
+            };
+            if follower.kind.nq() != 1 {
+                return bad("only revolute, continuous and prismatic joints can mimic");
+            }
+            if !(multiplier.is_finite() && offset.is_finite()) {
+                return bad("its multiplier and offset must be finite");
+            }
+            let Some(l) = self
+                .model
+                .bodies
+                .iter()
+                .position(|x| x.joint.name == leader)
+            else {
+                return bad("there is no moving joint of that name");
+            };
+            if self.mimic[l].is_some() {
+                return bad(
+                    "the leader is itself a mimic joint (chains of mimic joints are not supported)",
+                );
+            }
+            if self.model.bodies[l].joint.kind.nq() != 1 {
+                return bad("the leader must be a revolute, continuous or prismatic joint");
+            }
+            let lead = self.model.bodies[l].joint.coords;
+            let joint = &mut self.model.bodies[b].joint;
+            joint.coords = CoordinateMap {
+                q_index: lead.q_index,
+                v_index: lead.v_index,
+                scale: multiplier,
+                offset,
+            };
+            joint.mimics = Some(leader);
+        }
+        self.model.dof_parent = (!self.model.has_mimic()).then(|| dof_parents(&self.model));
+        Ok(())
+    }
+}
+
+/// Featherstone's `λ` over degrees of freedom: dof `k` of a joint hangs from dof `k − 1` of the
+/// same joint, and its first dof from the last dof of the parent body's joint.
+fn dof_parents(model: &Model) -> Vec<Option<usize>> {
+    let mut parent = vec![None; model.nv];
+    for body in &model.bodies {
+        let c = body.joint.coords;
+        for k in 0..body.joint.kind.nv() {
+            parent[c.v_index + k] = if k > 0 {
+                Some(c.v_index + k - 1)
+            } else {
+                body.parent.map(|p| {
+                    let pc = model.bodies[p].joint.coords;
+                    pc.v_index + model.bodies[p].joint.kind.nv() - 1
+                })
+            };
+        }
+    }
+    parent
+}
+
+/// A link's mass must be finite and non-negative, its inertia finite.
+fn check_inertia(link: &BodySpec) -> Result<(), ModelError> {
+    let i = &link.inertia;
+    if !(i.mass.is_finite() && i.mass >= 0.0) {
+        return Err(ModelError::Invalid(format!(
+            "link '{}': mass must be finite and not negative, got {}",
+            link.name, i.mass
+        )));
+    }
+    if !(i.h.iter().chain(i.i_bar.iter()).all(|x| x.is_finite())) {
+        return Err(ModelError::Invalid(format!(
+            "link '{}': inertia or centre of mass is not finite",
+            link.name
+        )));
+    }
+    Ok(())
+}

@@ -1,0 +1,216 @@
+//! Joint kinds and `jcalc`: the only place that knows what each kind of joint does.
+
+use crate::spatial::{Force, Matrix3, Motion, Transform, Vector3};
+use nalgebra::{Quaternion, Rotation3, Unit, UnitQuaternion};
+
+/// The kinds of joint a body can hang from. Fixed joints never appear here: their child links
+/// are fused into the parent body when the model is built.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum JointKind {
+    /// Rotation by `q` about the unit `axis` (joint frame coordinates), limited.
+    Revolute { axis: Vector3 },
+    /// Rotation by `q` about the unit `axis`, unbounded; one angle (not cos/sin).
+    Continuous { axis: Vector3 },
+    /// Translation by `q` along the unit `axis`.
+    Prismatic { axis: Vector3 },
+    /// Motion in the plane normal to `normal`: `q = [x, y, θ]`, a translation `x u + y w` in the
+    /// joint frame followed by a rotation θ about `normal`, with `u` the joint frame's x axis
+    /// (or y axis if x is along the normal) projected on the plane and `w = normal × u`.
+    /// Velocities are the time derivatives of `q` (`v = q̇`).
+    Planar {
+        normal: Vector3,
+        u: Vector3,
+        w: Vector3,
+    },
+    /// Six degrees of freedom: `q = [x y z qx qy qz qw]` (child origin in the joint frame and a
+    /// unit quaternion of the child's orientation), `v = [linear; angular]`, the child's twist
+    /// expressed in the child frame (nav_msgs/Odometry's convention; Pinocchio's free-flyer).
+    Floating,
+}
+
+/// Motion subspace `S` of a joint, expressed in the child body frame: up to six columns.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MotionSubspace {
+    /// The columns `S_k`; only the first `nv` are meaningful.
+    pub cols: [Motion; 6],
+    /// Number of columns (the joint's degrees of freedom).
+    pub nv: usize,
+}
+
+impl MotionSubspace {
+    fn single(col: Motion) -> Self {
+        let mut cols = [Motion::zero(); 6];
+        cols[0] = col;
+        MotionSubspace { cols, nv: 1 }
+    }
+
+    /// `S q̇ = Σ_k S_k q̇_k`, with every rate scaled by `scale`.
+    pub fn apply(&self, rates: &[f64], scale: f64) -> Motion {
+        let mut m = Motion::zero();
+        for (col, r) in self.cols[..self.nv].iter().zip(rates) {
+            m += *col * (r * scale);
+        }
+        m
+    }
+
+    /// `Sᵀ f`, component `k`.
+    pub fn project(&self, k: usize, f: &Force) -> f64 {
+        self.cols[k].dot(f)
+    }
+}
+
+impl JointKind {
+    /// A planar kind moving in the plane normal to `normal` (normalised here; must be non-zero).
+    pub fn planar(normal: Vector3) -> Self {
+        let n = normal.normalize();
+        let seed = if n.x.abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
+        let u = (seed - n * n.dot(&seed)).normalize();
+        JointKind::Planar {
+            normal: n,
+            u,
+            w: n.cross(&u),
+        }
+    }
+
+    /// Number of position coordinates.
+    pub fn nq(&self) -> usize {
+        match self {
+            JointKind::Revolute { .. }
+            | JointKind::Continuous { .. }
+            | JointKind::Prismatic { .. } => 1,
+            JointKind::Planar { .. } => 3,
+            JointKind::Floating => 7,
+        }
+    }
+
+    /// Number of velocity coordinates.
+    pub fn nv(&self) -> usize {
+        match self {
+            JointKind::Floating => 6,
+            k => k.nq(),
+        }
+    }
+
+    /// The name used in URDF and on the command line.
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            JointKind::Revolute { .. } => "revolute",
+            JointKind::Continuous { .. } => "continuous",
+            JointKind::Prismatic { .. } => "prismatic",
+            JointKind::Planar { .. } => "planar",
+            JointKind::Floating => "floating",
+        }
+    }
+
+    /// `jcalc`: the joint transform `X_J(q)` (joint frame → child body frame) and the motion
+    /// subspace `S(q)` in child body coordinates. `q` holds this joint's `nq()` coordinates.
+    pub fn jcalc(&self, q: &[f64]) -> (Transform, MotionSubspace) {
+        match *self {
+            JointKind::Revolute { axis } | JointKind::Continuous { axis } => (
+                Transform::rotation(axis_rotation(&axis, q[0]).transpose()),
+                MotionSubspace::single(Motion::new(axis, Vector3::zeros())),
+            ),
+            JointKind::Prismatic { axis } => (
+                Transform::translation(axis * q[0]),
+                MotionSubspace::single(Motion::new(Vector3::zeros(), axis)),
+            ),
+            JointKind::Planar { normal, u, w } => {
+                let e = axis_rotation(&normal, q[2]).transpose();
+                let mut cols = [Motion::zero(); 6];
+                cols[0] = Motion::new(Vector3::zeros(), e * u);
+                cols[1] = Motion::new(Vector3::zeros(), e * w);
+                cols[2] = Motion::new(normal, Vector3::zeros());
+                let x = Transform {
+                    rot: e,
+                    trans: u * q[0] + w * q[1],
+                };
+                (x, MotionSubspace { cols, nv: 3 })
+            }
+            JointKind::Floating => {
+                let rotation = quaternion_rotation(q);
+                let x = Transform::from_pose(&rotation, &Vector3::new(q[0], q[1], q[2]));
+                let mut cols = [Motion::zero(); 6];
+                for k in 0..3 {
+                    cols[k].lin[k] = 1.0;
+                    cols[k + 3].ang[k] = 1.0;
+                }
+                (x, MotionSubspace { cols, nv: 6 })
+            }
+        }
+    }
+
+    /// The velocity-product term `c_J = S̊(q) q̇` (the apparent derivative of `S` in the child
+    /// frame times `q̇`), zero for every kind whose `S` is constant in the child frame.
+    /// `qd` holds the joint's velocity coordinates, already scaled.
+    pub fn bias(&self, q: &[f64], qd: &[f64]) -> Motion {
+        match *self {
+            JointKind::Planar { normal, u, w } => {
+                // S = [0 0 n; E u  E w  0] with E = R(θ)ᵀ; d(E)/dt = −θ̇ n× E, so
+                // c_J = [0; −θ̇ n × E (ẋ u + ẏ w)].
+                let e = axis_rotation(&normal, q[2]).transpose();
+                let planar_velocity = e * (u * qd[0] + w * qd[1]);
+                Motion::new(Vector3::zeros(), -normal.cross(&planar_velocity) * qd[2])
+            }
+            _ => Motion::zero(),
+        }
+    }
+}
+
+/// Rotation matrix of angle `angle` about the unit vector `axis`.
+pub fn axis_rotation(axis: &Vector3, angle: f64) -> Matrix3 {
+    Rotation3::from_axis_angle(&Unit::new_unchecked(*axis), angle).into_inner()
+}
+
+/// Rotation matrix of the (normalised) quaternion stored at `q[3..7]` as (x, y, z, w).
+pub fn quaternion_rotation(q: &[f64]) -> Matrix3 {
+    let quat = UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5]));
+    quat.to_rotation_matrix().into_inner()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `S` must be the derivative of the joint placement: the child's velocity obtained by
+    /// differentiating `X_J(q)` numerically equals `S q̇` — checks each kind's `jcalc`.
+    #[test]
+    fn subspace_is_the_derivative_of_the_placement() {
+        let kinds = [
+            JointKind::Revolute {
+                axis: Vector3::new(1.0, 2.0, -0.5).normalize(),
+            },
+            JointKind::Prismatic {
+                axis: Vector3::new(0.0, -1.0, 1.0).normalize(),
+            },
+            JointKind::planar(Vector3::new(0.0, -1.0, 0.0)),
+        ];
+        for kind in kinds {
+            let n = kind.nq();
+            let q: Vec<f64> = (0..n).map(|i| 0.3 + 0.4 * i as f64).collect();
+            let qd: Vec<f64> = (0..n).map(|i| -0.7 + 0.5 * i as f64).collect();
+            let h = 1e-6;
+            let step = |s: f64| -> Vec<f64> { q.iter().zip(&qd).map(|(a, b)| a + s * b).collect() };
+            let (x0, s) = kind.jcalc(&q);
+            let (xp, _) = kind.jcalc(&step(h));
+            let (xm, _) = kind.jcalc(&step(-h));
+            // Child pose in joint frame: R = Eᵀ, p = r. Body-frame twist: ω× = Rᵀ Ṙ, v = Rᵀ ṗ.
+            let r = x0.rot.transpose();
+            let r_dot = (xp.rot.transpose() - xm.rot.transpose()) / (2.0 * h);
+            let p_dot = (xp.trans - xm.trans) / (2.0 * h);
+            let w = r.transpose() * r_dot;
+            let twist = Motion::new(
+                Vector3::new(w[(2, 1)], w[(0, 2)], w[(1, 0)]),
+                r.transpose() * p_dot,
+            );
+            let expected = s.apply(&qd, 1.0);
+            assert!(
+                (twist.to_vector() - expected.to_vector()).norm() < 1e-8,
+                "{kind:?}: {twist:?} vs {expected:?}"
+            );
+        }
+    }
+}

@@ -1,0 +1,220 @@
+//! The robot model: an immutable kinematic tree of rigid bodies (Pinocchio's `Model`,
+//! Featherstone's `parent`, `jtype`, `Xtree`, `I`).
+//!
+//! Bodies are numbered `0..n` in topological order (a parent always comes before its children).
+//! Body `i` hangs from its parent (`None`: the fixed root link, i.e. the world) by joint `i`;
+//! its frame is the frame of the URDF link it was made from, and every link joined to it by
+//! fixed joints is fused into it (their inertias added, their frames kept in [`LinkFrame`]s).
+
+mod builder;
+pub mod examples;
+mod joint;
+
+pub use builder::{BodySpec, JointSpec, ModelBuilder, ModelOptions};
+pub use joint::{axis_rotation, quaternion_rotation, JointKind, MotionSubspace};
+
+use crate::error::ModelError;
+use crate::spatial::{Inertia, Transform, Vector3};
+
+/// How a joint's coordinates are found in the model's `q` and `v` vectors.
+///
+/// An ordinary joint owns `q[q_index..q_index+nq]` and `v[v_index..v_index+nv]` with
+/// `scale = 1`, `offset = 0`. A mimic follower owns nothing: it reads its leader's coordinate,
+/// `q = scale · q_leader + offset`, `q̇ = scale · q̇_leader`, and its effort is projected onto the
+/// leader, `τ_leader += scale · Sᵀ f`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoordinateMap {
+    /// First position coordinate read by this joint.
+    pub q_index: usize,
+    /// First velocity coordinate read by this joint.
+    pub v_index: usize,
+    /// Multiplier applied to the coordinates read.
+    pub scale: f64,
+    /// Offset added to the (single) position coordinate read.
+    pub offset: f64,
+}
+
+/// Position, velocity and effort limits and the joint's `<dynamics>` from URDF (not used by the
+/// rigid-body algorithms themselves).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointLimits {
+    pub lower: f64,
+    pub upper: f64,
+    pub velocity: f64,
+    pub effort: f64,
+    pub damping: f64,
+    pub friction: f64,
+}
+
+impl Default for JointLimits {
+    fn default() -> Self {
+        JointLimits {
+            lower: f64::NEG_INFINITY,
+            upper: f64::INFINITY,
+            velocity: f64::INFINITY,
+            effort: f64::INFINITY,
+            damping: 0.0,
+            friction: 0.0,
+        }
+    }
+}
+
+/// The joint a body hangs from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Joint {
+    /// URDF joint name.
+    pub name: String,
+    /// What the joint does.
+    pub kind: JointKind,
+    /// Where its coordinates live.
+    pub coords: CoordinateMap,
+    /// Name of the leader joint if this joint mimics one.
+    pub mimics: Option<String>,
+    /// Limits and friction from URDF.
+    pub limits: JointLimits,
+}
+
+impl Joint {
+    /// True when the joint reads another joint's coordinate.
+    pub fn is_mimic(&self) -> bool {
+        self.mimics.is_some()
+    }
+}
+
+/// A rigid body of the tree.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Body {
+    /// Name of the URDF link whose frame is the body frame.
+    pub name: String,
+    /// Parent body, or `None` when the parent is the fixed root link (the world).
+    pub parent: Option<usize>,
+    /// The joint connecting the parent to this body.
+    pub joint: Joint,
+    /// `X_tree`: the transform from the parent body's frame to this joint's frame (the joint
+    /// placement, a URDF `<origin>` composed with any fused fixed joints before it).
+    pub x_tree: Transform,
+    /// Spatial inertia in the body frame, with every fused link's inertia added.
+    pub inertia: Inertia,
+}
+
+/// Where a URDF link ended up: on which body, and how its frame sits in the body frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinkFrame {
+    /// URDF link name.
+    pub name: String,
+    /// The body carrying the link, or `None` for links fixed to the root (world).
+    pub body: Option<usize>,
+    /// The transform from the body frame (or the root frame) to the link frame.
+    pub x_body_link: Transform,
+}
+
+/// The immutable robot model. Algorithms read it and write only into a
+/// [`Workspace`](crate::Workspace).
+#[derive(Clone, Debug)]
+pub struct Model {
+    /// Robot name from URDF.
+    pub name: String,
+    /// Bodies in topological order.
+    pub bodies: Vec<Body>,
+    /// Every URDF link, fused or not, in document order.
+    pub links: Vec<LinkFrame>,
+    /// Name of the root link (the world when the base is fixed).
+    pub root_link: String,
+    /// Links fused into a parent body through fixed joints (or into the root).
+    pub fused_links: Vec<String>,
+    /// Gravity acceleration in root (world) coordinates, m/s²; default (0, 0, −9.81).
+    pub gravity: Vector3,
+    /// Number of position coordinates.
+    pub nq: usize,
+    /// Number of velocity coordinates.
+    pub nv: usize,
+    /// For each velocity coordinate, the velocity coordinate of the nearest coordinate on the
+    /// path to the root (Featherstone's `λ` over degrees of freedom), when the tree's sparsity
+    /// holds; `None` when a mimic joint couples coordinates across branches.
+    pub dof_parent: Option<Vec<Option<usize>>>,
+}
+
+/// One joint that carries coordinates, as listed by `model --json`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CoordinateJoint<'a> {
+    pub name: &'a str,
+    pub kind: &'a JointKind,
+    pub q_index: usize,
+    pub nq: usize,
+    pub v_index: usize,
+    pub nv: usize,
+}
+
+impl Model {
+    /// Number of bodies.
+    pub fn nbodies(&self) -> usize {
+        self.bodies.len()
+    }
+
+    /// True when some joint mimics another.
+    pub fn has_mimic(&self) -> bool {
+        self.bodies.iter().any(|b| b.joint.is_mimic())
+    }
+
+    /// The joints that own coordinates, in coordinate order.
+    pub fn coordinate_joints(&self) -> impl Iterator<Item = CoordinateJoint<'_>> {
+        self.bodies
+            .iter()
+            .filter(|b| !b.joint.is_mimic())
+            .map(|b| CoordinateJoint {
+                name: &b.joint.name,
+                kind: &b.joint.kind,
+                q_index: b.joint.coords.q_index,
+                nq: b.joint.kind.nq(),
+                v_index: b.joint.coords.v_index,
+                nv: b.joint.kind.nv(),
+            })
+    }
+
+    /// The joint owning position coordinate `index` (with the offset inside the joint).
+    pub fn joint_of_q(&self, index: usize) -> Option<(&str, usize)> {
+        self.coordinate_joints()
+            .find(|j| (j.q_index..j.q_index + j.nq).contains(&index))
+            .map(|j| (j.name, index - j.q_index))
+    }
+
+    /// The joint owning velocity coordinate `index` (with the offset inside the joint).
+    pub fn joint_of_v(&self, index: usize) -> Option<(&str, usize)> {
+        self.coordinate_joints()
+            .find(|j| (j.v_index..j.v_index + j.nv).contains(&index))
+            .map(|j| (j.name, index - j.v_index))
+    }
+
+    /// Human-readable name of velocity coordinate `index`: the joint name, with the component
+    /// for multi-dof joints (`base[2]`).
+    pub fn v_name(&self, index: usize) -> String {
+        match self.joint_of_v(index) {
+            Some((name, 0)) if self.v_dof_count(name) == 1 => name.to_string(),
+            Some((name, k)) => format!("{name}[{k}]"),
+            None => format!("v[{index}]"),
+        }
+    }
+
+    fn v_dof_count(&self, name: &str) -> usize {
+        self.coordinate_joints()
+            .find(|j| j.name == name)
+            .map_or(0, |j| j.nv)
+    }
+
+    /// Index of the body made from link `name`, or of the body it is fused into.
+    pub fn link(&self, name: &str) -> Option<&LinkFrame> {
+        self.links.iter().find(|l| l.name == name)
+    }
+
+    /// The model with a different gravity vector.
+    pub fn with_gravity(mut self, gravity: Vector3) -> Result<Self, ModelError> {
+        if !gravity.iter().all(|g| g.is_finite()) {
+            return Err(ModelError::Invalid(format!(
+                "gravity must be finite, got ({}, {}, {})",
+                gravity.x, gravity.y, gravity.z
+            )));
+        }
+        self.gravity = gravity;
+        Ok(self)
+    }
+}

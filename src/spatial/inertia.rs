@@ -1,0 +1,106 @@
+//! Rigid-body spatial inertia.
+
+use super::{skew, Force, Matrix3, Matrix6, Motion, Vector3};
+
+/// The spatial inertia of a rigid body about the origin of the frame it is expressed in
+/// (handout eq. 39):
+///
+/// `I = [Ī  h×; h×ᵀ  m 1]`, with `h = m c` and `Ī = I_c − m c× c×`,
+///
+/// where `m` is the mass, `c` the centre of mass and `I_c` the rotational inertia about the
+/// centre of mass (all in the same frame). Stored compactly as `(m, h, Ī)`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Inertia {
+    /// Mass m (kg).
+    pub mass: f64,
+    /// First moment of mass `h = m c` (kg·m).
+    pub h: Vector3,
+    /// Rotational inertia about the frame origin, `Ī` (kg·m²).
+    pub i_bar: Matrix3,
+}
+
+impl Inertia {
+    /// From mass, centre of mass `com` and rotational inertia `i_com` about the centre of mass
+    /// (axes parallel to the frame's).
+    pub fn from_com(mass: f64, com: &Vector3, i_com: &Matrix3) -> Self {
+        let cx = skew(com);
+        Inertia {
+            mass,
+            h: com * mass,
+            i_bar: i_com - cx * cx * mass,
+        }
+    }
+
+    /// The zero inertia (a massless body).
+    pub fn zero() -> Self {
+        Self::default()
+    }
+
+    /// `I v = [Ī ω + h × v; m v − h × ω]`: the momentum of a body moving with velocity `v`
+    /// (or the force needed to give it acceleration `v`).
+    pub fn apply(&self, v: &Motion) -> Force {
+        Force::new(
+            self.i_bar * v.ang + self.h.cross(&v.lin),
+            v.lin * self.mass - self.h.cross(&v.ang),
+        )
+    }
+
+    /// Centre of mass `c = h / m`; the frame origin for a massless body.
+    pub fn com(&self) -> Vector3 {
+        if self.mass > 0.0 {
+            self.h / self.mass
+        } else {
+            Vector3::zeros()
+        }
+    }
+
+    /// The dense 6×6 matrix `[Ī h×; h×ᵀ m 1]`.
+    pub fn to_matrix(&self) -> Matrix6 {
+        let mut m = Matrix6::zeros();
+        let hx = skew(&self.h);
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.i_bar);
+        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&hx);
+        m.fixed_view_mut::<3, 3>(3, 0).copy_from(&hx.transpose());
+        m.fixed_view_mut::<3, 3>(3, 3)
+            .copy_from(&(Matrix3::identity() * self.mass));
+        m
+    }
+}
+
+impl std::ops::Add for Inertia {
+    type Output = Inertia;
+    fn add(self, o: Inertia) -> Inertia {
+        Inertia {
+            mass: self.mass + o.mass,
+            h: self.h + o.h,
+            i_bar: self.i_bar + o.i_bar,
+        }
+    }
+}
+
+impl std::ops::AddAssign for Inertia {
+    fn add_assign(&mut self, o: Inertia) {
+        self.mass += o.mass;
+        self.h += o.h;
+        self.i_bar += o.i_bar;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn point_mass_parallel_axis() {
+        // A point mass m at c = (0, 0, l) has Ī = m l² about the x and y axes, 0 about z.
+        let (m, l) = (2.0, 0.5);
+        let i = Inertia::from_com(m, &Vector3::new(0.0, 0.0, l), &Matrix3::zeros());
+        assert!(
+            (i.i_bar - Matrix3::from_diagonal(&Vector3::new(m * l * l, m * l * l, 0.0))).norm()
+                < 1e-15
+        );
+        let v = Motion::new(Vector3::new(0.3, -0.2, 0.9), Vector3::new(1.0, 2.0, -1.0));
+        assert!((i.apply(&v).to_vector() - i.to_matrix() * v.to_vector()).norm() < 1e-14);
+        assert!((i.com() - Vector3::new(0.0, 0.0, l)).norm() < 1e-15);
+    }
+}

@@ -1,0 +1,209 @@
+//! Plücker coordinate transforms, stored as a rotation and a translation.
+
+use super::{skew, Force, Inertia, Matrix3, Matrix6, Motion, Vector3};
+
+/// The Plücker transform `ᴮX_A` taking motion vectors from frame A coordinates to frame B
+/// coordinates (handout eq. 38, Featherstone's `rot(E) · xlt(r)`):
+///
+/// `ᴮX_A = [E 0; −E r× E]`,
+///
+/// where `rot` is `E` (rotates A coordinates into B coordinates, so `E = Rᵀ` for `R` the
+/// orientation of B in A) and `trans` is `r` (the origin of B, in A coordinates).
+/// Forces transform with `ᴮX*_A = ᴮX_A^{-T}`; `Xᵀ` takes forces from B back to A.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Transform {
+    /// `E`: rotation from A coordinates to B coordinates.
+    pub rot: Matrix3,
+    /// `r`: position of B's origin, in A coordinates.
+    pub trans: Vector3,
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Self::identity()
+    }
+}
+
+impl Transform {
+    /// The identity transform.
+    pub fn identity() -> Self {
+        Self {
+            rot: Matrix3::identity(),
+            trans: Vector3::zeros(),
+        }
+    }
+
+    /// The transform into a frame B placed in A at `position` with orientation `rotation`
+    /// (rotation matrix of B's axes in A coordinates, as a URDF `<origin>` gives them).
+    pub fn from_pose(rotation: &Matrix3, position: &Vector3) -> Self {
+        Self {
+            rot: rotation.transpose(),
+            trans: *position,
+        }
+    }
+
+    /// A pure rotation, `rot(E)`.
+    pub fn rotation(e: Matrix3) -> Self {
+        Self {
+            rot: e,
+            trans: Vector3::zeros(),
+        }
+    }
+
+    /// A pure translation, `xlt(r)`: B's origin at `r` in A, axes parallel.
+    pub fn translation(r: Vector3) -> Self {
+        Self {
+            rot: Matrix3::identity(),
+            trans: r,
+        }
+    }
+
+    /// `X m = [E ω; E (v − r × ω)]`.
+    pub fn apply_motion(&self, m: &Motion) -> Motion {
+        Motion::new(
+            self.rot * m.ang,
+            self.rot * (m.lin - self.trans.cross(&m.ang)),
+        )
+    }
+
+    /// `X* f = [E (n − r × f); E f]`: a force from A coordinates into B coordinates.
+    pub fn apply_force(&self, f: &Force) -> Force {
+        Force::new(
+            self.rot * (f.ang - self.trans.cross(&f.lin)),
+            self.rot * f.lin,
+        )
+    }
+
+    /// `X⁻¹ m = [Eᵀ ω; Eᵀ v + r × Eᵀ ω]`: a motion from B coordinates back into A coordinates.
+    pub fn inverse_apply_motion(&self, m: &Motion) -> Motion {
+        let ang = self.rot.tr_mul(&m.ang);
+        Motion::new(ang, self.rot.tr_mul(&m.lin) + self.trans.cross(&ang))
+    }
+
+    /// `Xᵀ f = [Eᵀ n + r × Eᵀ f; Eᵀ f]`: a force from B coordinates back into A coordinates.
+    pub fn transpose_apply_force(&self, f: &Force) -> Force {
+        let lin = self.rot.tr_mul(&f.lin);
+        Force::new(self.rot.tr_mul(&f.ang) + self.trans.cross(&lin), lin)
+    }
+
+    /// Composition `ᶜX_A = ᶜX_B · ᴮX_A` (`self` is `ᶜX_B`, `inner` is `ᴮX_A`):
+    /// `E = E_CB E_BA`, `r = r_BA + E_BAᵀ r_CB`.
+    pub fn compose(&self, inner: &Transform) -> Transform {
+        Transform {
+            rot: self.rot * inner.rot,
+            trans: inner.trans + inner.rot.tr_mul(&self.trans),
+        }
+    }
+
+    /// `ᴬX_B = (ᴮX_A)⁻¹`: `E' = Eᵀ`, `r' = −E r`.
+    pub fn inverse(&self) -> Transform {
+        Transform {
+            rot: self.rot.transpose(),
+            trans: -(self.rot * self.trans),
+        }
+    }
+
+    /// `Xᵀ I X`: a rigid-body inertia given in B coordinates, expressed in A coordinates.
+    pub fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia {
+        // Rotate into A's axes (still about B's origin), then move the origin by r:
+        // h_A = h' + m r,  Ī_A = Ī' − r× h'× − h'× r× − m r× r×.
+        let h_rot = self.rot.tr_mul(&inertia.h);
+        let i_rot = self.rot.transpose() * inertia.i_bar * self.rot;
+        let rx = skew(&self.trans);
+        let hx = skew(&h_rot);
+        Inertia {
+            mass: inertia.mass,
+            h: h_rot + self.trans * inertia.mass,
+            i_bar: i_rot - rx * hx - hx * rx - rx * rx * inertia.mass,
+        }
+    }
+
+    /// `Xᵀ M X` for a dense symmetric 6×6 inertia `M = [A B; Bᵀ C]` given in B coordinates
+    /// (an articulated-body inertia), expressed in A coordinates; computed by blocks.
+    pub fn transpose_apply_matrix6(&self, m: &Matrix6) -> Matrix6 {
+        let e = &self.rot;
+        let a = e.transpose() * m.fixed_view::<3, 3>(0, 0) * e;
+        let b = e.transpose() * m.fixed_view::<3, 3>(0, 3) * e;
+        let c = e.transpose() * m.fixed_view::<3, 3>(3, 3) * e;
+        // xlt(r)ᵀ [A B; Bᵀ C] xlt(r) with xlt(r) = [1 0; −r× 1]:
+        // [A − B r× + r× Bᵀ − r× C r×,  B + r× C;  (B + r× C)ᵀ,  C].
+        let rx = skew(&self.trans);
+        let b_new = b + rx * c;
+        let a_new = a - b * rx + rx * b.transpose() - rx * c * rx;
+        let mut out = Matrix6::zeros();
+        out.fixed_view_mut::<3, 3>(0, 0).copy_from(&a_new);
+        out.fixed_view_mut::<3, 3>(0, 3).copy_from(&b_new);
+        out.fixed_view_mut::<3, 3>(3, 0)
+            .copy_from(&b_new.transpose());
+        out.fixed_view_mut::<3, 3>(3, 3).copy_from(&c);
+        out
+    }
+
+    /// The dense 6×6 motion transform `[E 0; −E r× E]` (for tests and edges, not hot paths).
+    pub fn to_matrix(&self) -> Matrix6 {
+        let mut x = Matrix6::zeros();
+        x.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.rot);
+        x.fixed_view_mut::<3, 3>(3, 3).copy_from(&self.rot);
+        x.fixed_view_mut::<3, 3>(3, 0)
+            .copy_from(&(-self.rot * skew(&self.trans)));
+        x
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Rotation3, Vector6};
+
+    fn sample(seed: f64) -> Transform {
+        let r = Rotation3::from_euler_angles(0.3 * seed, -0.7 + seed, 1.1 * seed);
+        Transform::from_pose(r.matrix(), &Vector3::new(0.2 * seed, -0.5, 0.9 - seed))
+    }
+
+    #[test]
+    fn handout_translation_matrix() {
+        // Handout eq. 19: ⁻¹X₀ for a translation by q₀ along x has lower-left block
+        // [0 0 0; 0 0 −q₀; 0 q₀ 0], i.e. −r× with r = (−q₀, 0, 0)... the handout writes the
+        // child-to-parent transform, the inverse of xlt(q₀ x̂).
+        let q0 = 0.37;
+        let x_child_parent = Transform::translation(Vector3::new(q0, 0.0, 0.0));
+        let m = x_child_parent.inverse().to_matrix();
+        let lower_left = m.fixed_view::<3, 3>(3, 0).clone_owned();
+        let expected = Matrix3::new(0.0, 0.0, 0.0, 0.0, 0.0, -q0, 0.0, q0, 0.0);
+        assert!((lower_left - expected).norm() < 1e-15);
+    }
+
+    #[test]
+    fn operations_match_dense_matrices() {
+        let x = sample(0.4);
+        let y = sample(-1.3);
+        let xm = x.to_matrix();
+        let m = Motion::new(Vector3::new(0.1, 0.2, -0.3), Vector3::new(1.0, -2.0, 0.5));
+        let f = Force::new(Vector3::new(-0.4, 0.6, 0.2), Vector3::new(0.3, 0.9, -1.5));
+        let xf = xm.try_inverse().unwrap().transpose();
+        assert!((x.apply_motion(&m).to_vector() - xm * m.to_vector()).norm() < 1e-14);
+        assert!((x.apply_force(&f).to_vector() - xf * f.to_vector()).norm() < 1e-14);
+        assert!(
+            (x.inverse_apply_motion(&m).to_vector() - xm.try_inverse().unwrap() * m.to_vector())
+                .norm()
+                < 1e-13
+        );
+        assert!(
+            (x.transpose_apply_force(&f).to_vector() - xm.transpose() * f.to_vector()).norm()
+                < 1e-14
+        );
+        assert!((x.compose(&y).to_matrix() - xm * y.to_matrix()).norm() < 1e-14);
+        assert!((x.inverse().to_matrix() - xm.try_inverse().unwrap()).norm() < 1e-13);
+        let inertia = Inertia::from_com(
+            2.5,
+            &Vector3::new(0.1, -0.2, 0.3),
+            &Matrix3::new(0.3, 0.01, 0.02, 0.01, 0.2, -0.03, 0.02, -0.03, 0.25),
+        );
+        let dense = xm.transpose() * inertia.to_matrix() * xm;
+        assert!((x.transpose_apply_inertia(&inertia).to_matrix() - dense).norm() < 1e-13);
+        assert!((x.transpose_apply_matrix6(&inertia.to_matrix()) - dense).norm() < 1e-13);
+        // Power is frame-invariant: (X m)·(X* f) = m·f.
+        assert!((x.apply_motion(&m).dot(&x.apply_force(&f)) - m.dot(&f)).abs() < 1e-13);
+        let _ = Vector6::<f64>::zeros();
+    }
+}

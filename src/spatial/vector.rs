@@ -1,0 +1,152 @@
+//! Motion and force vectors and the two spatial cross products.
+
+use super::Vector3;
+use nalgebra::Vector6;
+use std::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
+
+/// A spatial motion vector `[ω; v]`: angular velocity (or acceleration) `ω` and the linear
+/// velocity (or acceleration) `v` of the point at the origin of the frame it is expressed in.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Motion {
+    /// Angular part ω.
+    pub ang: Vector3,
+    /// Linear part v (of the frame origin).
+    pub lin: Vector3,
+}
+
+/// A spatial force vector `[n; f]`: moment `n` about the origin of the frame it is expressed in,
+/// and force `f`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Force {
+    /// Moment n about the frame origin.
+    pub ang: Vector3,
+    /// Force f.
+    pub lin: Vector3,
+}
+
+macro_rules! spatial_vector_ops {
+    ($t:ident) => {
+        impl $t {
+            /// The zero vector.
+            pub fn zero() -> Self {
+                Self::default()
+            }
+            /// From angular and linear parts.
+            pub fn new(ang: Vector3, lin: Vector3) -> Self {
+                Self { ang, lin }
+            }
+            /// As a dense 6-vector `[angular; linear]`.
+            pub fn to_vector(&self) -> Vector6<f64> {
+                Vector6::new(
+                    self.ang.x, self.ang.y, self.ang.z, self.lin.x, self.lin.y, self.lin.z,
+                )
+            }
+            /// From a dense 6-vector `[angular; linear]`.
+            pub fn from_vector(x: &Vector6<f64>) -> Self {
+                Self::new(x.fixed_rows::<3>(0).into(), x.fixed_rows::<3>(3).into())
+            }
+            /// True when all six components are finite.
+            pub fn is_finite(&self) -> bool {
+                self.ang
+                    .iter()
+                    .chain(self.lin.iter())
+                    .all(|x| x.is_finite())
+            }
+        }
+        impl Add for $t {
+            type Output = $t;
+            fn add(self, o: $t) -> $t {
+                $t::new(self.ang + o.ang, self.lin + o.lin)
+            }
+        }
+        impl Sub for $t {
+            type Output = $t;
+            fn sub(self, o: $t) -> $t {
+                $t::new(self.ang - o.ang, self.lin - o.lin)
+            }
+        }
+        impl AddAssign for $t {
+            fn add_assign(&mut self, o: $t) {
+                self.ang += o.ang;
+                self.lin += o.lin;
+            }
+        }
+        impl SubAssign for $t {
+            fn sub_assign(&mut self, o: $t) {
+                self.ang -= o.ang;
+                self.lin -= o.lin;
+            }
+        }
+        impl Neg for $t {
+            type Output = $t;
+            fn neg(self) -> $t {
+                $t::new(-self.ang, -self.lin)
+            }
+        }
+        impl Mul<f64> for $t {
+            type Output = $t;
+            fn mul(self, s: f64) -> $t {
+                $t::new(self.ang * s, self.lin * s)
+            }
+        }
+    };
+}
+
+spatial_vector_ops!(Motion);
+spatial_vector_ops!(Force);
+
+impl Motion {
+    /// Spatial cross product for motions (handout eq. 40, Featherstone's `crm`):
+    /// `[ω; v] ×̂ [m_ω; m_v] = [ω × m_ω; ω × m_v + v × m_ω]`.
+    pub fn cross_motion(&self, m: &Motion) -> Motion {
+        Motion::new(
+            self.ang.cross(&m.ang),
+            self.ang.cross(&m.lin) + self.lin.cross(&m.ang),
+        )
+    }
+
+    /// Spatial cross product for forces (Featherstone's `crf`, `v ×* f = −(v ×̂)ᵀ f`):
+    /// `[ω; v] ×* [n; f] = [ω × n + v × f; ω × f]`.
+    pub fn cross_force(&self, f: &Force) -> Force {
+        Force::new(
+            self.ang.cross(&f.ang) + self.lin.cross(&f.lin),
+            self.ang.cross(&f.lin),
+        )
+    }
+
+    /// The scalar product with a force, `mᵀ f` (power when `m` is a velocity; the handout's
+    /// spatial transpose `m^S f`). Both must be expressed in the same frame.
+    pub fn dot(&self, f: &Force) -> f64 {
+        self.ang.dot(&f.ang) + self.lin.dot(&f.lin)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spatial::skew;
+    use nalgebra::Matrix6;
+
+    fn crm_matrix(v: &Motion) -> Matrix6<f64> {
+        let mut m = Matrix6::zeros();
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&skew(&v.ang));
+        m.fixed_view_mut::<3, 3>(3, 3).copy_from(&skew(&v.ang));
+        m.fixed_view_mut::<3, 3>(3, 0).copy_from(&skew(&v.lin));
+        m
+    }
+
+    #[test]
+    fn cross_products_match_featherstone_matrices() {
+        let v = Motion::new(Vector3::new(0.3, -1.2, 0.7), Vector3::new(2.0, 0.1, -0.4));
+        let m = Motion::new(Vector3::new(-0.5, 0.9, 1.1), Vector3::new(0.2, -0.3, 0.6));
+        let f = Force::new(Vector3::new(1.5, 0.4, -2.2), Vector3::new(-0.7, 0.8, 0.05));
+        let crm = crm_matrix(&v);
+        let crf = -crm.transpose();
+        assert!((v.cross_motion(&m).to_vector() - crm * m.to_vector()).norm() < 1e-14);
+        assert!((v.cross_force(&f).to_vector() - crf * f.to_vector()).norm() < 1e-14);
+        // v ×̂ v = 0, and the power of m ×̂ v against f equals −(power of v against m ×* f)... the
+        // duality (v ×̂ m)·f = −m·(v ×* f).
+        assert!(v.cross_motion(&v).to_vector().norm() < 1e-15);
+        assert!((v.cross_motion(&m).dot(&f) + m.dot(&v.cross_force(&f))).abs() < 1e-13);
+    }
+}

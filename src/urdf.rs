@@ -1,0 +1,175 @@
+//! URDF → [`Model`], through `urdf-rs`.
+//!
+//! Dynamics needs links, joints and inertias only: `<visual>`, `<collision>`, `<material>`,
+//! `<gazebo>` and `<transmission>` are removed before parsing, so a description is never refused
+//! for a drawing detail (a `<texture/>` without a file name, an odd mesh tag).
+//!
+//! Conventions: `<origin rpy>` is roll about x, then pitch about y, then yaw about z (fixed axes:
+//! `R = Rz(yaw) Ry(pitch) Rx(roll)`); an `<inertial>`'s tensor is given in the frame of its
+//! `<origin>`; a link with no `<inertial>` is massless.
+
+use crate::error::ModelError;
+use crate::model::{
+    BodySpec, JointKind, JointLimits, JointSpec, Model, ModelBuilder, ModelOptions,
+};
+use crate::spatial::{Inertia, Matrix3, Transform, Vector3};
+use nalgebra::Rotation3;
+use std::path::Path;
+
+/// Elements that only matter for drawing or simulation plugins.
+const IGNORED_ELEMENTS: [&str; 5] = ["visual", "collision", "material", "gazebo", "transmission"];
+
+/// Builds a model from URDF text.
+pub fn model_from_str(text: &str, options: &ModelOptions) -> Result<Model, ModelError> {
+    let robot = parse(text)?;
+    let mut builder = ModelBuilder::new(&robot.name);
+    for link in &robot.links {
+        builder.link(BodySpec {
+            name: link.name.clone(),
+            inertia: link_inertia(link)?,
+        });
+    }
+    for joint in &robot.joints {
+        builder.joint(joint_spec(joint)?);
+    }
+    builder.build(options)
+}
+
+/// Builds a model from a URDF file.
+pub fn model_from_file(path: &Path, options: &ModelOptions) -> Result<Model, ModelError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| ModelError::Io(format!("{}: {e}", path.display())))?;
+    model_from_str(&text, options)
+}
+
+/// Parses the text with the elements dynamics does not need removed.
+fn parse(text: &str) -> Result<urdf_rs::Robot, ModelError> {
+    let mut root: xml::Element = text
+        .parse()
+        .map_err(|e| ModelError::Parse(format!("{e}")))?;
+    if root.name != "robot" {
+        return Err(ModelError::Parse(format!(
+            "the root element is <{}>, not <robot>",
+            root.name
+        )));
+    }
+    strip(&mut root);
+    urdf_rs::read_from_string(&root.to_string()).map_err(|e| ModelError::Parse(e.to_string()))
+}
+
+fn strip(element: &mut xml::Element) {
+    element.children.retain(
+        |c| !matches!(c, xml::Xml::ElementNode(e) if IGNORED_ELEMENTS.contains(&e.name.as_str())),
+    );
+    for child in &mut element.children {
+        if let xml::Xml::ElementNode(e) = child {
+            strip(e);
+        }
+    }
+}
+
+fn rotation(rpy: &[f64; 3]) -> Matrix3 {
+    Rotation3::from_euler_angles(rpy[0], rpy[1], rpy[2]).into_inner()
+}
+
+fn vector(v: &[f64; 3]) -> Vector3 {
+    Vector3::new(v[0], v[1], v[2])
+}
+
+fn all_finite(values: &[f64]) -> bool {
+    values.iter().all(|x| x.is_finite())
+}
+
+/// `<origin>` as the transform from the parent frame into the child frame.
+fn pose(origin: &urdf_rs::Pose, context: &str) -> Result<Transform, ModelError> {
+    if !all_finite(&origin.xyz.0) || !all_finite(&origin.rpy.0) {
+        return Err(ModelError::Invalid(format!(
+            "{context}: <origin> has a value that is not a finite number"
+        )));
+    }
+    Ok(Transform::from_pose(
+        &rotation(&origin.rpy),
+        &vector(&origin.xyz),
+    ))
+}
+
+/// The link's spatial inertia in the link frame.
+fn link_inertia(link: &urdf_rs::Link) -> Result<Inertia, ModelError> {
+    let inertial = &link.inertial;
+    let t = &inertial.inertia;
+    let tensor = Matrix3::new(
+        t.ixx, t.ixy, t.ixz, t.ixy, t.iyy, t.iyz, t.ixz, t.iyz, t.izz,
+    );
+    let context = format!("link '{}'", link.name);
+    pose(&inertial.origin, &context)?;
+    if !all_finite(tensor.as_slice()) || !inertial.mass.value.is_finite() {
+        return Err(ModelError::Invalid(format!(
+            "{context}: <inertial> has a value that is not a finite number"
+        )));
+    }
+    let r = rotation(&inertial.origin.rpy);
+    Ok(Inertia::from_com(
+        inertial.mass.value,
+        &vector(&inertial.origin.xyz),
+        &(r * tensor * r.transpose()),
+    ))
+}
+
+fn joint_spec(joint: &urdf_rs::Joint) -> Result<JointSpec, ModelError> {
+    use urdf_rs::JointType as T;
+    let context = format!("joint '{}'", joint.name);
+    let axis = vector(&joint.axis.xyz);
+    let unit_axis = || {
+        let norm = axis.norm();
+        if norm > 1e-9 && norm.is_finite() {
+            Ok(axis / norm)
+        } else {
+            Err(ModelError::Invalid(format!(
+                "{context}: <axis xyz> ({}, {}, {}) is not a usable direction",
+                axis.x, axis.y, axis.z
+            )))
+        }
+    };
+    let kind = match joint.joint_type {
+        T::Fixed => None,
+        T::Revolute => Some(JointKind::Revolute { axis: unit_axis()? }),
+        T::Continuous => Some(JointKind::Continuous { axis: unit_axis()? }),
+        T::Prismatic => Some(JointKind::Prismatic { axis: unit_axis()? }),
+        T::Planar => Some(JointKind::planar(unit_axis()?)),
+        T::Floating => Some(JointKind::Floating),
+        T::Spherical => {
+            return Err(ModelError::Invalid(format!(
+                "{context}: joint type 'spherical' is not supported"
+            )))
+        }
+    };
+    let l = &joint.limit;
+    let unbounded = matches!(joint.joint_type, T::Continuous | T::Floating | T::Planar);
+    let limits = JointLimits {
+        lower: if unbounded {
+            f64::NEG_INFINITY
+        } else {
+            l.lower
+        },
+        upper: if unbounded { f64::INFINITY } else { l.upper },
+        velocity: l.velocity,
+        effort: l.effort,
+        damping: joint.dynamics.as_ref().map_or(0.0, |d| d.damping),
+        friction: joint.dynamics.as_ref().map_or(0.0, |d| d.friction),
+    };
+    Ok(JointSpec {
+        name: joint.name.clone(),
+        parent: joint.parent.link.clone(),
+        child: joint.child.link.clone(),
+        origin: pose(&joint.origin, &context)?,
+        kind,
+        mimic: joint.mimic.as_ref().map(|m| {
+            (
+                m.joint.clone(),
+                m.multiplier.unwrap_or(1.0),
+                m.offset.unwrap_or(0.0),
+            )
+        }),
+        limits,
+    })
+}

@@ -1,0 +1,110 @@
+//! Scratch buffers for the algorithms (Pinocchio's `Data`): sized once from a model, reused by
+//! every call so that no call allocates.
+
+use crate::model::{Model, MotionSubspace};
+use crate::spatial::{Force, Inertia, Matrix6, Motion, Transform};
+use nalgebra::{DMatrix, DVector};
+
+/// Every intermediate quantity of the algorithms, per body and per coordinate. Quantities per
+/// body are expressed in that body's frame.
+#[derive(Clone, Debug)]
+pub struct Workspace {
+    /// The joint's own position coordinates (a mimic follower's computed from its leader).
+    pub(crate) q_joint: Vec<[f64; 7]>,
+    /// `ⁱX_λ(i) = X_J(q_i) X_tree,i`: parent body frame → body frame.
+    pub(crate) x_up: Vec<Transform>,
+    /// Motion subspace `S_i` of each body's joint.
+    pub(crate) s: Vec<MotionSubspace>,
+    /// Body spatial velocities `v_i`.
+    pub(crate) v: Vec<Motion>,
+    /// Body spatial accelerations `a_i` (including the fictitious −g of the base).
+    pub(crate) a: Vec<Motion>,
+    /// Net spatial forces `f_i` transmitted by each body's joint.
+    pub(crate) f: Vec<Force>,
+    /// Composite rigid-body inertias `I^c_i` (CRBA).
+    pub(crate) ic: Vec<Inertia>,
+    /// Articulated-body inertias `I^A_i` (ABA).
+    pub(crate) ia: Vec<Matrix6>,
+    /// Articulated bias forces `p^A_i` (ABA).
+    pub(crate) pa: Vec<Force>,
+    /// Velocity-product accelerations `c_i = c_J + v_i ×̂ v_J` (ABA).
+    pub(crate) c: Vec<Motion>,
+    /// `U_i = I^A_i S_i`, column by column (ABA).
+    pub(crate) u: Vec<[Force; 6]>,
+    /// `D_i⁻¹ = (S_iᵀ U_i)⁻¹`, in the top-left `nv × nv` block (ABA).
+    pub(crate) d_inv: Vec<Matrix6>,
+    /// `u_i = τ_i − S_iᵀ p^A_i` (ABA).
+    pub(crate) u_bias: Vec<[f64; 6]>,
+    /// Generalized forces: output of inverse dynamics, bias and gravity.
+    pub(crate) tau: DVector<f64>,
+    /// Generalized accelerations: output of forward dynamics.
+    pub(crate) qdd: DVector<f64>,
+    /// Joint-space inertia matrix `H` (full, symmetric).
+    pub(crate) mass_matrix: DMatrix<f64>,
+    /// Factor of `H` (LTL or Cholesky), kept apart so `mass_matrix` stays readable.
+    pub(crate) factor: DMatrix<f64>,
+    /// `C(q, q̇)` for forward dynamics.
+    pub(crate) bias: DVector<f64>,
+    /// Unit acceleration `e_k` (n+1 RNEA method).
+    pub(crate) unit: DVector<f64>,
+}
+
+impl Workspace {
+    /// Buffers sized for `model`.
+    pub fn new(model: &Model) -> Self {
+        let n = model.nbodies();
+        let nv = model.nv;
+        Workspace {
+            q_joint: vec![[0.0; 7]; n],
+            x_up: vec![Transform::identity(); n],
+            s: vec![MotionSubspace::default(); n],
+            v: vec![Motion::zero(); n],
+            a: vec![Motion::zero(); n],
+            f: vec![Force::zero(); n],
+            ic: vec![Inertia::zero(); n],
+            ia: vec![Matrix6::zeros(); n],
+            pa: vec![Force::zero(); n],
+            c: vec![Motion::zero(); n],
+            u: vec![[Force::zero(); 6]; n],
+            d_inv: vec![Matrix6::zeros(); n],
+            u_bias: vec![[0.0; 6]; n],
+            tau: DVector::zeros(nv),
+            qdd: DVector::zeros(nv),
+            mass_matrix: DMatrix::zeros(nv, nv),
+            factor: DMatrix::zeros(nv, nv),
+            bias: DVector::zeros(nv),
+            unit: DVector::zeros(nv),
+        }
+    }
+
+    /// The last generalized forces computed (inverse dynamics, bias or gravity).
+    pub fn tau(&self) -> &[f64] {
+        self.tau.as_slice()
+    }
+
+    /// The last generalized accelerations computed (forward dynamics).
+    pub fn qdd(&self) -> &[f64] {
+        self.qdd.as_slice()
+    }
+
+    /// The last joint-space inertia matrix computed.
+    pub fn mass_matrix(&self) -> &DMatrix<f64> {
+        &self.mass_matrix
+    }
+
+    /// Spatial velocity of body `i` in its own frame, from the last pass that computed it.
+    pub fn body_velocity(&self, i: usize) -> Motion {
+        self.v[i]
+    }
+
+    /// Net spatial force `f_i` transmitted to body `i` through its joint, in body `i`
+    /// coordinates, from the last inverse-dynamics pass (RNEA, bias or gravity).
+    pub fn joint_wrench(&self, i: usize) -> Force {
+        self.f[i]
+    }
+
+    /// `ⁱX_λ(i)` of body `i` from the last call.
+    pub fn parent_to_body(&self, i: usize) -> Transform {
+        self.x_up[i]
+    }
+}

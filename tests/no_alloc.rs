@@ -1,0 +1,82 @@
+//! Hot paths allocate nothing: every algorithm, called on a warmed-up workspace, makes zero heap
+//! allocations (counted by a global allocator; this file holds one test so nothing else runs
+//! in the process while it counts).
+
+use spatial_dynamics::algorithms::{aba, bias, crba, forward_dynamics, gravity, rnea, rnea_with};
+use spatial_dynamics::spatial::Force;
+use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, ModelOptions, Workspace};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+struct Counting;
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        System.alloc(layout)
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        System.dealloc(ptr, layout)
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        System.realloc(ptr, layout, new_size)
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations_during(f: impl FnOnce()) -> usize {
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    f();
+    ALLOCATIONS.load(Ordering::SeqCst) - before
+}
+
+#[test]
+fn algorithms_do_not_allocate() {
+    // The counter does count: a fresh vector is one allocation.
+    assert_eq!(
+        allocations_during(|| drop(std::hint::black_box(vec![1u8; 16]))),
+        1
+    );
+    let tree = include_str!("models/tree.urdf");
+    for floating_base in [false, true] {
+        let text = if floating_base {
+            tree.replace(r#"type="planar""#, r#"type="floating""#)
+        } else {
+            tree.to_string()
+        };
+        let model = urdf::model_from_str(&text, &ModelOptions::default()).unwrap();
+        let mut ws = Workspace::new(&model);
+        let mut q = vec![0.1; model.nq];
+        if floating_base {
+            q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
+        }
+        let v = vec![0.2; model.nv];
+        let a = vec![-0.3; model.nv];
+        let wrenches = vec![Force::zero(); model.nbodies()];
+        let ext = Externals {
+            wrenches: Some(&wrenches),
+            ..Default::default()
+        };
+        let run_all = |ws: &mut Workspace| {
+            rnea(&model, ws, &q, &v, &a).unwrap();
+            rnea_with(&model, ws, &q, &v, &a, &ext).unwrap();
+            bias(&model, ws, &q, &v, &ext).unwrap();
+            gravity(&model, ws, &q).unwrap();
+            crba(&model, ws, &q).unwrap();
+            aba(&model, ws, &q, &v, &a, &ext).unwrap();
+            for method in ForwardDynamicsMethod::ALL {
+                forward_dynamics(&model, ws, &q, &v, &a, method, &ext).unwrap();
+            }
+        };
+        run_all(&mut ws);
+        let count = allocations_during(|| run_all(&mut ws));
+        assert_eq!(
+            count, 0,
+            "floating base {floating_base}: {count} allocations in the algorithms"
+        );
+    }
+}
