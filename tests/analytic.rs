@@ -87,6 +87,23 @@ fn handout_particle_example() {
 }
 
 #[test]
+fn particle_urdf_is_the_handout_particle() {
+    // config/models/particle.urdf: x, then z (vertical, gravity −z): Q = (m q̈0, m (q̈1 + g)).
+    let model = urdf::model_from_str(
+        spatial_dynamics::model::examples::PARTICLE_URDF,
+        &ModelOptions::default(),
+    )
+    .unwrap();
+    let mut ws = Workspace::new(&model);
+    let mut rng = Rng::new(5);
+    for _ in 0..5 {
+        let (q, v, a) = (rng.vector(2, 2.0), rng.vector(2, 2.0), rng.vector(2, 5.0));
+        let tau = rnea(&model, &mut ws, &q, &v, &a).unwrap();
+        assert!(max_diff(tau, &[a[0], a[1] + G]) < 1e-12, "{tau:?}");
+    }
+}
+
+#[test]
 fn external_force_on_the_particle_is_subtracted() {
     let m = 1.5;
     let model = handout_particle(m);

@@ -30,7 +30,7 @@ pub struct JointSpec {
 }
 
 /// Choices made when a model is built.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct ModelOptions {
     /// Add a floating joint between the world and the root link.
     pub floating_base: bool,
@@ -38,6 +38,9 @@ pub struct ModelOptions {
     pub ignore_mimic: bool,
     /// Gravity in world coordinates (m/s²).
     pub gravity: Vector3,
+    /// Joints frozen at a position: each becomes fixed and its child link fuses into the parent
+    /// body (a mimic follower of a locked leader is locked with it).
+    pub locked: Vec<(String, f64)>,
 }
 
 impl Default for ModelOptions {
@@ -46,6 +49,7 @@ impl Default for ModelOptions {
             floating_base: false,
             ignore_mimic: false,
             gravity: Vector3::new(0.0, 0.0, -9.81),
+            locked: Vec::new(),
         }
     }
 }
@@ -146,6 +150,15 @@ impl ModelBuilder {
             )?;
             stack.extend(children[link_index[joint.child.as_str()]].iter().rev());
         }
+        if let Some((name, _)) = options
+            .locked
+            .iter()
+            .find(|(name, _)| !state.model.locked_joints.iter().any(|(l, _)| l == name))
+        {
+            return invalid(format!(
+                "cannot lock joint '{name}': there is no moving joint of that name"
+            ));
+        }
         if state.model.links.len() != self.links.len() {
             let reached: HashSet<&str> =
                 state.model.links.iter().map(|l| l.name.as_str()).collect();
@@ -194,6 +207,7 @@ impl TreeState {
             links: Vec::new(),
             root_link: root.to_string(),
             fused_links: Vec::new(),
+            locked_joints: Vec::new(),
             gravity: options.gravity,
             nq: 0,
             nv: 0,
@@ -245,8 +259,20 @@ impl TreeState {
             .expect("parents are placed before children")
             .clone();
         // Body frame → parent link frame → joint frame.
-        let x_body_joint = joint.origin.compose(&parent.x_body_link);
-        match joint.kind {
+        let mut x_body_joint = joint.origin.compose(&parent.x_body_link);
+        let mut kind = joint.kind;
+        if let (Some(k), Some(position)) = (kind, lock_position(joint, options)) {
+            if k.nq() != 1 || !position.is_finite() {
+                return Err(ModelError::Invalid(format!("cannot lock joint '{}' at {position}: only revolute, continuous and prismatic joints lock, at a finite position", joint.name)));
+            }
+            // Frozen at q: the child frame sits at X_J(q) from the joint frame, for good.
+            x_body_joint = k.jcalc(&[position]).0.compose(&x_body_joint);
+            kind = None;
+            self.model
+                .locked_joints
+                .push((joint.name.clone(), position));
+        }
+        match kind {
             None => {
                 if let Some(body) = parent.body {
                     let fused = x_body_joint.transpose_apply_inertia(&link.inertia);
@@ -353,6 +379,23 @@ impl TreeState {
         self.model.dof_parent = (!self.model.has_mimic()).then(|| dof_parents(&self.model));
         Ok(())
     }
+}
+
+/// The position a joint is locked at: its own lock, or its mimic leader's mapped through it.
+fn lock_position(joint: &JointSpec, options: &ModelOptions) -> Option<f64> {
+    let locked = |name: &str| {
+        options
+            .locked
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| *v)
+    };
+    locked(&joint.name).or_else(|| match (&joint.mimic, options.ignore_mimic) {
+        (Some((leader, multiplier, offset)), false) => {
+            locked(leader).map(|v| multiplier * v + offset)
+        }
+        _ => None,
+    })
 }
 
 /// Featherstone's `λ` over degrees of freedom: dof `k` of a joint hangs from dof `k − 1` of the

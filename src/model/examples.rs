@@ -19,7 +19,11 @@ pub fn pendulum_urdf(n: usize, length: f64, mass: f64) -> String {
     let spin = 1e-6 * mass * length * length;
     let mut urdf = format!("<robot name=\"pendulum{n}\">\n  <link name=\"world\"/>\n");
     for i in 1..=n {
-        let parent = if i == 1 { "world".to_string() } else { format!("link{}", i - 1) };
+        let parent = if i == 1 {
+            "world".to_string()
+        } else {
+            format!("link{}", i - 1)
+        };
         let z = if i == 1 { 0.0 } else { -length };
         urdf += &format!(
             "  <joint name=\"joint{i}\" type=\"continuous\">\n    <parent link=\"{parent}\"/>\n    <child link=\"link{i}\"/>\n    <origin xyz=\"0 0 {z}\"/>\n    <axis xyz=\"0 1 0\"/>\n  </joint>\n  <link name=\"link{i}\">\n    <inertial>\n      <origin xyz=\"0 0 {c}\"/>\n      <mass value=\"{mass}\"/>\n      <inertia ixx=\"{rod}\" ixy=\"0\" ixz=\"0\" iyy=\"{rod}\" iyz=\"0\" izz=\"{spin}\"/>\n    </inertial>\n  </link>\n",

@@ -122,6 +122,8 @@ pub struct Model {
     pub root_link: String,
     /// Links fused into a parent body through fixed joints (or into the root).
     pub fused_links: Vec<String>,
+    /// Joints locked at a position (turned fixed), with that position.
+    pub locked_joints: Vec<(String, f64)>,
     /// Gravity acceleration in root (world) coordinates, m/s²; default (0, 0, −9.81).
     pub gravity: Vector3,
     /// Number of position coordinates.

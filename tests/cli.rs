@@ -1,0 +1,157 @@
+//! The command-line contract: `model --json` and the `eval` request loop, run as a process.
+
+mod common;
+
+use serde_json::Value;
+use spatial_dynamics::algorithms::rnea;
+use spatial_dynamics::{urdf, ModelOptions, Workspace};
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+const TREE: &str = "tests/models/tree.urdf";
+
+fn run(args: &[&str], stdin: &str) -> (bool, String, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_spatial_dynamics"))
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(stdin.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    (
+        out.status.success(),
+        String::from_utf8(out.stdout).unwrap(),
+        String::from_utf8(out.stderr).unwrap(),
+    )
+}
+
+#[test]
+fn model_json_lists_coordinate_joints_in_order() {
+    let (ok, out, _) = run(&["model", "--urdf", TREE, "--json"], "");
+    assert!(ok);
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["nq"], 8);
+    assert_eq!(v["nv"], 8);
+    let joints = v["joints"].as_array().unwrap();
+    let names: Vec<&str> = joints.iter().map(|j| j["name"].as_str().unwrap()).collect();
+    assert_eq!(
+        names,
+        [
+            "base",
+            "left_shoulder",
+            "left_slide",
+            "right_shoulder",
+            "right_wrist",
+            "head_tilt"
+        ]
+    );
+    assert_eq!(
+        joints[0],
+        serde_json::json!({"name": "base", "type": "planar", "q_index": 0, "nq": 3, "v_index": 0, "nv": 3})
+    );
+    assert_eq!(joints[3]["type"], "continuous");
+    let (ok, out, _) = run(&["model", "--urdf", TREE, "--json", "--floating-base"], "");
+    assert!(ok);
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(
+        v["joints"][0],
+        serde_json::json!({"name": "root_joint", "type": "floating", "q_index": 0, "nq": 7, "v_index": 0, "nv": 6})
+    );
+}
+
+#[test]
+fn eval_answers_every_line_in_order_and_survives_bad_ones() {
+    let requests = [
+        r#"{"op":"gravity","q":[0,0,0,0.1,0.2,0.3,0.4,0.5]}"#,
+        r#"{"op":"gravity","q":[0,0]}"#,
+        r#"{"op":"fly","q":[]}"#,
+        r#"{"op":"gravity","q":[NaN,0,0,0,0,0,0,0]}"#,
+        r#"not json"#,
+        r#"{"op":"forward_dynamics","q":[0,0,0,0,0,0,0,0],"v":[0,0,0,0,0,0,0,0],"tau":[0,0,0,0,0,0,0,0],"method":"magic"}"#,
+        r#"{"op":"inverse_dynamics","q":[0,0,0,0,0,0,0,0],"v":[0,0,0,0,0,0,0,0],"a":[1,0,0,0,0,0,0,1e999]}"#,
+        r#"{"op":"mass_matrix","q":[0,0,0,0,0,0,0,0]}"#,
+        r#"{"op":"forward_dynamics","q":[0,0,0,0,0,0,0,0],"v":[0,0,0,0,0,0,0,0],"tau":[0,0,0,0,0,0,0,0],"method":"crba"}"#,
+    ];
+    let (ok, out, _) = run(&["eval", "--urdf", TREE], &(requests.join("\n") + "\n"));
+    assert!(ok);
+    let answers: Vec<Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(answers.len(), requests.len(), "{out}");
+    assert_eq!(answers[0]["tau"].as_array().unwrap().len(), 8);
+    for (i, expected) in [
+        (1, "q has 2 values, the model needs 8"),
+        (2, "unknown variant `fly`"),
+        (3, "bad request"),
+        (4, "bad request"),
+        (5, "unknown forward-dynamics method 'magic'"),
+        (6, "bad request"),
+    ] {
+        let error = answers[i]["error"]
+            .as_str()
+            .unwrap_or_else(|| panic!("line {i}: {}", answers[i]));
+        assert!(error.contains(expected), "line {i}: {error}");
+    }
+    let m = answers[7]["M"].as_array().unwrap();
+    assert_eq!(m.len(), 8);
+    assert!(m.iter().all(|row| row.as_array().unwrap().len() == 8));
+    assert_eq!(answers[8]["a"].as_array().unwrap().len(), 8);
+}
+
+#[test]
+fn eval_floats_round_trip_exactly() {
+    let model =
+        urdf::model_from_file(std::path::Path::new(TREE), &ModelOptions::default()).unwrap();
+    let mut ws = Workspace::new(&model);
+    let mut rng = common::Rng::new(30);
+    let (q, v, a) = (rng.vector(8, 1.0), rng.vector(8, 1.0), rng.vector(8, 1.0));
+    let expected = rnea(&model, &mut ws, &q, &v, &a).unwrap().to_vec();
+    let request = serde_json::json!({"op": "inverse_dynamics", "q": q, "v": v, "a": a}).to_string();
+    let (ok, out, _) = run(&["eval", "--urdf", TREE], &(request + "\n"));
+    assert!(ok);
+    let answer: Value = serde_json::from_str(out.trim()).unwrap();
+    let tau: Vec<f64> = answer["tau"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert_eq!(
+        tau, expected,
+        "printed values must parse back to the same f64"
+    );
+}
+
+#[test]
+fn gravity_option_and_unusable_urdf() {
+    let (ok, out, _) = run(
+        &["eval", "--builtin", "pendulum:1", "--gravity", "0,0,0"],
+        "{\"op\":\"gravity\",\"q\":[1.0]}\n",
+    );
+    assert!(ok);
+    assert_eq!(out.trim(), r#"{"tau":[0.0]}"#);
+    let (ok, _, err) = run(&["model", "--urdf", "/nonexistent.urdf", "--json"], "");
+    assert!(!ok);
+    assert!(err.contains("/nonexistent.urdf"), "{err}");
+    let dir = std::env::temp_dir().join(format!("sd_cli_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("two_roots.urdf");
+    std::fs::write(
+        &bad,
+        r#"<robot name="x"><link name="a"/><link name="b"/></robot>"#,
+    )
+    .unwrap();
+    let (ok, _, err) = run(&["eval", "--urdf", bad.to_str().unwrap()], "");
+    assert!(!ok);
+    assert!(err.contains("several root links (a, b)"), "{err}");
+    let (ok, _, err) = run(&["model", "--gravity", "0,0", "--json"], "");
+    assert!(!ok && err.contains("--gravity"), "{err}");
+}
