@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Runs the whole test suite: the Rust tests (unit, behaviour, command line), then the Python
+# tests that check us against independent references (Pinocchio) with the release binary.
+# Usage: launch_scripts/run_tests.sh        (from anywhere; sets up .venv on first use)
+set -euo pipefail
+repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$repo"
+
+if ! command -v cargo >/dev/null 2>&1; then
+    echo "cargo is needed: install Rust with rustup (https://rustup.rs) and run this again" >&2
+    exit 1
+fi
+
+echo "== Rust: build and test (release) =="
+cargo build --release --locked
+cargo test --release --locked
+
+echo "== Python: reference tests (Pinocchio) =="
+"$repo/launch_scripts/setup_python_env.sh"
+export SPATIAL_DYNAMICS_BIN="$repo/target/release/spatial_dynamics"
+"$repo/.venv/bin/python" -m pytest -q "$repo/tests/python"
