@@ -1,6 +1,8 @@
 //! The `spatial_dynamics` command: `model`, `eval` (and, later, the ROS 2 node).
 
 mod cli;
+#[cfg(feature = "node")]
+mod node;
 
 fn main() -> std::process::ExitCode {
     cli::run()

@@ -1,6 +1,8 @@
 //! The position-dependent part shared by every algorithm: joint transforms and motion
 //! subspaces (`jcalc` for each joint, then `ⁱX_λ(i) = X_J X_tree`).
 
+use super::validate::check_q;
+use crate::error::DynamicsError;
 use crate::model::{Joint, Model};
 use crate::spatial::Transform;
 use crate::Workspace;
@@ -26,9 +28,15 @@ fn joint_positions(joint: &Joint, q: &[f64], out: &mut [f64; 7]) {
     }
 }
 
-/// Placement of every body in the root (world) frame, `ⁱX_0`, for configuration `q` (already
-/// validated). Writes into `out` (one per body).
-pub fn body_placements(model: &Model, ws: &mut Workspace, q: &[f64], out: &mut [Transform]) {
+/// Placement of every body in the root (world) frame, `ⁱX_0` (world coordinates → body
+/// coordinates), for configuration `q`. Writes into `out` (one per body).
+pub fn body_placements(
+    model: &Model,
+    ws: &mut Workspace,
+    q: &[f64],
+    out: &mut [Transform],
+) -> Result<(), DynamicsError> {
+    check_q(model, q)?;
     update_joints(model, ws, q);
     for (i, body) in model.bodies.iter().enumerate() {
         out[i] = match body.parent {
@@ -36,4 +44,5 @@ pub fn body_placements(model: &Model, ws: &mut Workspace, q: &[f64], out: &mut [
             None => ws.x_up[i],
         };
     }
+    Ok(())
 }

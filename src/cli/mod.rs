@@ -32,6 +32,13 @@ enum Command {
         #[command(flatten)]
         model: ModelArgs,
     },
+    /// Run the ROS 2 node: `node [--ros-args -r __node:=NAME -r __ns:=/NS --params-file FILE -p NAME:=VALUE]`.
+    #[cfg(feature = "node")]
+    Node {
+        /// ROS arguments, after --ros-args.
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
 }
 
 /// Parses the arguments and runs the command.
@@ -40,6 +47,8 @@ pub fn run() -> ExitCode {
     let result = match cli.command {
         Command::Model { model, json } => model_info::run(&model, json),
         Command::Eval { model } => eval::run(&model),
+        #[cfg(feature = "node")]
+        Command::Node { args } => crate::node::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

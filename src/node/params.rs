@@ -1,0 +1,309 @@
+//! The node's parameters: names, types, defaults, validation, and parameter files.
+//!
+//! | name | type | default | effect |
+//! |---|---|---|---|
+//! | `robot_description` | string | `""` | URDF text; wins over `urdf_file` and the topic |
+//! | `urdf_file` | string | `""` | URDF file path, used when `robot_description` is empty |
+//! | `floating_base` | bool | `false` | add a floating joint at the root link |
+//! | `ignore_mimic` | bool | `false` | treat `<mimic>` joints as independent |
+//! | `locked_joints` | string[] | `[]` | `"NAME=POSITION"`: joints frozen and fused |
+//! | `gravity` | double[3] | `[0, 0, -9.81]` | gravity in the world frame, m/s² |
+//! | `method` | string | `aba` | forward dynamics: `aba`, `crba` or `rnea_columns` |
+//! | `command_joints` | string[] | `[]` | order of `~/commands` and `~/feedforward_commands` (empty: all joints in model order) |
+//!
+//! Every parameter can be changed at run time and takes effect at once (model parameters
+//! rebuild the model; a change that would give an unusable model is refused).
+
+use ros2_client::ParameterValue;
+use spatial_dynamics::spatial::Vector3;
+use spatial_dynamics::{ForwardDynamicsMethod, ModelOptions};
+use std::path::Path;
+
+/// The parameter values in force.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settings {
+    pub robot_description: String,
+    pub urdf_file: String,
+    pub floating_base: bool,
+    pub ignore_mimic: bool,
+    pub locked_joints: Vec<(String, f64)>,
+    pub gravity: [f64; 3],
+    pub method: ForwardDynamicsMethod,
+    pub command_joints: Vec<String>,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            robot_description: String::new(),
+            urdf_file: String::new(),
+            floating_base: false,
+            ignore_mimic: false,
+            locked_joints: Vec::new(),
+            gravity: [0.0, 0.0, -9.81],
+            method: ForwardDynamicsMethod::Aba,
+            command_joints: Vec::new(),
+        }
+    }
+}
+
+/// The names of all parameters, in declaration order.
+pub const NAMES: [&str; 8] = [
+    "robot_description",
+    "urdf_file",
+    "floating_base",
+    "ignore_mimic",
+    "locked_joints",
+    "gravity",
+    "method",
+    "command_joints",
+];
+
+/// Parameters that change the model (a change rebuilds it).
+pub const MODEL_PARAMETERS: [&str; 6] = [
+    "robot_description",
+    "urdf_file",
+    "floating_base",
+    "ignore_mimic",
+    "locked_joints",
+    "gravity",
+];
+
+impl Settings {
+    /// Each parameter's current value, for declaring it.
+    pub fn values(&self) -> Vec<(&'static str, ParameterValue)> {
+        NAMES
+            .iter()
+            .map(|&n| (n, self.get(n).expect("every name has a value")))
+            .collect()
+    }
+
+    /// The value of parameter `name`.
+    pub fn get(&self, name: &str) -> Option<ParameterValue> {
+        use ParameterValue as P;
+        Some(match name {
+            "robot_description" => P::String(self.robot_description.clone()),
+            "urdf_file" => P::String(self.urdf_file.clone()),
+            "floating_base" => P::Boolean(self.floating_base),
+            "ignore_mimic" => P::Boolean(self.ignore_mimic),
+            "locked_joints" => P::StringArray(
+                self.locked_joints
+                    .iter()
+                    .map(|(n, v)| format!("{n}={v}"))
+                    .collect(),
+            ),
+            "gravity" => P::DoubleArray(self.gravity.to_vec()),
+            "method" => P::String(self.method.name().to_string()),
+            "command_joints" => P::StringArray(self.command_joints.clone()),
+            _ => return None,
+        })
+    }
+
+    /// Sets parameter `name`, checking its type and value; the error says what is wrong.
+    pub fn set(&mut self, name: &str, value: &ParameterValue) -> Result<(), String> {
+        use ParameterValue as P;
+        let wrong = |expected: &str| {
+            Err(format!(
+                "parameter '{name}' must be {expected}, got {value:?}"
+            ))
+        };
+        match (name, value) {
+            ("robot_description", P::String(s)) => self.robot_description = s.clone(),
+            ("urdf_file", P::String(s)) => self.urdf_file = s.clone(),
+            ("floating_base", P::Boolean(b)) => self.floating_base = *b,
+            ("ignore_mimic", P::Boolean(b)) => self.ignore_mimic = *b,
+            ("locked_joints", P::StringArray(items)) => {
+                self.locked_joints = items
+                    .iter()
+                    .map(|s| parse_lock(s))
+                    .collect::<Result<_, _>>()?
+            }
+            ("gravity", P::DoubleArray(g)) if g.len() == 3 && g.iter().all(|x| x.is_finite()) => {
+                self.gravity = [g[0], g[1], g[2]]
+            }
+            ("gravity", P::IntegerArray(g)) if g.len() == 3 => {
+                self.gravity = [g[0] as f64, g[1] as f64, g[2] as f64]
+            }
+            ("gravity", _) => return wrong("three finite numbers [x, y, z] (m/s², world frame)"),
+            ("method", P::String(s)) => self.method = s.parse()?,
+            ("command_joints", P::StringArray(names)) => self.command_joints = names.clone(),
+            ("robot_description" | "urdf_file" | "method", _) => return wrong("a string"),
+            ("floating_base" | "ignore_mimic", _) => return wrong("a bool"),
+            ("locked_joints" | "command_joints", _) => return wrong("a list of strings"),
+            _ => {
+                return Err(format!(
+                    "unknown parameter '{name}' (known: {})",
+                    NAMES.join(", ")
+                ))
+            }
+        }
+        Ok(())
+    }
+
+    /// Model options from these settings.
+    pub fn model_options(&self) -> ModelOptions {
+        ModelOptions {
+            floating_base: self.floating_base,
+            ignore_mimic: self.ignore_mimic,
+            gravity: Vector3::from(self.gravity),
+            locked: self.locked_joints.clone(),
+        }
+    }
+
+    /// Applies a `--params-file`: the `ros__parameters` of the entries that match this node
+    /// (`/**`, `NAME`, `/NS/NAME`, `/**/NAME`), in file order.
+    pub fn apply_file(&mut self, path: &Path, namespace: &str, node: &str) -> Result<(), String> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| format!("--params-file {}: {e}", path.display()))?;
+        let doc: serde_yaml::Value = serde_yaml::from_str(&text)
+            .map_err(|e| format!("--params-file {}: {e}", path.display()))?;
+        let full = format!("{}/{node}", namespace.trim_end_matches('/'));
+        let serde_yaml::Value::Mapping(entries) = doc else {
+            return Err(format!(
+                "--params-file {}: expected a mapping of node names",
+                path.display()
+            ));
+        };
+        for (key, body) in entries {
+            let key = key.as_str().unwrap_or_default();
+            let matches = key == "/**"
+                || key == node
+                || key == full
+                || key == format!("/**/{node}")
+                || key == format!("/{node}") && namespace == "/";
+            if !matches {
+                continue;
+            }
+            let Some(params) = body.get("ros__parameters") else {
+                return Err(format!(
+                    "--params-file {}: entry '{key}' has no ros__parameters",
+                    path.display()
+                ));
+            };
+            let mut flat = Vec::new();
+            flatten("", params, &mut flat);
+            for (name, value) in flat {
+                let value = parameter_value(&value).map_err(|e| {
+                    format!("--params-file {}: parameter '{name}': {e}", path.display())
+                })?;
+                self.set(&name, &value)
+                    .map_err(|e| format!("--params-file {}: {e}", path.display()))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Applies `-p NAME:=VALUE` (VALUE in YAML).
+    pub fn apply_arg(&mut self, name: &str, value: &str) -> Result<(), String> {
+        let yaml: serde_yaml::Value =
+            serde_yaml::from_str(value).map_err(|e| format!("-p {name}:={value}: {e}"))?;
+        let value = parameter_value(&yaml).map_err(|e| format!("-p {name}:={value}: {e}"))?;
+        self.set(name, &value)
+            .map_err(|e| format!("-p {name}: {e}"))
+    }
+}
+
+fn parse_lock(item: &str) -> Result<(String, f64), String> {
+    item.split_once('=')
+        .and_then(|(n, v)| {
+            Some((
+                n.trim().to_string(),
+                v.trim().parse::<f64>().ok().filter(|x| x.is_finite())?,
+            ))
+        })
+        .filter(|(n, _)| !n.is_empty())
+        .ok_or_else(|| {
+            format!("locked_joints entry '{item}' must be NAME=POSITION with a finite position")
+        })
+}
+
+/// Nested mappings become dotted names, as ROS reads them.
+fn flatten(prefix: &str, value: &serde_yaml::Value, out: &mut Vec<(String, serde_yaml::Value)>) {
+    match value {
+        serde_yaml::Value::Mapping(m) => {
+            for (k, v) in m {
+                let key = k
+                    .as_str()
+                    .map(str::to_string)
+                    .unwrap_or_else(|| format!("{k:?}"));
+                let name = if prefix.is_empty() {
+                    key
+                } else {
+                    format!("{prefix}.{key}")
+                };
+                flatten(&name, v, out);
+            }
+        }
+        v => out.push((prefix.to_string(), v.clone())),
+    }
+}
+
+/// A YAML value as a ROS parameter value (integers in a list of floats become floats).
+pub fn parameter_value(v: &serde_yaml::Value) -> Result<ParameterValue, String> {
+    use serde_yaml::Value as Y;
+    use ParameterValue as P;
+    Ok(match v {
+        Y::Bool(b) => P::Boolean(*b),
+        Y::Number(n) if n.is_i64() => P::Integer(n.as_i64().unwrap_or_default()),
+        Y::Number(n) => P::Double(n.as_f64().unwrap_or(f64::NAN)),
+        Y::String(s) => P::String(s.clone()),
+        Y::Sequence(items) if items.is_empty() => P::StringArray(Vec::new()),
+        Y::Sequence(items) if items.iter().all(|i| i.is_bool()) => {
+            P::BooleanArray(items.iter().filter_map(Y::as_bool).collect())
+        }
+        Y::Sequence(items) if items.iter().all(|i| i.is_i64()) => {
+            P::IntegerArray(items.iter().filter_map(Y::as_i64).collect())
+        }
+        Y::Sequence(items) if items.iter().all(|i| i.is_number()) => {
+            P::DoubleArray(items.iter().filter_map(Y::as_f64).collect())
+        }
+        Y::Sequence(items) if items.iter().all(|i| i.is_string()) => P::StringArray(
+            items
+                .iter()
+                .filter_map(|i| i.as_str().map(str::to_string))
+                .collect(),
+        ),
+        other => return Err(format!("unsupported value {other:?}")),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn files_and_arguments_set_parameters() {
+        let dir = std::env::temp_dir().join(format!("sd_params_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("p.yaml");
+        std::fs::write(&file, "/**:\n  ros__parameters:\n    method: crba\n    gravity: [0, 0, -1.62]\nother_node:\n  ros__parameters:\n    floating_base: true\n/robot/dyn:\n  ros__parameters:\n    locked_joints: ['joint7=0.5']\n").unwrap();
+        let mut s = Settings::default();
+        s.apply_file(&file, "/robot", "dyn").unwrap();
+        assert_eq!(s.method, ForwardDynamicsMethod::Crba);
+        assert_eq!(s.gravity, [0.0, 0.0, -1.62]);
+        assert!(!s.floating_base);
+        assert_eq!(s.locked_joints, vec![("joint7".to_string(), 0.5)]);
+        s.apply_arg("method", "rnea_columns").unwrap();
+        assert_eq!(s.method, ForwardDynamicsMethod::RneaColumns);
+        assert!(s
+            .apply_arg("method", "magic")
+            .unwrap_err()
+            .contains("unknown forward-dynamics method 'magic'"));
+        assert!(s
+            .apply_arg("gravity", "[1, 2]")
+            .unwrap_err()
+            .contains("three finite numbers"));
+        assert!(s
+            .apply_arg("floating_base", "yes please")
+            .unwrap_err()
+            .contains("must be a bool"));
+        assert!(s
+            .apply_arg("locked_joints", "['j=x']")
+            .unwrap_err()
+            .contains("NAME=POSITION"));
+        assert!(s
+            .apply_arg("nonsense", "1")
+            .unwrap_err()
+            .contains("unknown parameter 'nonsense'"));
+    }
+}
