@@ -19,3 +19,6 @@ echo "== Python: reference tests (Pinocchio) =="
 "$repo/launch_scripts/setup_python_env.sh"
 export SPATIAL_DYNAMICS_BIN="$repo/target/release/spatial_dynamics"
 "$repo/.venv/bin/python" -m pytest -q "$repo/tests/python"
+
+echo "== DDS: the node against rclpy, in a private network namespace (loopback only) =="
+"$repo/launch_scripts/netns_exec.sh" "$repo/.venv/bin/python" -m pytest -q "$repo/tests/dds"

@@ -644,3 +644,90 @@ fn write_pose(q: &mut [f64], at: usize, pose: &Pose, field: &str) -> Result<(), 
     q[at..at + 7].copy_from_slice(&values);
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_example_parameter_file_gives_a_working_node() {
+        for entry in std::fs::read_dir("config").unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "yaml") {
+                let mut settings = Settings::default();
+                settings
+                    .apply_file(&path, "/", "spatial_dynamics")
+                    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                let engine = Engine::from_settings(&settings, None)
+                    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                assert!(!engine.names().is_empty(), "{}", path.display());
+            }
+        }
+    }
+
+    #[test]
+    fn world_frame_wrench_turns_axes_but_stays_at_the_link_origin() {
+        // A weight on tool0 given in world axes must equal the same force given in tool0's own
+        // axes once rotated: compare the two answers at a bent configuration.
+        let mut engine = Engine::from_settings(&Settings::default(), None).unwrap();
+        let names: Vec<String> = engine.names().to_vec();
+        let position = vec![0.3, -0.7, 0.5, 1.1, -0.4, 0.9, 0.2];
+        let request = |frame: &str, force: Vector3| InverseDynamicsRequest {
+            name: names.clone(),
+            position: position.clone(),
+            external_wrenches: vec![LinkWrench {
+                link: "tool0".into(),
+                frame: frame.into(),
+                wrench: Wrench {
+                    force,
+                    torque: Vector3::default(),
+                },
+            }],
+            ..Default::default()
+        };
+        let world = engine.inverse_dynamics(&request(
+            "world",
+            Vector3 {
+                x: 0.0,
+                y: 0.0,
+                z: -20.0,
+            },
+        ));
+        assert!(world.success, "{}", world.message);
+        // tool0's orientation: the product of the joint rotations (all fixed origins are unrotated).
+        let mut placements = vec![Transform::identity(); engine.model.nbodies()];
+        let mut q = vec![0.0; 7];
+        q.copy_from_slice(&position);
+        body_placements(&engine.model, &mut engine.ws, &q, &mut placements).unwrap();
+        let link = engine.model.link("tool0").unwrap().clone();
+        let world_to_tool = link.x_body_link.rot * placements[link.body.unwrap()].rot;
+        let local = world_to_tool * nalgebra::Vector3::new(0.0, 0.0, -20.0);
+        let own = engine.inverse_dynamics(&request("tool0", local.into()));
+        let diff: f64 = world
+            .effort
+            .iter()
+            .zip(&own.effort)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(diff < 1e-12, "{:?} vs {:?}", world.effort, own.effort);
+        let none = engine.inverse_dynamics(&InverseDynamicsRequest {
+            name: names.clone(),
+            position: position.clone(),
+            ..Default::default()
+        });
+        assert!(
+            world
+                .effort
+                .iter()
+                .zip(&none.effort)
+                .any(|(a, b)| (a - b).abs() > 1.0),
+            "the wrench must change the effort"
+        );
+        let bad = engine.inverse_dynamics(&request("elbow_frame", Vector3::default()));
+        assert!(
+            !bad.success && bad.message.contains("frame 'elbow_frame'"),
+            "{}",
+            bad.message
+        );
+    }
+}
