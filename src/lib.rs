@@ -13,6 +13,7 @@
 pub mod algorithms;
 pub mod error;
 pub mod model;
+pub mod sim;
 pub mod spatial;
 pub mod urdf;
 mod workspace;

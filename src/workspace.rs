@@ -13,6 +13,8 @@ pub struct Workspace {
     pub(crate) q_joint: Vec<[f64; 7]>,
     /// `ⁱX_λ(i) = X_J(q_i) X_tree,i`: parent body frame → body frame.
     pub(crate) x_up: Vec<Transform>,
+    /// `ⁱX_0`: world (root) frame → body frame, from [`body_placements`](crate::algorithms::kinematics::body_placements).
+    pub(crate) x_world: Vec<Transform>,
     /// Motion subspace `S_i` of each body's joint.
     pub(crate) s: Vec<MotionSubspace>,
     /// Body spatial velocities `v_i`.
@@ -57,6 +59,7 @@ impl Workspace {
         Workspace {
             q_joint: vec![[0.0; 7]; n],
             x_up: vec![Transform::identity(); n],
+            x_world: vec![Transform::identity(); n],
             s: vec![MotionSubspace::default(); n],
             v: vec![Motion::zero(); n],
             a: vec![Motion::zero(); n],

@@ -29,20 +29,24 @@ fn joint_positions(joint: &Joint, q: &[f64], out: &mut [f64; 7]) {
 }
 
 /// Placement of every body in the root (world) frame, `ⁱX_0` (world coordinates → body
-/// coordinates), for configuration `q`. Writes into `out` (one per body).
-pub fn body_placements(
+/// coordinates), for configuration `q`: `ⁱX_0 = ⁱX_λ ᵏX_0`. One per body, in model order.
+pub fn body_placements<'w>(
     model: &Model,
-    ws: &mut Workspace,
+    ws: &'w mut Workspace,
     q: &[f64],
-    out: &mut [Transform],
-) -> Result<(), DynamicsError> {
+) -> Result<&'w [Transform], DynamicsError> {
     check_q(model, q)?;
     update_joints(model, ws, q);
+    update_placements(model, ws);
+    Ok(&ws.x_world)
+}
+
+/// `ws.x_world` from `ws.x_up` (joints already updated).
+pub(crate) fn update_placements(model: &Model, ws: &mut Workspace) {
     for (i, body) in model.bodies.iter().enumerate() {
-        out[i] = match body.parent {
-            Some(p) => ws.x_up[i].compose(&out[p]),
+        ws.x_world[i] = match body.parent {
+            Some(p) => ws.x_up[i].compose(&ws.x_world[p]),
             None => ws.x_up[i],
         };
     }
-    Ok(())
 }

@@ -9,6 +9,7 @@
 //! | [`aba`] | forward dynamics in O(n) (articulated-body algorithm) |
 //! | [`rnea_columns`] | forward dynamics from n+1 inverse-dynamics calls (the handout's method) |
 //! | [`forward_dynamics`] | forward dynamics by a chosen [`ForwardDynamicsMethod`] |
+//! | [`energy`] | kinetic and potential energy |
 //! | [`ltl`], [`cholesky`] | the factorisations that solve `H q̈ = τ − C` |
 
 // The algorithms index per-coordinate arrays the way the equations do.
@@ -18,6 +19,7 @@ pub mod aba;
 pub mod bias;
 pub mod cholesky;
 pub mod crba;
+pub mod energy;
 pub mod forward_dynamics;
 pub mod gravity;
 pub mod kinematics;
@@ -29,6 +31,7 @@ mod validate;
 pub use aba::aba;
 pub use bias::bias;
 pub use crba::crba;
+pub use energy::energy;
 pub use forward_dynamics::{forward_dynamics, ForwardDynamicsMethod};
 pub use gravity::gravity;
 pub use rnea::{rnea, rnea_with};

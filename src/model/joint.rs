@@ -160,6 +160,46 @@ impl JointKind {
     }
 }
 
+impl JointKind {
+    /// `q ⊕ v·dt`: the configuration reached from `q` moving with constant velocity `v` for
+    /// `dt`, on the joint's manifold. For a floating joint the body twist is integrated exactly
+    /// (SE(3) exponential) and the quaternion renormalised; every other kind adds `v·dt`.
+    pub fn integrate(&self, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
+        match self {
+            JointKind::Floating => {
+                let quat = UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5]));
+                let lin = Vector3::new(v[0], v[1], v[2]) * dt;
+                let ang = Vector3::new(v[3], v[4], v[5]) * dt;
+                // p' = p + R V(ω dt) v dt, R' = R exp(ω dt), V = 1 + (1−cos θ)/θ² ω× + (θ−sin θ)/θ³ ω×².
+                let theta = ang.norm();
+                let (a, b) = if theta < 1e-6 {
+                    (
+                        0.5 - theta * theta / 24.0,
+                        1.0 / 6.0 - theta * theta / 120.0,
+                    )
+                } else {
+                    (
+                        (1.0 - theta.cos()) / (theta * theta),
+                        (theta - theta.sin()) / (theta * theta * theta),
+                    )
+                };
+                let wx = crate::spatial::skew(&ang);
+                let step = lin + wx * lin * a + wx * wx * lin * b;
+                let p = Vector3::new(q[0], q[1], q[2]) + quat * step;
+                let quat = quat * UnitQuaternion::from_scaled_axis(ang);
+                let quat = UnitQuaternion::new_normalize(quat.into_inner());
+                out[..3].copy_from_slice(p.as_slice());
+                out[3..7].copy_from_slice(&[quat.i, quat.j, quat.k, quat.w]);
+            }
+            _ => {
+                for ((o, x), r) in out.iter_mut().zip(q).zip(v) {
+                    *o = x + r * dt;
+                }
+            }
+        }
+    }
+}
+
 /// Rotation matrix of angle `angle` about the unit vector `axis`.
 pub fn axis_rotation(axis: &Vector3, angle: f64) -> Matrix3 {
     Rotation3::from_axis_angle(&Unit::new_unchecked(*axis), angle).into_inner()

@@ -208,6 +208,14 @@ impl Model {
         self.links.iter().find(|l| l.name == name)
     }
 
+    /// `q ⊕ v·dt` for the whole model (each joint on its own manifold), into `out`.
+    pub fn integrate(&self, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
+        for j in self.coordinate_joints() {
+            let (qs, vs) = (j.q_index..j.q_index + j.nq, j.v_index..j.v_index + j.nv);
+            j.kind.integrate(&q[qs.clone()], &v[vs], dt, &mut out[qs]);
+        }
+    }
+
     /// The model with a different gravity vector.
     pub fn with_gravity(mut self, gravity: Vector3) -> Result<Self, ModelError> {
         if !gravity.iter().all(|g| g.is_finite()) {

@@ -35,7 +35,6 @@ pub struct Engine {
     tau: Vec<f64>,
     out: Vec<f64>,
     wrenches: Vec<Force>,
-    placements: Vec<Transform>,
     /// Latest commanded effort (`v`-sized), zero until one arrives.
     command: Vec<f64>,
     /// Latest floating-base pose `[x y z qx qy qz qw]` and twist from `~/base_state`.
@@ -99,7 +98,6 @@ impl Engine {
             tau: vec![0.0; nv],
             out: Vec::with_capacity(nv),
             wrenches: vec![Force::zero(); nb],
-            placements: vec![Transform::identity(); nb],
             command: vec![0.0; nv],
             base_q: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
             base_v: [0.0; 6],
@@ -532,10 +530,11 @@ impl Engine {
         if wrenches.is_empty() {
             return Ok(0);
         }
-        let placements_needed = wrenches.iter().any(|w| w.frame == "world");
-        if placements_needed {
-            body_placements(&self.model, &mut self.ws, &self.q, &mut self.placements)
-                .map_err(|e| e.to_string())?;
+        // World → body rotations, when a wrench is given in world axes.
+        let mut placements: &[Transform] = &[];
+        if wrenches.iter().any(|w| w.frame == "world") {
+            placements =
+                body_placements(&self.model, &mut self.ws, &self.q).map_err(|e| e.to_string())?;
         }
         for (i, w) in wrenches.iter().enumerate() {
             let link = self
@@ -563,7 +562,7 @@ impl Engine {
                 "" => f,
                 frame if frame == w.link => f,
                 "world" => {
-                    let world_to_link = link.x_body_link.rot * self.placements[body].rot;
+                    let world_to_link = link.x_body_link.rot * placements[body].rot;
                     Force::new(world_to_link * f.ang, world_to_link * f.lin)
                 }
                 other => return Err(format!("external_wrenches[{i}]: frame '{other}' must be the link's own name (or empty) or 'world'")),
@@ -695,10 +694,9 @@ mod tests {
         ));
         assert!(world.success, "{}", world.message);
         // tool0's orientation: the product of the joint rotations (all fixed origins are unrotated).
-        let mut placements = vec![Transform::identity(); engine.model.nbodies()];
-        let mut q = vec![0.0; 7];
-        q.copy_from_slice(&position);
-        body_placements(&engine.model, &mut engine.ws, &q, &mut placements).unwrap();
+        let placements = body_placements(&engine.model, &mut engine.ws, &position)
+            .unwrap()
+            .to_vec();
         let link = engine.model.link("tool0").unwrap().clone();
         let world_to_tool = link.x_body_link.rot * placements[link.body.unwrap()].rot;
         let local = world_to_tool * nalgebra::Vector3::new(0.0, 0.0, -20.0);

@@ -1,0 +1,260 @@
+//! Simulation: integrate forward dynamics in time under commanded efforts and the passive joint
+//! forces a scene asks for (damping, friction, effort and position limits).
+//!
+//! One [`Simulator::step`] advances `(t, q, v)` by `dt` in `substeps` equal sub-steps with the
+//! chosen [`Integrator`] and forward-dynamics method. Configurations move on their manifold
+//! ([`Model::integrate`]: quaternions by the exponential map, renormalised). A step that cannot be
+//! trusted stops with a [`SimError`] saying when and why: non-finite state, energy blow-up,
+//! singular mass matrix.
+
+mod forces;
+mod integrator;
+
+pub use forces::{Passive, PassiveForces};
+pub use integrator::Integrator;
+
+use crate::algorithms::{energy, forward_dynamics};
+use crate::error::DynamicsError;
+use crate::{Externals, ForwardDynamicsMethod, Model, Workspace};
+use nalgebra::{DMatrix, DVector};
+use std::fmt;
+
+/// Energy the integration may create beyond `E(0) + W(t)` before the run counts as diverged:
+/// `max(1 J, ½ (|E(0)| + W(t)))`.
+pub const ENERGY_TOLERANCE_J: f64 = 1.0;
+
+/// How a simulation runs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimConfig {
+    pub integrator: Integrator,
+    pub method: ForwardDynamicsMethod,
+    /// Step (s), split into `substeps` equal sub-steps.
+    pub dt: f64,
+    pub substeps: usize,
+    pub passive: Passive,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        SimConfig {
+            integrator: Integrator::SemiImplicitEuler,
+            method: ForwardDynamicsMethod::Aba,
+            dt: 1e-3,
+            substeps: 1,
+            passive: Passive::default(),
+        }
+    }
+}
+
+/// The simulated state.
+#[derive(Clone, Debug, PartialEq)]
+pub struct State {
+    /// Time (s).
+    pub t: f64,
+    pub q: Vec<f64>,
+    pub v: Vec<f64>,
+}
+
+impl State {
+    /// At rest at `q`, time zero.
+    pub fn at_rest(model: &Model, q: Vec<f64>) -> State {
+        State {
+            t: 0.0,
+            q,
+            v: vec![0.0; model.nv],
+        }
+    }
+}
+
+/// Why a simulation stopped.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SimError {
+    /// Forward dynamics failed (singular mass matrix, bad input, …).
+    Dynamics { t: f64, source: DynamicsError },
+    /// The state stopped being finite.
+    NonFinite { t: f64, coordinate: String },
+    /// The energy grew beyond what the initial energy and the work of the commands allow.
+    EnergyBlowUp { t: f64, energy: f64, bound: f64 },
+}
+
+impl fmt::Display for SimError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SimError::Dynamics { t, source } => write!(f, "at t = {t} s: {source}"),
+            SimError::NonFinite { t, coordinate } => write!(f, "at t = {t} s: the state of '{coordinate}' is no longer finite: the integration diverged"),
+            SimError::EnergyBlowUp { t, energy, bound } => write!(
+                f,
+                "at t = {t} s: the energy ({energy:e} J) exceeds {bound:e} J, far beyond the initial energy plus the work done by the commands: the integration diverged (take a smaller step or a more stable integrator)"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for SimError {}
+
+/// Forward dynamics with the passive forces added: `a(q, v) = FD(q, v, clamp(τ_cmd) + τ_passive)`.
+pub(crate) struct Evaluator {
+    ws: Workspace,
+    passive: PassiveForces,
+    tau: Vec<f64>,
+    method: ForwardDynamicsMethod,
+    on: Passive,
+    /// Effort evaluations clamped to their limits.
+    clamped: u64,
+}
+
+impl Evaluator {
+    /// `q̈` at `(q, v)` under `tau_cmd`, into `out`.
+    pub(crate) fn acceleration(
+        &mut self,
+        model: &Model,
+        q: &[f64],
+        v: &[f64],
+        tau_cmd: &[f64],
+        out: &mut [f64],
+    ) -> Result<(), DynamicsError> {
+        self.clamped += self.passive.total(&self.on, q, v, tau_cmd, &mut self.tau) as u64;
+        let a = forward_dynamics(
+            model,
+            &mut self.ws,
+            q,
+            v,
+            &self.tau,
+            self.method,
+            &Externals::none(),
+        )?;
+        out.copy_from_slice(a);
+        Ok(())
+    }
+}
+
+/// Per-step scratch vectors of the integrators.
+pub(crate) struct Scratch {
+    /// Stage velocities and accelerations (RK4 uses four of each).
+    k_v: [Vec<f64>; 4],
+    k_a: [Vec<f64>; 4],
+    q_stage: Vec<f64>,
+    v_stage: Vec<f64>,
+    /// Implicit Euler: Newton matrix, residual, probes.
+    jacobian: DMatrix<f64>,
+    residual: DVector<f64>,
+    q_probe: Vec<f64>,
+    a_probe: Vec<f64>,
+}
+
+/// A simulator for one model and configuration; [`step`](Self::step) allocates nothing.
+pub struct Simulator {
+    pub config: SimConfig,
+    eval: Evaluator,
+    scratch: Scratch,
+    /// Energy at the start and the work the commands have done since.
+    initial_energy: Option<f64>,
+    work: f64,
+}
+
+impl Simulator {
+    /// A simulator for `model`.
+    pub fn new(model: &Model, config: SimConfig) -> Simulator {
+        let (nq, nv) = (model.nq, model.nv);
+        let vecs = || [vec![0.0; nv], vec![0.0; nv], vec![0.0; nv], vec![0.0; nv]];
+        Simulator {
+            eval: Evaluator {
+                ws: Workspace::new(model),
+                passive: PassiveForces::new(model),
+                tau: vec![0.0; nv],
+                method: config.method,
+                on: config.passive,
+                clamped: 0,
+            },
+            scratch: Scratch {
+                k_v: vecs(),
+                k_a: vecs(),
+                q_stage: vec![0.0; nq],
+                v_stage: vec![0.0; nv],
+                jacobian: DMatrix::zeros(nv, nv),
+                residual: DVector::zeros(nv),
+                q_probe: vec![0.0; nq],
+                a_probe: vec![0.0; nv],
+            },
+            config,
+            initial_energy: None,
+            work: 0.0,
+        }
+    }
+
+    /// How many effort evaluations were clamped to their limits so far.
+    pub fn clamped(&self) -> u64 {
+        self.eval.clamped
+    }
+
+    /// Total energy `T + V` at a state (J).
+    pub fn energy(&mut self, model: &Model, state: &State) -> Result<f64, SimError> {
+        let (t, v) = energy(model, &mut self.eval.ws, &state.q, &state.v)
+            .map_err(|source| SimError::Dynamics { t: state.t, source })?;
+        Ok(t + v)
+    }
+
+    /// Advances `state` by `dt` under the commanded efforts `tau_cmd` (held over the step);
+    /// returns the total energy after the step.
+    pub fn step(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+        tau_cmd: &[f64],
+    ) -> Result<f64, SimError> {
+        if self.initial_energy.is_none() {
+            self.initial_energy = Some(self.energy(model, state)?);
+        }
+        self.eval.method = self.config.method;
+        self.eval.on = self.config.passive;
+        let substeps = self.config.substeps.max(1);
+        let h = self.config.dt / substeps as f64;
+        for _ in 0..substeps {
+            let power: f64 = tau_cmd
+                .iter()
+                .zip(&state.v)
+                .map(|(t, v)| (t * v).abs())
+                .sum();
+            integrator::advance(
+                self.config.integrator,
+                &mut self.eval,
+                &mut self.scratch,
+                model,
+                state,
+                tau_cmd,
+                h,
+            )
+            .map_err(|source| SimError::Dynamics { t: state.t, source })?;
+            state.t += h;
+            self.work += power * h;
+            if let Some(i) = state.q.iter().position(|x| !x.is_finite()) {
+                let name = model
+                    .joint_of_q(i)
+                    .map_or(format!("q[{i}]"), |(n, _)| n.to_string());
+                return Err(SimError::NonFinite {
+                    t: state.t,
+                    coordinate: name,
+                });
+            }
+            if let Some(i) = state.v.iter().position(|x| !x.is_finite()) {
+                return Err(SimError::NonFinite {
+                    t: state.t,
+                    coordinate: model.v_name(i),
+                });
+            }
+        }
+        // Without contact, E(t) ≤ E(0) + W(t): joint damping, friction and limit springs never
+        // add energy, so an excess beyond a tolerance is energy the integrator made up.
+        let energy = self.energy(model, state)?;
+        let initial = self.initial_energy.unwrap_or(energy);
+        let bound = initial + self.work + ENERGY_TOLERANCE_J.max(0.5 * (initial.abs() + self.work));
+        if energy > bound {
+            return Err(SimError::EnergyBlowUp {
+                t: state.t,
+                energy,
+                bound,
+            });
+        }
+        Ok(energy)
+    }
+}
