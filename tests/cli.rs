@@ -155,3 +155,108 @@ fn gravity_option_and_unusable_urdf() {
     let (ok, _, err) = run(&["model", "--gravity", "0,0", "--json"], "");
     assert!(!ok && err.contains("--gravity"), "{err}");
 }
+
+#[test]
+fn simulate_writes_the_trajectory_and_reports_divergence() {
+    let dir = std::env::temp_dir().join(format!("sd_sim_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("pendulum.csv");
+    let (ok, _, err) = run(
+        &[
+            "simulate",
+            "--scene",
+            "pendulum:2",
+            "--integrator",
+            "rk4",
+            "--dt",
+            "0.001",
+            "--duration",
+            "0.5",
+            "--initial",
+            r#"{"joint1": 0.5}"#,
+            "--output",
+            csv.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "time,joint1.position,joint2.position,joint1.velocity,joint2.velocity,energy"
+    );
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 501);
+    assert_eq!(rows[0][..5], [0.0, 0.5, 0.0, 0.0, 0.0]);
+    assert!((rows[500][0] - 0.5).abs() < 1e-12);
+    // A passive double pendulum under RK4 at 1 kHz keeps its energy.
+    let drift = rows
+        .iter()
+        .map(|r| (r[5] - rows[0][5]).abs())
+        .fold(0.0, f64::max);
+    assert!(drift < 1e-6, "energy drift {drift}");
+    // Semi-implicit Euler past ωh = 2 diverges, and says so.
+    let (ok, _, err) = run(
+        &[
+            "simulate",
+            "--scene",
+            "pendulum:1",
+            "--integrator",
+            "semi_implicit_euler",
+            "--dt",
+            "0.6",
+            "--duration",
+            "100",
+            "--initial",
+            r#"{"joint1": 0.05}"#,
+            "--output",
+            csv.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert!(!ok);
+    assert!(
+        err.contains("diverged at t =") && err.contains("creating energy"),
+        "{err}"
+    );
+    let (ok, _, err) = run(
+        &[
+            "simulate",
+            "--scene",
+            "pendulum:1",
+            "--integrator",
+            "rk4",
+            "--dt",
+            "0.01",
+            "--duration",
+            "1",
+            "--initial",
+            r#"{"elbow": 1}"#,
+            "--output",
+            csv.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert!(!ok && err.contains("unknown joint 'elbow'"), "{err}");
+    let (ok, _, err) = run(
+        &[
+            "simulate",
+            "--integrator",
+            "leapfrog",
+            "--dt",
+            "0.01",
+            "--duration",
+            "1",
+            "--output",
+            csv.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert!(
+        !ok && err.contains("unknown integrator 'leapfrog'"),
+        "{err}"
+    );
+}

@@ -1,7 +1,9 @@
 //! Command-line front end: argument parsing and dispatch. The numerics live in the library.
 
+mod bench;
 mod eval;
 mod model_info;
+mod simulate;
 mod source;
 
 use clap::{Parser, Subcommand};
@@ -32,6 +34,23 @@ enum Command {
         #[command(flatten)]
         model: ModelArgs,
     },
+    /// Time each algorithm: nanoseconds per call over many random states (median of repeats).
+    Bench {
+        #[command(flatten)]
+        model: ModelArgs,
+        /// Print JSON: {"nv", "ns_per_call": {"rnea", "crba", "fd_aba", "fd_crba", "fd_rnea_columns", "gravity"}}.
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        settings: bench::Settings,
+    },
+    /// Integrate forward dynamics in time and write the trajectory as CSV.
+    Simulate {
+        #[command(flatten)]
+        model: ModelArgs,
+        #[command(flatten)]
+        sim: simulate::SimulateArgs,
+    },
     /// Run the ROS 2 node: `node [--ros-args -r __node:=NAME -r __ns:=/NS --params-file FILE -p NAME:=VALUE]`.
     #[cfg(feature = "node")]
     Node {
@@ -47,6 +66,12 @@ pub fn run() -> ExitCode {
     let result = match cli.command {
         Command::Model { model, json } => model_info::run(&model, json),
         Command::Eval { model } => eval::run(&model),
+        Command::Bench {
+            model,
+            json,
+            settings,
+        } => bench::run(&model, json, &settings),
+        Command::Simulate { model, sim } => simulate::run(&model, &sim),
         #[cfg(feature = "node")]
         Command::Node { args } => crate::node::run(&args),
     };

@@ -12,8 +12,8 @@ pub struct ModelArgs {
     /// URDF file of the robot.
     #[arg(long, value_name = "FILE", conflicts_with = "builtin")]
     pub urdf: Option<PathBuf>,
-    /// A built-in model: default_arm (the default), particle, lamp, mimic_gripper, pendulum:N.
-    #[arg(long, value_name = "NAME")]
+    /// A built-in model (or scene): default_arm (the default), particle, lamp, mimic_gripper, pendulum:N.
+    #[arg(long, value_name = "NAME", alias = "scene")]
     pub builtin: Option<String>,
     /// Add a floating joint between the world and the root link.
     #[arg(long)]

@@ -80,11 +80,11 @@ pub enum SimError {
 impl fmt::Display for SimError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            SimError::Dynamics { t, source } => write!(f, "at t = {t} s: {source}"),
-            SimError::NonFinite { t, coordinate } => write!(f, "at t = {t} s: the state of '{coordinate}' is no longer finite: the integration diverged"),
+            SimError::Dynamics { t, source } => write!(f, "at t = {t:.6} s: {source}"),
+            SimError::NonFinite { t, coordinate } => write!(f, "at t = {t:.6} s: the state of '{coordinate}' is no longer finite"),
             SimError::EnergyBlowUp { t, energy, bound } => write!(
                 f,
-                "at t = {t} s: the energy ({energy:e} J) exceeds {bound:e} J, far beyond the initial energy plus the work done by the commands: the integration diverged (take a smaller step or a more stable integrator)"
+                "at t = {t:.6} s: the energy rose to {energy:.6e} J, above {bound:.6e} J (the initial energy plus the work of the commands plus a tolerance): the integrator is creating energy"
             ),
         }
     }

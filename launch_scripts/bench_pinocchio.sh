@@ -1,0 +1,141 @@
+#!/usr/bin/env bash
+# Times our algorithms against Pinocchio (C++) on the same URDFs in the same run, and prints a
+# markdown table: per robot and algorithm, our ns per call, Pinocchio's, and Pinocchio / ours
+# (> 1: we are faster).
+#
+# Usage: launch_scripts/bench_pinocchio.sh
+#   Environment: STATES (1024), REPEATS (7), MIN_TIME (0.2 s per repeat) go to both benches;
+#   SKIP_BUILD=1 uses target/release/spatial_dynamics as it is; PYTHON picks python3.11.
+#
+# What it does, idempotently:
+#   1. target/bench-venv: a venv (git-ignored) with Pinocchio's C++ headers and libraries (PyPI
+#      `pin`), Eigen and urdfdom headers (cmeel-eigen, cmeel-urdfdom-headers) and the robots
+#      (example-robot-data). Reinstalled only when the package list below changes.
+#   2. target/bench-pinocchio/bench from benches/pinocchio/bench.cpp, g++ -O3 -march=native
+#      -DNDEBUG, Pinocchio's algorithms compiled from its headers (no template instantiation
+#      from the shared library), rebuilt when the source or the flags change.
+#   3. cargo build --release, then for each robot `spatial_dynamics bench --json --ignore-mimic`
+#      (Pinocchio's URDF parser treats mimic joints as independent) and the Pinocchio bench.
+# Note: our binary is built for the baseline x86-64 target (no -C target-cpu=native) while the
+# Pinocchio bench gets -march=native: the comparison is against Pinocchio at its best.
+set -euo pipefail
+
+repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+venv="$repo/target/bench-venv"
+build="$repo/target/bench-pinocchio"
+python="${PYTHON:-python3.11}"
+packages=(pin==4.1.0 example-robot-data==6.0.0 cmeel-eigen==3.4.1 cmeel-urdfdom-headers==3.0.0)
+bench_args=(--states "${STATES:-1024}" --repeats "${REPEATS:-7}" --min-time "${MIN_TIME:-0.2}")
+
+log() { printf '== %s\n' "$*" >&2; }
+die() { printf 'bench_pinocchio.sh: %s\n' "$*" >&2; exit 1; }
+
+export PIP_NO_INPUT=1 PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_PROGRESS_BAR=off
+
+# --- 1. the venv ---------------------------------------------------------------------------------
+stamp="$venv/.bench_packages"
+if [[ ! -x "$venv/bin/python" || "$(cat "$stamp" 2>/dev/null)" != "${packages[*]}" ]]; then
+    command -v "$python" >/dev/null 2>&1 || python=python3
+    log "creating $venv (${packages[*]})"
+    "$python" -m venv "$venv"
+    "$venv/bin/pip" install --quiet "${packages[@]}"
+    echo "${packages[*]}" > "$stamp"
+fi
+prefix="$(echo "$venv"/lib/python3*/site-packages/cmeel.prefix)"
+[[ -d "$prefix/include/pinocchio" ]] || die "no Pinocchio headers under $prefix"
+robots="$prefix/share/example-robot-data/robots"
+
+# --- 2. the Pinocchio bench ----------------------------------------------------------------------
+src="$repo/benches/pinocchio/bench.cpp"
+cxx_flags=(-std=c++17 -O3 -march=native -DNDEBUG
+    -DPINOCCHIO_WITH_URDFDOM -DPINOCCHIO_URDFDOM_HEADERS_MAJOR_VERSION=3
+    -DPINOCCHIO_URDFDOM_HEADERS_MINOR_VERSION=0 -DPINOCCHIO_URDFDOM_HEADERS_PATCH_VERSION=0
+    -DBOOST_MPL_LIMIT_LIST_SIZE=30 -DBOOST_MPL_LIMIT_VECTOR_SIZE=30
+    -DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS -DBOOST_FUSION_INVOKE_MAX_ARITY=12
+    -I"$prefix/include" -I"$prefix/include/eigen3" -I"$prefix/include/urdfdom_headers"
+    -I"$prefix/include/urdfdom")
+ld_flags=(-L"$prefix/lib" -Wl,-rpath,"$prefix/lib"
+    -lpinocchio_parsers -lpinocchio_default -lurdfdom_model -lboost_filesystem -lboost_serialization)
+flags_stamp="$build/.flags"
+if [[ ! -x "$build/bench" || "$src" -nt "$build/bench" \
+      || "$(cat "$flags_stamp" 2>/dev/null)" != "${cxx_flags[*]} ${ld_flags[*]}" ]]; then
+    log "compiling $src (a minute or two)"
+    mkdir -p "$build"
+    g++ "${cxx_flags[@]}" "$src" -o "$build/bench" "${ld_flags[@]}"
+    echo "${cxx_flags[*]} ${ld_flags[*]}" > "$flags_stamp"
+fi
+
+# --- 3. ours, then the runs ----------------------------------------------------------------------
+ours="$repo/target/release/spatial_dynamics"
+if [[ "${SKIP_BUILD:-0}" != 1 ]]; then
+    log "cargo build --release"
+    (cd "$repo" && cargo build --release --quiet)
+fi
+[[ -x "$ours" ]] || die "no $ours (cargo build --release)"
+
+results="$build/results.jsonl"
+: > "$results"
+run_robot() {  # NAME FLOATING(0|1) URDF [FALLBACK_URDF]
+    local name="$1" floating="$2" urdf="$robots/$3" fallback="${4:-}"
+    local extra=()
+    [[ "$floating" == 1 ]] && extra=(--floating-base)
+    local ours_json pin_json
+    if ! ours_json="$("$ours" bench --urdf "$urdf" --ignore-mimic "${extra[@]}" --json "${bench_args[@]}")" \
+        || ! pin_json="$("$build/bench" "$urdf" "${extra[@]}" "${bench_args[@]}")"; then
+        if [[ -n "$fallback" ]]; then
+            log "$name: $3 failed; trying $fallback"
+            run_robot "$name" "$floating" "$fallback"
+            return
+        fi
+        die "$name: a bench failed on $urdf"
+    fi
+    printf '{"robot": "%s", "urdf": "%s", "floating": %s, "ours": %s, "pinocchio": %s}\n' \
+        "$name" "$(basename "$urdf")" "$([[ $floating == 1 ]] && echo true || echo false)" \
+        "$ours_json" "$pin_json" >> "$results"
+    log "$name done"
+}
+
+log "timing (${bench_args[*]}): about 15 s per robot and library"
+run_robot UR5 0 ur_description/urdf/ur5_robot.urdf
+run_robot Panda 0 panda_description/urdf/panda.urdf
+run_robot Baxter 0 baxter_description/urdf/baxter.urdf
+run_robot TALOS 1 talos_data/robots/talos_full_v2.urdf talos_data/robots/talos_reduced.urdf
+run_robot Solo12 1 solo_description/robots/solo12.urdf
+run_robot ANYmal 1 anymal_b_simple_description/robots/anymal.urdf
+
+"$venv/bin/python" - "$results" <<'EOF'
+import json, sys
+
+rows = [json.loads(line) for line in open(sys.argv[1])]
+kernels = ["rnea", "crba", "fd_aba", "fd_crba", "fd_rnea_columns", "gravity"]
+
+def ns(x):
+    return "n/a" if x is None else f"{x:,.0f}"
+
+def ratio(ours, pin):
+    return "—" if ours is None or pin is None else f"{pin / ours:.2f}"
+
+print("| robot | nv | algorithm | ours (ns) | Pinocchio (ns) | Pinocchio / ours |")
+print("|---|---:|---|---:|---:|---:|")
+for r in rows:
+    nv = r["ours"]["nv"]
+    if r["pinocchio"]["nv"] != nv:
+        nv = f'{nv} (Pinocchio: {r["pinocchio"]["nv"]})'
+    name = r["robot"] + (" (floating)" if r["floating"] else "")
+    for k in kernels:
+        o, p = r["ours"]["ns_per_call"][k], r["pinocchio"]["ns_per_call"][k]
+        print(f"| {name} | {nv} | {k} | {ns(o)} | {ns(p)} | {ratio(o, p)} |")
+
+print()
+print("Pinocchio / ours (> 1: we are faster):")
+print()
+print("| robot | nv | " + " | ".join(kernels) + " |")
+print("|---|---:|" + "---:|" * len(kernels))
+for r in rows:
+    cells = [ratio(r["ours"]["ns_per_call"][k], r["pinocchio"]["ns_per_call"][k]) for k in kernels]
+    print(f'| {r["robot"]} ({r["urdf"]}) | {r["ours"]["nv"]} | ' + " | ".join(cells) + " |")
+d = rows[0]["pinocchio"]["detail"]["pinocchio"] if rows else "?"
+print()
+print(f"Pinocchio {d}; crba, fd_aba and fd_crba: the faster of its LOCAL and WORLD conventions "
+      f"(both in {sys.argv[1]}).")
+EOF

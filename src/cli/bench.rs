@@ -1,0 +1,216 @@
+//! `spatial_dynamics bench`: nanoseconds per call of each algorithm on one model.
+//!
+//! Random states (at least 1000 by default, unit quaternions for floating joints) are drawn
+//! before any timing and cycled through, so the caches and branch predictors see changing
+//! inputs. Each kernel is warmed up, then timed over several repeats of whole passes through the
+//! states (one `Instant` around many calls); the median repeat is reported.
+
+use super::ModelArgs;
+use clap::Args;
+use serde_json::{json, Map, Value};
+use spatial_dynamics::algorithms::{crba, forward_dynamics, gravity, rnea};
+use spatial_dynamics::model::JointKind;
+use spatial_dynamics::{DynamicsError, Externals, ForwardDynamicsMethod, Model, Workspace};
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+/// How many states, how many repeats, how long each repeat lasts at least.
+#[derive(Args, Clone, Copy, Debug)]
+pub struct Settings {
+    /// Number of random states, generated before timing and cycled through.
+    #[arg(long, default_value_t = 1024)]
+    states: usize,
+    /// Number of timed repeats; the median is reported.
+    #[arg(long, default_value_t = 7)]
+    repeats: usize,
+    /// Minimum duration of one repeat, seconds.
+    #[arg(long, value_name = "SECONDS", default_value_t = 0.2)]
+    min_time: f64,
+}
+
+/// One random state: inputs for every kernel.
+struct State {
+    q: Vec<f64>,
+    v: Vec<f64>,
+    /// Accelerations for `rnea`, efforts for forward dynamics.
+    a_or_tau: Vec<f64>,
+}
+
+/// The kernels, in the order they are reported.
+const KERNELS: [&str; 6] = [
+    "rnea",
+    "crba",
+    "fd_aba",
+    "fd_crba",
+    "fd_rnea_columns",
+    "gravity",
+];
+
+/// Times every kernel and prints the result.
+pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), String> {
+    if settings.states == 0 || settings.repeats == 0 {
+        return Err("--states and --repeats must be at least 1".into());
+    }
+    if !(settings.min_time.is_finite() && settings.min_time > 0.0) {
+        return Err("--min-time must be a positive number of seconds".into());
+    }
+    let model = args.load()?;
+    let mut rng = Rng::new(0x5eed);
+    let states: Vec<State> = (0..settings.states)
+        .map(|_| State {
+            q: random_q(&model, &mut rng),
+            v: rng.vector(model.nv),
+            a_or_tau: rng.vector(model.nv),
+        })
+        .collect();
+    let mut results: Vec<(&str, Option<f64>)> = Vec::new();
+    for name in KERNELS {
+        let ns = time_kernel(&model, &states, name, settings)
+            .map_err(|e| format!("bench {name}: {e}"))?;
+        results.push((name, ns));
+    }
+    if as_json {
+        let per_call: Map<String, Value> = results
+            .iter()
+            .map(|(name, ns)| (name.to_string(), json!(ns)))
+            .collect();
+        println!("{}", json!({"nv": model.nv, "ns_per_call": per_call}));
+        return Ok(());
+    }
+    println!(
+        "robot '{}': nq = {}, nv = {}; {} random states, median of {} repeats of at least {:.2} s",
+        model.name, model.nq, model.nv, settings.states, settings.repeats, settings.min_time
+    );
+    println!("{:<16} {:>12}", "kernel", "ns/call");
+    for (name, ns) in results {
+        match ns {
+            Some(ns) => println!("{name:<16} {ns:>12.1}"),
+            None => println!("{name:<16} {:>12}", "n/a (mimic)"),
+        }
+    }
+    Ok(())
+}
+
+/// Median nanoseconds per call of kernel `name`, or `None` when the method refuses the model
+/// (ABA with mimic joints).
+fn time_kernel(
+    model: &Model,
+    states: &[State],
+    name: &str,
+    settings: &Settings,
+) -> Result<Option<f64>, DynamicsError> {
+    use ForwardDynamicsMethod::{Aba, Crba, RneaColumns};
+    let mut ws = Workspace::new(model);
+    let ws = &mut ws;
+    let fd = |ws: &mut Workspace, s: &State, method| {
+        forward_dynamics(
+            model,
+            ws,
+            &s.q,
+            &s.v,
+            &s.a_or_tau,
+            method,
+            &Externals::none(),
+        )
+        .map(sink)
+    };
+    match name {
+        "rnea" => measure(states, settings, |s| {
+            rnea(model, ws, &s.q, &s.v, &s.a_or_tau).map(sink)
+        }),
+        "crba" => measure(states, settings, |s| crba(model, ws, &s.q).map(sink)),
+        "fd_aba" => measure(states, settings, |s| fd(ws, s, Aba)),
+        "fd_crba" => measure(states, settings, |s| fd(ws, s, Crba)),
+        "fd_rnea_columns" => measure(states, settings, |s| fd(ws, s, RneaColumns)),
+        "gravity" => measure(states, settings, |s| gravity(model, ws, &s.q).map(sink)),
+        _ => unreachable!("unknown kernel {name}"),
+    }
+}
+
+/// Outputs go through `black_box`, so the work cannot be optimised away.
+fn sink<T>(output: T) {
+    black_box(output);
+}
+
+/// Median nanoseconds per `call`, cycling through `states`.
+fn measure(
+    states: &[State],
+    settings: &Settings,
+    mut call: impl FnMut(&State) -> Result<(), DynamicsError>,
+) -> Result<Option<f64>, DynamicsError> {
+    // One checked pass: every state must be accepted (ABA refuses mimic joints).
+    for s in states {
+        match call(s) {
+            Ok(()) => {}
+            Err(DynamicsError::Unsupported { .. }) => return Ok(None),
+            Err(e) => return Err(e),
+        }
+    }
+    let mut pass = || {
+        let start = Instant::now();
+        for s in states {
+            // The result was checked above; here only its cost counts.
+            let _ = black_box(call(black_box(s)));
+        }
+        start.elapsed()
+    };
+    // Warm-up (half a repeat's time), which also measures how many passes fill a repeat.
+    let mut warm = Duration::ZERO;
+    let mut warm_passes = 0u32;
+    while warm.as_secs_f64() < settings.min_time / 2.0 || warm_passes == 0 {
+        warm += pass();
+        warm_passes += 1;
+    }
+    let per_pass = (warm / warm_passes).as_secs_f64().max(1e-9);
+    let passes = ((settings.min_time / per_pass).ceil() as u32).max(1);
+    let mut samples: Vec<f64> = (0..settings.repeats)
+        .map(|_| {
+            let total: Duration = (0..passes).map(|_| pass()).sum();
+            total.as_nanos() as f64 / (f64::from(passes) * states.len() as f64)
+        })
+        .collect();
+    samples.sort_by(f64::total_cmp);
+    Ok(Some(samples[samples.len() / 2]))
+}
+
+/// xorshift64*: deterministic, no dependency.
+struct Rng(u64);
+
+impl Rng {
+    fn new(seed: u64) -> Self {
+        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+    }
+
+    /// Uniform in [-1, 1).
+    fn uniform(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        let x = self.0.wrapping_mul(0x2545_F491_4F6C_DD1D);
+        (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    }
+
+    fn vector(&mut self, n: usize) -> Vec<f64> {
+        (0..n).map(|_| self.uniform()).collect()
+    }
+}
+
+/// Angles and positions uniform in [-1.5, 1.5]; a floating joint gets a random unit quaternion.
+fn random_q(model: &Model, rng: &mut Rng) -> Vec<f64> {
+    let mut q: Vec<f64> = (0..model.nq).map(|_| 1.5 * rng.uniform()).collect();
+    for j in model.coordinate_joints() {
+        if *j.kind == JointKind::Floating {
+            let quat = &mut q[j.q_index + 3..j.q_index + 7];
+            // Uniform in the unit ball, by rejection, then normalised: uniform on the sphere.
+            loop {
+                quat.iter_mut().for_each(|x| *x = rng.uniform());
+                let norm = quat.iter().map(|x| x * x).sum::<f64>().sqrt();
+                if (0.1..=1.0).contains(&norm) {
+                    quat.iter_mut().for_each(|x| *x /= norm);
+                    break;
+                }
+            }
+        }
+    }
+    q
+}

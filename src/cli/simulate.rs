@@ -1,0 +1,223 @@
+//! `spatial_dynamics simulate`: integrate forward dynamics from an initial state under constant
+//! efforts and write the trajectory as CSV: `time`, then `<joint>.position` and
+//! `<joint>.velocity` for every coordinate (multi-dof joints: `<joint>.position[k]`), then
+//! `energy` (T + V, J). A run that diverges keeps the rows written so far, says when and why,
+//! and exits non-zero.
+
+use super::ModelArgs;
+use clap::Args;
+use spatial_dynamics::model::JointKind;
+use spatial_dynamics::sim::{Integrator, Passive, SimConfig, Simulator, State};
+use spatial_dynamics::{ForwardDynamicsMethod, Model};
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Options of `simulate`.
+#[derive(Args, Debug, Clone)]
+pub struct SimulateArgs {
+    /// explicit_euler, semi_implicit_euler, rk4 or implicit_euler.
+    #[arg(long)]
+    integrator: Integrator,
+    /// Step, seconds.
+    #[arg(long)]
+    dt: f64,
+    /// Simulated time, seconds.
+    #[arg(long)]
+    duration: f64,
+    /// Sub-steps per step (rows are written once per step).
+    #[arg(long, default_value_t = 1)]
+    substeps: usize,
+    /// Forward-dynamics method: aba, crba or rnea_columns.
+    #[arg(long, default_value = "aba")]
+    method: ForwardDynamicsMethod,
+    /// Initial positions, {"joint": value} (arrays for multi-dof joints); others start at zero
+    /// (a floating base at the origin, unrotated).
+    #[arg(long, value_name = "JSON")]
+    initial: Option<String>,
+    /// Constant efforts, {"joint": value} (arrays for multi-dof joints); others get zero.
+    #[arg(long, value_name = "JSON")]
+    effort: Option<String>,
+    /// Passive joint forces from the URDF: a comma-separated list of damping, friction,
+    /// effort_limits, position_limits, or all, or none.
+    #[arg(long, default_value = "none")]
+    passive: String,
+    /// Output CSV file.
+    #[arg(long)]
+    output: PathBuf,
+}
+
+/// Runs the simulation.
+pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
+    let model = model_args.load()?;
+    if !(args.dt > 0.0 && args.dt.is_finite())
+        || !(args.duration >= 0.0 && args.duration.is_finite())
+    {
+        return Err(format!(
+            "--dt must be positive and --duration non-negative, got {} and {}",
+            args.dt, args.duration
+        ));
+    }
+    let mut q = neutral(&model);
+    apply_map(
+        &model,
+        args.initial.as_deref(),
+        "--initial",
+        Column::Position,
+        &mut q,
+    )?;
+    let mut tau = vec![0.0; model.nv];
+    apply_map(
+        &model,
+        args.effort.as_deref(),
+        "--effort",
+        Column::Velocity,
+        &mut tau,
+    )?;
+    let config = SimConfig {
+        integrator: args.integrator,
+        method: args.method,
+        dt: args.dt,
+        substeps: args.substeps,
+        passive: parse_passive(&args.passive)?,
+    };
+    let mut sim = Simulator::new(&model, config);
+    let mut state = State::at_rest(&model, q);
+    let file = std::fs::File::create(&args.output)
+        .map_err(|e| format!("{}: {e}", args.output.display()))?;
+    let mut out = std::io::BufWriter::new(file);
+    let write_err = |e: std::io::Error| format!("{}: {e}", args.output.display());
+    writeln!(out, "{}", header(&model)).map_err(write_err)?;
+    let mut energy = sim.energy(&model, &state).map_err(|e| e.to_string())?;
+    let steps = (args.duration / args.dt).round() as usize;
+    for step in 0..=steps {
+        write_row(&mut out, step as f64 * args.dt, &state, energy).map_err(write_err)?;
+        if step == steps {
+            break;
+        }
+        match sim.step(&model, &mut state, &tau) {
+            Ok(e) => energy = e,
+            Err(e) => {
+                out.flush().map_err(write_err)?;
+                return Err(format!("the simulation diverged {e} ({} with dt = {} s, method {}; the rows up to then are in {})", args.integrator, args.dt, args.method, args.output.display()));
+            }
+        }
+    }
+    out.flush().map_err(write_err)?;
+    if sim.clamped() > 0 {
+        eprintln!(
+            "spatial_dynamics: efforts were clamped to their URDF limits in {} evaluations",
+            sim.clamped()
+        );
+    }
+    Ok(())
+}
+
+fn parse_passive(text: &str) -> Result<Passive, String> {
+    let mut p = Passive::default();
+    for item in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        match item {
+            "none" => {}
+            "all" => p = Passive::all(),
+            "damping" => p.damping = true,
+            "friction" => p.friction = true,
+            "effort_limits" => p.effort_limits = true,
+            "position_limits" => p.position_limits = true,
+            other => return Err(format!("--passive: unknown item '{other}' (damping, friction, effort_limits, position_limits, all, none)")),
+        }
+    }
+    Ok(p)
+}
+
+/// Zero for every coordinate; unit quaternions for floating joints.
+fn neutral(model: &Model) -> Vec<f64> {
+    let mut q = vec![0.0; model.nq];
+    for j in model.coordinate_joints() {
+        if *j.kind == JointKind::Floating {
+            q[j.q_index + 6] = 1.0;
+        }
+    }
+    q
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Column {
+    Position,
+    Velocity,
+}
+
+/// Sets values from a `{"joint": number | [numbers]}` map.
+fn apply_map(
+    model: &Model,
+    json: Option<&str>,
+    flag: &str,
+    column: Column,
+    out: &mut [f64],
+) -> Result<(), String> {
+    let Some(json) = json else { return Ok(()) };
+    let map: BTreeMap<String, serde_json::Value> = serde_json::from_str(json)
+        .map_err(|e| format!("{flag}: expected {{\"joint\": value}}: {e}"))?;
+    for (name, value) in map {
+        let joint = model
+            .coordinate_joints()
+            .find(|j| j.name == name)
+            .ok_or_else(|| {
+                format!(
+                    "{flag}: unknown joint '{name}' (joints: {})",
+                    model
+                        .coordinate_joints()
+                        .map(|j| j.name)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            })?;
+        let (start, len) = match column {
+            Column::Position => (joint.q_index, joint.nq),
+            Column::Velocity => (joint.v_index, joint.nv),
+        };
+        let values: Vec<f64> = match &value {
+            serde_json::Value::Number(n) => n.as_f64().into_iter().collect(),
+            serde_json::Value::Array(items) => {
+                items.iter().filter_map(serde_json::Value::as_f64).collect()
+            }
+            _ => Vec::new(),
+        };
+        if values.len() != len
+            || values.iter().any(|x| !x.is_finite())
+            || (matches!(value, serde_json::Value::Array(ref a) if a.len() != len))
+        {
+            return Err(format!(
+                "{flag}: joint '{name}' needs {len} finite number(s), got {value}"
+            ));
+        }
+        out[start..start + len].copy_from_slice(&values);
+    }
+    Ok(())
+}
+
+fn header(model: &Model) -> String {
+    let mut cols = vec!["time".to_string()];
+    for (column, n) in [
+        ("position", Column::Position),
+        ("velocity", Column::Velocity),
+    ] {
+        for j in model.coordinate_joints() {
+            let count = if n == Column::Position { j.nq } else { j.nv };
+            if count == 1 {
+                cols.push(format!("{}.{column}", j.name));
+            } else {
+                cols.extend((0..count).map(|k| format!("{}.{column}[{k}]", j.name)));
+            }
+        }
+    }
+    cols.push("energy".into());
+    cols.join(",")
+}
+
+fn write_row(out: &mut impl Write, time: f64, state: &State, energy: f64) -> std::io::Result<()> {
+    write!(out, "{time}")?;
+    for x in state.q.iter().chain(&state.v) {
+        write!(out, ",{x}")?;
+    }
+    writeln!(out, ",{energy}")
+}
