@@ -50,9 +50,9 @@ pub struct SimulateArgs {
 /// Runs the simulation.
 pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
     let model = model_args.load()?;
-    if !(args.dt > 0.0 && args.dt.is_finite())
-        || !(args.duration >= 0.0 && args.duration.is_finite())
-    {
+    let valid =
+        args.dt > 0.0 && args.dt.is_finite() && args.duration >= 0.0 && args.duration.is_finite();
+    if !valid {
         return Err(format!(
             "--dt must be positive and --duration non-negative, got {} and {}",
             args.dt, args.duration
