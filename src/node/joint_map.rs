@@ -201,6 +201,16 @@ impl JointMap {
         self.answer_order().map(|s| self.names[s].clone()).collect()
     }
 
+    /// The values of `from` (a `q`- or `v`-sized vector) at every named coordinate, in model order.
+    pub fn gather_all(&self, from: &[f64], target: Target, out: &mut Vec<f64>) {
+        out.clear();
+        out.extend(
+            self.slots
+                .iter()
+                .map(|&(q, v)| from[if target == Target::Position { q } else { v }]),
+        );
+    }
+
     /// The values of `from` (a `q`- or `v`-sized vector) in [`answer_order`](Self::answer_order).
     pub fn gather(&self, from: &[f64], target: Target, out: &mut Vec<f64>) {
         out.clear();

@@ -4,7 +4,9 @@
 //! `robot_description` (latched). Outputs: `~/gravity_effort`, `~/acceleration`,
 //! `~/feedforward_effort`, `~/feedforward_commands`, `/diagnostics`. Services:
 //! `~/inverse_dynamics`, `~/forward_dynamics`, `~/mass_matrix`, `~/describe_model`, and the
-//! standard parameter services. QoS (chosen on purpose):
+//! standard parameter services. In simulate mode (`mode: simulate`) the node also publishes
+//! `joint_states` (and `/clock` if `publish_clock`) from its own integrated state and serves
+//! `~/reset`, `~/pause` (std_srvs/SetBool) and `~/step` (std_srvs/Trigger). QoS (chosen on purpose):
 //!
 //! | what | reliability | durability | depth |
 //! |---|---|---|---|
@@ -12,6 +14,7 @@
 //! | commands, reference | reliable | volatile | 10 |
 //! | outputs, `/diagnostics` | reliable | volatile | 10 |
 //! | `robot_description` | reliable | transient local | 1 |
+//! | `joint_states` (simulate), `/clock` | reliable (matches best-effort readers too) | volatile | 10, 1 |
 //! | services | reliable | volatile | 10 |
 
 mod engine;
@@ -224,21 +227,31 @@ async fn serve(
             (full, publisher)
         }};
     }
-    macro_rules! server {
-        ($req:ty, $resp:ty, $name:expr, $ty:expr) => {{
+    macro_rules! service_in {
+        ($pkg:expr, $req:ty, $resp:ty, $name:expr, $ty:expr) => {{
             let (full, name) = ends.name($name)?;
             let q = qos(true, Durability::Volatile, 10);
             let server = node
                 .create_server::<$req, $resp>(
                     ServiceMapping::Enhanced,
                     &name,
-                    &ServiceTypeName::new("spatial_dynamics_msgs", $ty),
+                    &ServiceTypeName::new($pkg, $ty),
                     q.clone(),
                     q,
                 )
                 .map_err(|e| format!("service {full}: {e:?}"))?;
             (full, server)
         }};
+    }
+    macro_rules! server {
+        ($req:ty, $resp:ty, $name:expr, $ty:expr) => {
+            service_in!("spatial_dynamics_msgs", $req, $resp, $name, $ty)
+        };
+    }
+    macro_rules! std_server {
+        ($req:ty, $resp:ty, $name:expr, $ty:expr) => {
+            service_in!("std_srvs", $req, $resp, $name, $ty)
+        };
     }
 
     let sensor = qos(false, Durability::Volatile, 10);
@@ -340,6 +353,25 @@ async fn serve(
         "~/describe_model",
         "DescribeModel"
     );
+    let (sim_js_name, sim_js_pub) = publisher!(
+        JointState,
+        "joint_states",
+        "sensor_msgs",
+        "JointState",
+        reliable
+    );
+    let (_, clock_pub) = publisher!(
+        Clock,
+        "/clock",
+        "rosgraph_msgs",
+        "Clock",
+        qos(true, Durability::Volatile, 1)
+    );
+    let (reset_name, reset_server) = server!(ResetRequest, ResetResponse, "~/reset", "Reset");
+    let (pause_name, pause_server) =
+        std_server!(SetBoolRequest, SetBoolResponse, "~/pause", "SetBool");
+    let (step_name, step_server) =
+        std_server!(TriggerRequest, TriggerResponse, "~/step", "Trigger");
 
     let spinner = node
         .spinner()
@@ -368,6 +400,9 @@ async fn serve(
     let fd_stream = fd_server.receive_request_stream();
     let mm_stream = mm_server.receive_request_stream();
     let dm_stream = dm_server.receive_request_stream();
+    let reset_stream = reset_server.receive_request_stream();
+    let pause_stream = pause_server.receive_request_stream();
+    let step_stream = step_server.receive_request_stream();
     futures::pin_mut!(
         js_stream,
         effort_stream,
@@ -378,25 +413,15 @@ async fn serve(
         id_stream,
         fd_stream,
         mm_stream,
-        dm_stream
+        dm_stream,
+        reset_stream,
+        pause_stream,
+        step_stream
     );
     let mut diagnostics = tokio::time::interval(Duration::from_secs(1));
-
-    /// Publishes a message if every number in it is finite; counts what happened.
-    fn send<M: Message + Finite + std::fmt::Debug>(
-        publisher: &ros2_client::Publisher<M>,
-        message: M,
-        topic: &str,
-        health: &mut Health,
-    ) {
-        if !message.all_finite() {
-            health.dropped(topic, "output held back: it contained a non-finite number");
-        } else if let Err(e) = publisher.publish(message) {
-            health.dropped(topic, &format!("publish failed: {e:?}"));
-        } else {
-            health.published(topic);
-        }
-    }
+    let publish_clock =
+        |settings: &Arc<Mutex<Settings>>| settings.lock().map(|s| s.publish_clock).unwrap_or(false);
+    let mut sim_timer = simulation_timer(&engine);
 
     loop {
         tokio::select! {
@@ -493,6 +518,37 @@ async fn serve(
                     if let Err(e) = dm_server.send_response(id, engine.describe()) { health.dropped(&dm_name, &format!("response not sent: {e:?}")); }
                 } else { health.dropped(&dm_name, "unreadable request"); }
             }
+            _ = async { sim_timer.as_mut().expect("guarded").tick().await }, if sim_timer.is_some() => {
+                let tick = engine.simulation_tick(Instant::now());
+                publish_simulated(tick, &sim_js_pub, &clock_pub, publish_clock(&shared), &sim_js_name, &mut health);
+            }
+            Some(item) = reset_stream.next() => {
+                if let Ok((id, request)) = item {
+                    if let Err(e) = reset_server.send_response(id, engine.simulation_reset(&request)) { health.dropped(&reset_name, &format!("response not sent: {e:?}")); }
+                } else { health.dropped(&reset_name, "unreadable request"); }
+            }
+            Some(item) = pause_stream.next() => {
+                if let Ok((id, request)) = item {
+                    let response = match engine.simulation_pause(request.data) {
+                        Ok(message) => SetBoolResponse { success: true, message },
+                        Err(message) => SetBoolResponse { success: false, message },
+                    };
+                    if let Err(e) = pause_server.send_response(id, response) { health.dropped(&pause_name, &format!("response not sent: {e:?}")); }
+                } else { health.dropped(&pause_name, "unreadable request"); }
+            }
+            Some(item) = step_stream.next() => {
+                if let Ok((id, _)) = item {
+                    let stepped = engine.simulation_step(Instant::now());
+                    let response = match &stepped {
+                        Ok((_, stamp)) => TriggerResponse { success: true, message: format!("t = {}.{:09} s", stamp.sec, stamp.nanosec) },
+                        Err(message) => TriggerResponse { success: false, message: message.clone() },
+                    };
+                    if stepped.is_ok() {
+                        publish_simulated(Some(stepped), &sim_js_pub, &clock_pub, publish_clock(&shared), &sim_js_name, &mut health);
+                    }
+                    if let Err(e) = step_server.send_response(id, response) { health.dropped(&step_name, &format!("response not sent: {e:?}")); }
+                } else { health.dropped(&step_name, "unreadable request"); }
+            }
             Some(name) = changes_rx.recv() => {
                 let settings = shared.lock().map_err(|e| e.to_string())?.clone();
                 if name == "method" {
@@ -504,14 +560,70 @@ async fn serve(
                         Err(e) => eprintln!("[ERROR] [spatial_dynamics]: parameter '{name}' was accepted but the model could not be rebuilt, keeping robot '{}': {e}", engine.model.name),
                     }
                 }
+                sim_timer = simulation_timer(&engine);
                 eprintln!("[INFO] [spatial_dynamics]: parameter '{name}' now in effect");
             }
             _ = diagnostics.tick() => {
                 let nanos = node.time_now().to_nanos();
                 let stamp = Time { sec: nanos.div_euclid(1_000_000_000) as i32, nanosec: nanos.rem_euclid(1_000_000_000) as u32 };
-                let status = health.report(&diagnostics_name, &engine.model.name, true);
+                let mut status = health.report(&diagnostics_name, &engine.model.name, true);
+                if let Some((t, rtf, paused, diverged)) = engine.simulation_status() {
+                    status.values.push(KeyValue { key: "simulated time (s)".into(), value: format!("{t:.6}") });
+                    status.values.push(KeyValue { key: "real-time factor".into(), value: format!("{rtf:.3}") });
+                    status.values.push(KeyValue { key: "paused".into(), value: paused.to_string() });
+                    if let Some(why) = diverged {
+                        status.level = 2;
+                        status.message = why;
+                    }
+                }
                 let _ = diag_pub.publish(DiagnosticArray { header: Header { stamp, frame_id: String::new() }, status: vec![status] });
             }
         }
+    }
+}
+
+/// Publishes a message if every number in it is finite; counts what happened.
+fn send<M: Message + Finite + std::fmt::Debug>(
+    publisher: &ros2_client::Publisher<M>,
+    message: M,
+    topic: &str,
+    health: &mut Health,
+) {
+    if !message.all_finite() {
+        health.dropped(topic, "output held back: it contained a non-finite number");
+    } else if let Err(e) = publisher.publish(message) {
+        health.dropped(topic, &format!("publish failed: {e:?}"));
+    } else {
+        health.published(topic);
+    }
+}
+
+/// The publish timer of simulate mode (none in serve mode).
+fn simulation_timer(engine: &Engine) -> Option<tokio::time::Interval> {
+    engine.simulation_period().map(|period| {
+        let mut timer = tokio::time::interval(period);
+        timer.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        timer
+    })
+}
+
+/// Publishes a simulated `joint_states` (and `/clock`), or reports why the simulation stopped.
+fn publish_simulated(
+    tick: Option<Result<(JointState, Time), String>>,
+    js_pub: &ros2_client::Publisher<JointState>,
+    clock_pub: &ros2_client::Publisher<Clock>,
+    publish_clock: bool,
+    topic: &str,
+    health: &mut Health,
+) {
+    match tick {
+        None => {}
+        Some(Ok((js, stamp))) => {
+            if publish_clock {
+                let _ = clock_pub.publish(Clock { clock: stamp });
+            }
+            send(js_pub, js, topic, health);
+        }
+        Some(Err(why)) => eprintln!("[ERROR] [spatial_dynamics]: {why}"),
     }
 }

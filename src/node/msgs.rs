@@ -76,6 +76,20 @@ ros_message! {
     MassMatrixRequest { name: Vec<String>, position: Vec<f64>, base_pose: Pose }
     /// spatial_dynamics_msgs/MassMatrix response
     MassMatrixResponse { success: bool, message: String, name: Vec<String>, matrix: Vec<f64> }
+    /// rosgraph_msgs/Clock
+    Clock { clock: Time }
+    /// std_srvs/SetBool request
+    SetBoolRequest { data: bool }
+    /// std_srvs/SetBool response
+    SetBoolResponse { success: bool, message: String }
+    /// std_srvs/Trigger request (an empty message: one placeholder byte on the wire)
+    TriggerRequest { structure_needs_at_least_one_member: u8 }
+    /// std_srvs/Trigger response
+    TriggerResponse { success: bool, message: String }
+    /// spatial_dynamics_msgs/Reset request
+    ResetRequest { name: Vec<String>, position: Vec<f64>, velocity: Vec<f64>, base_pose: Pose, base_twist: Twist }
+    /// spatial_dynamics_msgs/Reset response
+    ResetResponse { success: bool, message: String }
     /// spatial_dynamics_msgs/DescribeModel request
     DescribeModelRequest { unused: u8 }
     /// spatial_dynamics_msgs/DescribeModel response

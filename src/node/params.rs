@@ -10,11 +10,21 @@
 //! | `gravity` | double[3] | `[0, 0, -9.81]` | gravity in the world frame, m/s² |
 //! | `method` | string | `aba` | forward dynamics: `aba`, `crba` or `rnea_columns` |
 //! | `command_joints` | string[] | `[]` | order of `~/commands` and `~/feedforward_commands` (empty: all joints in model order) |
+//! | `mode` | string | `serve` | `serve`: dynamics of the measured state; `simulate`: the node owns and integrates the state |
+//! | `publish_rate` | double | `100` | simulate: `joint_states` per second (Hz) |
+//! | `sim_dt` | double | `0.001` | simulate: integration step (s) |
+//! | `integrator` | string | `semi_implicit_euler` | simulate: `explicit_euler`, `semi_implicit_euler`, `rk4`, `implicit_euler` |
+//! | `real_time_factor` | double | `1.0` | simulate: simulated seconds per wall-clock second |
+//! | `publish_clock` | bool | `false` | simulate: publish the simulated time on `/clock` |
+//! | `command_timeout` | double | `0.5` | simulate: a command older than this (wall s) drops to zero effort; 0: never |
+//! | `passive` | string[] | `[]` | simulate: URDF forces applied: `damping`, `friction`, `effort_limits`, `position_limits` |
+//! | `initial_positions` | string[] | `[]` | simulate: `"NAME=POSITION"` at start and on reload (others zero) |
 //!
 //! Every parameter can be changed at run time and takes effect at once (model parameters
 //! rebuild the model; a change that would give an unusable model is refused).
 
 use ros2_client::ParameterValue;
+use spatial_dynamics::sim::{Integrator, Passive};
 use spatial_dynamics::spatial::Vector3;
 use spatial_dynamics::{ForwardDynamicsMethod, ModelOptions};
 use std::path::Path;
@@ -30,6 +40,15 @@ pub struct Settings {
     pub gravity: [f64; 3],
     pub method: ForwardDynamicsMethod,
     pub command_joints: Vec<String>,
+    pub simulate: bool,
+    pub publish_rate: f64,
+    pub sim_dt: f64,
+    pub integrator: Integrator,
+    pub real_time_factor: f64,
+    pub publish_clock: bool,
+    pub command_timeout: f64,
+    pub passive: Vec<String>,
+    pub initial_positions: Vec<(String, f64)>,
 }
 
 impl Default for Settings {
@@ -43,6 +62,15 @@ impl Default for Settings {
             gravity: [0.0, 0.0, -9.81],
             method: ForwardDynamicsMethod::Aba,
             command_joints: Vec::new(),
+            simulate: false,
+            publish_rate: 100.0,
+            sim_dt: 1e-3,
+            integrator: Integrator::SemiImplicitEuler,
+            real_time_factor: 1.0,
+            publish_clock: false,
+            command_timeout: 0.5,
+            passive: Vec::new(),
+            initial_positions: Vec::new(),
         }
     }
 }
@@ -95,6 +123,20 @@ impl Settings {
             "gravity" => P::DoubleArray(self.gravity.to_vec()),
             "method" => P::String(self.method.name().to_string()),
             "command_joints" => P::StringArray(self.command_joints.clone()),
+            "mode" => P::String(if self.simulate { "simulate" } else { "serve" }.into()),
+            "publish_rate" => P::Double(self.publish_rate),
+            "sim_dt" => P::Double(self.sim_dt),
+            "integrator" => P::String(self.integrator.name().into()),
+            "real_time_factor" => P::Double(self.real_time_factor),
+            "publish_clock" => P::Boolean(self.publish_clock),
+            "command_timeout" => P::Double(self.command_timeout),
+            "passive" => P::StringArray(self.passive.clone()),
+            "initial_positions" => P::StringArray(
+                self.initial_positions
+                    .iter()
+                    .map(|(n, v)| format!("{n}={v}"))
+                    .collect(),
+            ),
             _ => return None,
         })
     }
@@ -127,6 +169,40 @@ impl Settings {
             ("gravity", _) => return wrong("three finite numbers [x, y, z] (m/s², world frame)"),
             ("method", P::String(s)) => self.method = s.parse()?,
             ("command_joints", P::StringArray(names)) => self.command_joints = names.clone(),
+            ("mode", P::String(m)) if m == "serve" || m == "simulate" => {
+                self.simulate = m == "simulate"
+            }
+            ("mode", _) => return wrong("'serve' or 'simulate'"),
+            ("publish_rate" | "sim_dt" | "real_time_factor", _) => {
+                let x = positive(value).ok_or_else(|| {
+                    format!("parameter '{name}' must be a positive number, got {value:?}")
+                })?;
+                *match name {
+                    "publish_rate" => &mut self.publish_rate,
+                    "sim_dt" => &mut self.sim_dt,
+                    _ => &mut self.real_time_factor,
+                } = x;
+            }
+            ("command_timeout", P::Double(x)) if *x >= 0.0 && x.is_finite() => {
+                self.command_timeout = *x
+            }
+            ("command_timeout", P::Integer(x)) if *x >= 0 => self.command_timeout = *x as f64,
+            ("command_timeout", _) => return wrong("a number of seconds ≥ 0"),
+            ("integrator", P::String(s)) => self.integrator = s.parse()?,
+            ("publish_clock", P::Boolean(b)) => self.publish_clock = *b,
+            ("passive", P::StringArray(items)) => {
+                parse_passive(items)?;
+                self.passive = items.clone();
+            }
+            ("initial_positions", P::StringArray(items)) => {
+                self.initial_positions = items
+                    .iter()
+                    .map(|s| parse_lock(s))
+                    .collect::<Result<_, _>>()?
+            }
+            ("integrator", _) => return wrong("a string"),
+            ("publish_clock", _) => return wrong("a bool"),
+            ("passive" | "initial_positions", _) => return wrong("a list of strings"),
             ("robot_description" | "urdf_file" | "method", _) => return wrong("a string"),
             ("floating_base" | "ignore_mimic", _) => return wrong("a bool"),
             ("locked_joints" | "command_joints", _) => return wrong("a list of strings"),
@@ -203,6 +279,31 @@ impl Settings {
     }
 }
 
+/// A positive finite number (integers accepted).
+fn positive(value: &ParameterValue) -> Option<f64> {
+    match value {
+        ParameterValue::Double(x) => Some(*x),
+        ParameterValue::Integer(x) => Some(*x as f64),
+        _ => None,
+    }
+    .filter(|x| *x > 0.0 && x.is_finite())
+}
+
+/// The passive forces named in `items`.
+pub fn parse_passive(items: &[String]) -> Result<Passive, String> {
+    let mut p = Passive::default();
+    for item in items {
+        match item.as_str() {
+            "damping" => p.damping = true,
+            "friction" => p.friction = true,
+            "effort_limits" => p.effort_limits = true,
+            "position_limits" => p.position_limits = true,
+            other => return Err(format!("passive: unknown item '{other}' (damping, friction, effort_limits, position_limits)")),
+        }
+    }
+    Ok(p)
+}
+
 fn parse_lock(item: &str) -> Result<(String, f64), String> {
     item.split_once('=')
         .and_then(|(n, v)| {
@@ -212,9 +313,7 @@ fn parse_lock(item: &str) -> Result<(String, f64), String> {
             ))
         })
         .filter(|(n, _)| !n.is_empty())
-        .ok_or_else(|| {
-            format!("locked_joints entry '{item}' must be NAME=POSITION with a finite position")
-        })
+        .ok_or_else(|| format!("entry '{item}' must be NAME=POSITION with a finite position"))
 }
 
 /// Nested mappings become dotted names, as ROS reads them.

@@ -2,14 +2,18 @@
 //! the joint-name map, and the latest state and command received. Every entry point answers a
 //! message with a message, or with an error text that names the joint, field or value.
 
+mod simulation;
+
 use super::joint_map::{JointMap, Target};
 use super::msgs::*;
 use super::params::Settings;
+use simulation::Simulation;
 use spatial_dynamics::algorithms::kinematics::body_placements;
 use spatial_dynamics::algorithms::{crba, forward_dynamics, gravity, rnea_with};
 use spatial_dynamics::model::examples::DEFAULT_ARM_URDF;
 use spatial_dynamics::spatial::{Force, Transform};
 use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
+use std::time::Instant;
 
 /// Where the model came from (for diagnostics and DescribeModel).
 #[derive(Clone, Debug, PartialEq)]
@@ -35,8 +39,11 @@ pub struct Engine {
     tau: Vec<f64>,
     out: Vec<f64>,
     wrenches: Vec<Force>,
-    /// Latest commanded effort (`v`-sized), zero until one arrives.
+    /// Latest commanded effort (`v`-sized), zero until one arrives, and when it arrived.
     command: Vec<f64>,
+    command_time: Option<Instant>,
+    /// The simulated robot, in simulate mode.
+    simulation: Option<Simulation>,
     /// Latest floating-base pose `[x y z qx qy qz qw]` and twist from `~/base_state`.
     base_q: [f64; 7],
     base_v: [f64; 6],
@@ -88,7 +95,7 @@ impl Engine {
                 .collect::<Result<_, _>>()?
         };
         let (nq, nv, nb) = (model.nq, model.nv, model.nbodies());
-        Ok(Engine {
+        let mut engine = Engine {
             ws: Workspace::new(&model),
             map,
             command_slots,
@@ -99,12 +106,16 @@ impl Engine {
             out: Vec::with_capacity(nv),
             wrenches: vec![Force::zero(); nb],
             command: vec![0.0; nv],
+            command_time: None,
+            simulation: None,
             base_q: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
             base_v: [0.0; 6],
             method: settings.method,
             model,
             source,
-        })
+        };
+        engine.configure_simulation(settings)?;
+        Ok(engine)
     }
 
     /// Names of the joint coordinates, in model order.
@@ -349,6 +360,7 @@ impl Engine {
         self.map
             .scatter("effort", &js.effort, Target::Rate, false, &mut self.tau)?;
         self.command.copy_from_slice(&self.tau);
+        self.command_time = Some(Instant::now());
         Ok(())
     }
 
@@ -373,6 +385,7 @@ impl Engine {
         for (&slot, value) in self.command_slots.iter().zip(&cmd.data) {
             self.command[self.map.slot(slot).1] = *value;
         }
+        self.command_time = Some(Instant::now());
         Ok(())
     }
 

@@ -1,0 +1,216 @@
+//! Simulate mode: the engine owns the robot state and integrates it from the commanded efforts
+//! (`~/commands`, `~/effort_command`); a command older than `command_timeout` (wall clock) drops
+//! to zero effort. The state advances `real_time_factor × period` per tick of the publish timer,
+//! in steps of `sim_dt`. A diverging integration stops the simulation (the last finite state
+//! stays, nothing non-finite is published) and says when and why.
+
+use super::Engine;
+use crate::node::joint_map::Target;
+use crate::node::msgs::*;
+use crate::node::params::{parse_passive, Settings};
+use spatial_dynamics::sim::{SimConfig, Simulator, State};
+use std::time::{Duration, Instant};
+
+/// The simulated robot.
+pub struct Simulation {
+    sim: Simulator,
+    pub state: State,
+    pub paused: bool,
+    /// Why the simulation stopped, if it diverged.
+    pub diverged: Option<String>,
+    rate: f64,
+    real_time_factor: f64,
+    command_timeout: f64,
+    /// Wall-clock and simulated time at the last rate measurement.
+    measured_since: (Instant, f64),
+    /// Simulated seconds per wall-clock second over the last report period.
+    pub measured_rtf: f64,
+    zero: Vec<f64>,
+}
+
+impl Engine {
+    /// Starts simulating (simulate mode) from `initial_positions`, or stops (serve mode).
+    pub(crate) fn configure_simulation(&mut self, settings: &Settings) -> Result<(), String> {
+        if !settings.simulate {
+            self.simulation = None;
+            return Ok(());
+        }
+        let config = SimConfig {
+            integrator: settings.integrator,
+            method: settings.method,
+            dt: settings.sim_dt,
+            substeps: 1,
+            passive: parse_passive(&settings.passive)?,
+        };
+        let mut q = vec![0.0; self.model.nq];
+        if let Some((qi, _)) = self.map.base() {
+            q[qi + 6] = 1.0;
+        }
+        for (name, value) in &settings.initial_positions {
+            let index = self.map.index(name).ok_or_else(|| {
+                format!(
+                    "initial_positions: unknown joint '{name}' (the model's joints: {})",
+                    self.map.names().join(", ")
+                )
+            })?;
+            q[self.map.slot(index).0] = *value;
+        }
+        self.simulation = Some(Simulation {
+            sim: Simulator::new(&self.model, config),
+            state: State::at_rest(&self.model, q),
+            paused: false,
+            diverged: None,
+            rate: settings.publish_rate,
+            real_time_factor: settings.real_time_factor,
+            command_timeout: settings.command_timeout,
+            measured_since: (Instant::now(), 0.0),
+            measured_rtf: 0.0,
+            zero: vec![0.0; self.model.nv],
+        });
+        Ok(())
+    }
+
+    /// The publish period in simulate mode.
+    pub fn simulation_period(&self) -> Option<Duration> {
+        self.simulation
+            .as_ref()
+            .map(|s| Duration::from_secs_f64(1.0 / s.rate))
+    }
+
+    /// One tick of the publish timer: advance by `real_time_factor / publish_rate` seconds (unless
+    /// paused or diverged) and return the `joint_states` to publish with the simulated time.
+    pub fn simulation_tick(&mut self, now: Instant) -> Option<Result<(JointState, Time), String>> {
+        let sim = self.simulation.as_ref()?;
+        if sim.paused || sim.diverged.is_some() {
+            return None;
+        }
+        let steps = ((sim.real_time_factor / sim.rate) / sim.sim.config.dt)
+            .round()
+            .max(1.0) as usize;
+        Some(self.advance(steps, now))
+    }
+
+    /// `~/step` while paused: one `sim_dt` step.
+    pub fn simulation_step(&mut self, now: Instant) -> Result<(JointState, Time), String> {
+        match &self.simulation {
+            None => Err("the node is not in simulate mode (parameter mode)".into()),
+            Some(s) if !s.paused => {
+                Err("the simulation is running: pause it first (~/pause)".into())
+            }
+            Some(s) if s.diverged.is_some() => Err(format!(
+                "the simulation stopped: {}; reset it (~/reset)",
+                s.diverged.clone().unwrap_or_default()
+            )),
+            Some(_) => self.advance(1, now),
+        }
+    }
+
+    fn advance(&mut self, steps: usize, now: Instant) -> Result<(JointState, Time), String> {
+        let stale = match self.command_time {
+            Some(at) => {
+                let timeout = self.simulation.as_ref().map_or(0.0, |s| s.command_timeout);
+                timeout > 0.0 && now.duration_since(at).as_secs_f64() > timeout
+            }
+            None => true,
+        };
+        let sim = self
+            .simulation
+            .as_mut()
+            .expect("advance is only called when simulating");
+        let tau = if stale { &sim.zero } else { &self.command };
+        for _ in 0..steps {
+            if let Err(e) = sim.sim.step(&self.model, &mut sim.state, tau) {
+                let message = format!("simulation stopped: {e}");
+                sim.diverged = Some(message.clone());
+                return Err(message);
+            }
+        }
+        let wall = now.duration_since(sim.measured_since.0).as_secs_f64();
+        if wall >= 1.0 {
+            sim.measured_rtf = (sim.state.t - sim.measured_since.1) / wall;
+            sim.measured_since = (now, sim.state.t);
+        }
+        let stamp = time_of(sim.state.t);
+        let mut position = Vec::new();
+        let mut velocity = Vec::new();
+        let mut effort = Vec::new();
+        self.map
+            .gather_all(&sim.state.q, Target::Position, &mut position);
+        self.map
+            .gather_all(&sim.state.v, Target::Rate, &mut velocity);
+        self.map.gather_all(tau, Target::Rate, &mut effort);
+        let js = JointState {
+            header: Header {
+                stamp: stamp.clone(),
+                frame_id: String::new(),
+            },
+            name: self.map.names().to_vec(),
+            position,
+            velocity,
+            effort,
+        };
+        Ok((js, stamp))
+    }
+
+    /// `~/pause` (true: pause, false: resume).
+    pub fn simulation_pause(&mut self, pause: bool) -> Result<String, String> {
+        let sim = self
+            .simulation
+            .as_mut()
+            .ok_or("the node is not in simulate mode (parameter mode)")?;
+        sim.paused = pause;
+        Ok(format!(
+            "{} at t = {:.6} s",
+            if pause { "paused" } else { "running" },
+            sim.state.t
+        ))
+    }
+
+    /// `~/reset`: a given state; clears the command and any divergence.
+    pub fn simulation_reset(&mut self, req: &ResetRequest) -> ResetResponse {
+        if self.simulation.is_none() {
+            return ResetResponse {
+                success: false,
+                message: "the node is not in simulate mode (parameter mode)".into(),
+            };
+        }
+        if let Err(message) = self.read_state(
+            &req.name,
+            &req.position,
+            &req.velocity,
+            Some(&req.base_pose),
+            Some(&req.base_twist),
+        ) {
+            return ResetResponse {
+                success: false,
+                message,
+            };
+        }
+        let sim = self.simulation.as_mut().expect("checked above");
+        sim.state.q.copy_from_slice(&self.q);
+        sim.state.v.copy_from_slice(&self.v);
+        sim.diverged = None;
+        self.command.iter_mut().for_each(|c| *c = 0.0);
+        self.command_time = None;
+        ResetResponse {
+            success: true,
+            message: format!("state set at t = {:.6} s", sim.state.t),
+        }
+    }
+
+    /// Simulation figures for `/diagnostics`.
+    pub fn simulation_status(&self) -> Option<(f64, f64, bool, Option<String>)> {
+        self.simulation
+            .as_ref()
+            .map(|s| (s.state.t, s.measured_rtf, s.paused, s.diverged.clone()))
+    }
+}
+
+/// Seconds as builtin_interfaces/Time.
+pub fn time_of(t: f64) -> Time {
+    let nanos = (t * 1e9).round() as i64;
+    Time {
+        sec: nanos.div_euclid(1_000_000_000) as i32,
+        nanosec: nanos.rem_euclid(1_000_000_000) as u32,
+    }
+}
