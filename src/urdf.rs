@@ -152,8 +152,17 @@ fn joint_spec(joint: &urdf_rs::Joint) -> Result<JointSpec, ModelError> {
             l.lower
         },
         upper: if unbounded { f64::INFINITY } else { l.upper },
-        velocity: l.velocity,
-        effort: l.effort,
+        // A missing <limit> (or a zero, which no real joint has) means no limit.
+        velocity: if l.velocity > 0.0 {
+            l.velocity
+        } else {
+            f64::INFINITY
+        },
+        effort: if l.effort > 0.0 {
+            l.effort
+        } else {
+            f64::INFINITY
+        },
         damping: joint.dynamics.as_ref().map_or(0.0, |d| d.damping),
         friction: joint.dynamics.as_ref().map_or(0.0, |d| d.friction),
     };

@@ -106,6 +106,11 @@ impl Workspace {
         self.f[i]
     }
 
+    /// `ⁱX_0` of body `i` (world → body) from the last placement pass.
+    pub fn world_to_body(&self, i: usize) -> Transform {
+        self.x_world[i]
+    }
+
     /// `ⁱX_λ(i)` of body `i` from the last call.
     pub fn parent_to_body(&self, i: usize) -> Transform {
         self.x_up[i]

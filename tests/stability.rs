@@ -36,7 +36,8 @@ fn run(
             passive,
             ..Default::default()
         },
-    );
+    )
+    .unwrap();
     let mut state = State::at_rest(model, q0.to_vec());
     let mut energies = vec![sim.energy(model, &state).unwrap()];
     let tau = vec![0.0; model.nv];
@@ -217,7 +218,8 @@ fn a_floating_body_keeps_its_momentum_and_a_unit_quaternion() {
             dt: 1e-3,
             ..Default::default()
         },
-    );
+    )
+    .unwrap();
     let mut state = State {
         t: 0.0,
         q: vec![0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],

@@ -1,11 +1,10 @@
 //! Mechanical energy: kinetic `T = Σ ½ v_iᵀ I_i v_i` (= ½ q̇ᵀ H q̇) and potential
 //! `V = −Σ m_i gᵀ c_i` (centres of mass in the world), with the model's gravity.
 
-use super::kinematics::{update_joints, update_placements};
+use super::kinematics::{update_joints, update_placements, update_velocities};
 use super::validate::{check_q, check_v};
 use crate::error::DynamicsError;
 use crate::model::Model;
-use crate::spatial::Motion;
 use crate::Workspace;
 
 /// `(T, V)` at `(q, v)`, in joules; the base is at rest in the world.
@@ -19,12 +18,9 @@ pub fn energy(
     check_v(model, "v", v)?;
     update_joints(model, ws, q);
     update_placements(model, ws);
+    update_velocities(model, ws, v);
     let (mut kinetic, mut potential) = (0.0, 0.0);
     for (i, body) in model.bodies.iter().enumerate() {
-        let c = body.joint.coords;
-        let v_joint = ws.s[i].apply(&v[c.v_index..c.v_index + ws.s[i].nv], c.scale);
-        let v_parent = body.parent.map_or(Motion::zero(), |p| ws.v[p]);
-        ws.v[i] = ws.x_up[i].apply_motion(&v_parent) + v_joint;
         kinetic += 0.5 * ws.v[i].dot(&body.inertia.apply(&ws.v[i]));
         // Centre of mass in the world: r + Eᵀ c (E: world → body rotation, r: body origin).
         let x = &ws.x_world[i];

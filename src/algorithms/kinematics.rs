@@ -4,7 +4,7 @@
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::{Joint, Model};
-use crate::spatial::Transform;
+use crate::spatial::{Motion, Transform};
 use crate::Workspace;
 
 /// Fills `ws.q_joint`, `ws.x_up` and `ws.s` for configuration `q` (already validated).
@@ -49,4 +49,31 @@ pub(crate) fn update_placements(model: &Model, ws: &mut Workspace) {
             None => ws.x_up[i],
         };
     }
+}
+
+/// Body spatial velocities `v_i = ⁱX_λ v_λ + S_i q̇_i` into `ws.v` (joints already updated; base
+/// at rest).
+pub(crate) fn update_velocities(model: &Model, ws: &mut Workspace, v: &[f64]) {
+    for (i, body) in model.bodies.iter().enumerate() {
+        let c = body.joint.coords;
+        let v_joint = ws.s[i].apply(&v[c.v_index..c.v_index + ws.s[i].nv], c.scale);
+        let v_parent = body.parent.map_or(Motion::zero(), |p| ws.v[p]);
+        ws.v[i] = ws.x_up[i].apply_motion(&v_parent) + v_joint;
+    }
+}
+
+/// Placements `ⁱX_0` and velocities of every body at `(q, v)`, into the workspace (see
+/// [`Workspace::body_velocity`] and [`body_placements`]).
+pub fn body_motion(
+    model: &Model,
+    ws: &mut Workspace,
+    q: &[f64],
+    v: &[f64],
+) -> Result<(), DynamicsError> {
+    check_q(model, q)?;
+    super::validate::check_v(model, "v", v)?;
+    update_joints(model, ws, q);
+    update_placements(model, ws);
+    update_velocities(model, ws, v);
+    Ok(())
 }

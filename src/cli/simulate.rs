@@ -1,13 +1,17 @@
 //! `spatial_dynamics simulate`: integrate forward dynamics from an initial state under constant
 //! efforts and write the trajectory as CSV: `time`, then `<joint>.position` and
 //! `<joint>.velocity` for every coordinate (multi-dof joints: `<joint>.position[k]`), then
-//! `energy` (T + V, J). A run that diverges keeps the rows written so far, says when and why,
+//! `energy` (T + V, J). Scenes that need it touch a ground plane at contact points (the `lamp`
+//! scene at its foot's corners). A run that diverges keeps the rows written so far, says when and why,
 //! and exits non-zero.
 
 use super::ModelArgs;
 use clap::Args;
 use spatial_dynamics::model::JointKind;
-use spatial_dynamics::sim::{Integrator, Passive, SimConfig, Simulator, State};
+use spatial_dynamics::sim::{
+    ContactPoint, Ground, Integrator, Passive, SimConfig, Simulator, State,
+};
+use spatial_dynamics::spatial::Vector3;
 use spatial_dynamics::{ForwardDynamicsMethod, Model};
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -42,6 +46,22 @@ pub struct SimulateArgs {
     /// effort_limits, position_limits, or all, or none.
     #[arg(long, default_value = "none")]
     passive: String,
+    /// Efforts act until this time (s), then drop to zero (default: the whole run).
+    #[arg(long, value_name = "S")]
+    effort_until: Option<f64>,
+    /// A ground contact point, LINK:X,Y,Z in the link's frame (repeatable). The `lamp` scene
+    /// has the four corners of its foot by default.
+    #[arg(long = "contact", value_name = "LINK:X,Y,Z")]
+    contacts: Vec<String>,
+    /// Ground plane height (m), stiffness (N/m), damping (N·s/m) and friction coefficient.
+    #[arg(long, default_value_t = 0.0)]
+    ground_height: f64,
+    #[arg(long, default_value_t = 2e4)]
+    ground_stiffness: f64,
+    #[arg(long, default_value_t = 200.0)]
+    ground_damping: f64,
+    #[arg(long, default_value_t = 0.8)]
+    ground_friction: f64,
     /// Output CSV file.
     #[arg(long)]
     output: PathBuf,
@@ -80,8 +100,10 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
         dt: args.dt,
         substeps: args.substeps,
         passive: parse_passive(&args.passive)?,
+        ground: ground(model_args, args)?,
     };
-    let mut sim = Simulator::new(&model, config);
+    let zero = vec![0.0; model.nv];
+    let mut sim = Simulator::new(&model, config)?;
     let mut state = State::at_rest(&model, q);
     let file = std::fs::File::create(&args.output)
         .map_err(|e| format!("{}: {e}", args.output.display()))?;
@@ -95,7 +117,10 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
         if step == steps {
             break;
         }
-        match sim.step(&model, &mut state, &tau) {
+        let active = args
+            .effort_until
+            .is_none_or(|until| state.t < until - 1e-12);
+        match sim.step(&model, &mut state, if active { &tau } else { &zero }) {
             Ok(e) => energy = e,
             Err(e) => {
                 out.flush().map_err(write_err)?;
@@ -104,6 +129,12 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
         }
     }
     out.flush().map_err(write_err)?;
+    if sim.max_penetration() > 0.0 {
+        eprintln!(
+            "spatial_dynamics: deepest ground penetration {:.6} m",
+            sim.max_penetration()
+        );
+    }
     if sim.clamped() > 0 {
         eprintln!(
             "spatial_dynamics: efforts were clamped to their URDF limits in {} evaluations",
@@ -111,6 +142,47 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
         );
     }
     Ok(())
+}
+
+/// The ground contact asked for, if any: `--contact` points, or the scene's own.
+fn ground(model_args: &ModelArgs, args: &SimulateArgs) -> Result<Option<Ground>, String> {
+    let mut points = Vec::new();
+    for spec in &args.contacts {
+        let parsed = spec.split_once(':').and_then(|(link, xyz)| {
+            let v: Vec<f64> = xyz
+                .split(',')
+                .map(|x| x.trim().parse().ok())
+                .collect::<Option<_>>()?;
+            (v.len() == 3 && v.iter().all(|x| x.is_finite())).then(|| ContactPoint {
+                link: link.to_string(),
+                point: Vector3::new(v[0], v[1], v[2]),
+            })
+        });
+        points.push(parsed.ok_or_else(|| format!("--contact '{spec}': expected LINK:X,Y,Z"))?);
+    }
+    if points.is_empty()
+        && model_args.builtin.as_deref() == Some("lamp")
+        && model_args.urdf.is_none()
+    {
+        // The lamp's foot is a 0.20 × 0.10 × 0.04 m box whose bottom face is at z = 0 of its frame.
+        points = [(0.1, 0.05), (0.1, -0.05), (-0.1, 0.05), (-0.1, -0.05)]
+            .iter()
+            .map(|&(x, y)| ContactPoint {
+                link: "foot".into(),
+                point: Vector3::new(x, y, 0.0),
+            })
+            .collect();
+    }
+    if points.is_empty() {
+        return Ok(None);
+    }
+    Ok(Some(Ground {
+        height: args.ground_height,
+        stiffness: args.ground_stiffness,
+        damping: args.ground_damping,
+        friction: args.ground_friction,
+        points,
+    }))
 }
 
 fn parse_passive(text: &str) -> Result<Passive, String> {

@@ -208,6 +208,7 @@ impl TreeState {
             root_link: root.to_string(),
             fused_links: Vec::new(),
             locked_joints: Vec::new(),
+            fixed_joints: Vec::new(),
             gravity: options.gravity,
             nq: 0,
             nv: 0,
@@ -279,6 +280,9 @@ impl TreeState {
                     self.model.bodies[body].inertia += fused;
                 }
                 self.model.fused_links.push(link.name.clone());
+                if joint.kind.is_none() {
+                    self.model.fixed_joints.push(joint.name.clone());
+                }
                 self.model.links.push(LinkFrame {
                     name: link.name.clone(),
                     body: parent.body,

@@ -124,6 +124,8 @@ pub struct Model {
     pub fused_links: Vec<String>,
     /// Joints locked at a position (turned fixed), with that position.
     pub locked_joints: Vec<(String, f64)>,
+    /// Joints that are fixed in the description.
+    pub fixed_joints: Vec<String>,
     /// Gravity acceleration in root (world) coordinates, m/s²; default (0, 0, −9.81).
     pub gravity: Vector3,
     /// Number of position coordinates.

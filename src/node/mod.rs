@@ -423,8 +423,13 @@ async fn serve(
         |settings: &Arc<Mutex<Settings>>| settings.lock().map(|s| s.publish_clock).unwrap_or(false);
     let mut sim_timer = simulation_timer(&engine);
 
+    // SIGINT and SIGTERM end the loop; dropping the node then leaves the DDS graph cleanly.
+    let mut terminate = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+        .map_err(|e| e.to_string())?;
     loop {
         tokio::select! {
+            _ = tokio::signal::ctrl_c() => break,
+            _ = terminate.recv() => break,
             Some(item) = js_stream.next() => {
                 health.received(&js_name);
                 let started = Instant::now();
@@ -580,6 +585,8 @@ async fn serve(
             }
         }
     }
+    eprintln!("[INFO] [spatial_dynamics]: shutting down");
+    Ok(())
 }
 
 /// Publishes a message if every number in it is finite; counts what happened.

@@ -117,7 +117,7 @@ impl Settings {
             "locked_joints" => P::StringArray(
                 self.locked_joints
                     .iter()
-                    .map(|(n, v)| format!("{n}={v}"))
+                    .map(|(n, v)| format!("{n}={v:?}"))
                     .collect(),
             ),
             "gravity" => P::DoubleArray(self.gravity.to_vec()),
@@ -134,7 +134,7 @@ impl Settings {
             "initial_positions" => P::StringArray(
                 self.initial_positions
                     .iter()
-                    .map(|(n, v)| format!("{n}={v}"))
+                    .map(|(n, v)| format!("{n}={v:?}"))
                     .collect(),
             ),
             _ => return None,

@@ -7,9 +7,12 @@
 //! trusted stops with a [`SimError`] saying when and why: non-finite state, energy blow-up,
 //! singular mass matrix.
 
+mod contact;
 mod forces;
 mod integrator;
 
+use contact::Contacts;
+pub use contact::{ContactPoint, Ground};
 pub use forces::{Passive, PassiveForces};
 pub use integrator::Integrator;
 
@@ -32,6 +35,8 @@ pub struct SimConfig {
     pub dt: f64,
     pub substeps: usize,
     pub passive: Passive,
+    /// Ground contact, for scenes that need it.
+    pub ground: Option<Ground>,
 }
 
 impl Default for SimConfig {
@@ -42,6 +47,7 @@ impl Default for SimConfig {
             dt: 1e-3,
             substeps: 1,
             passive: Passive::default(),
+            ground: None,
         }
     }
 }
@@ -99,6 +105,7 @@ pub(crate) struct Evaluator {
     tau: Vec<f64>,
     method: ForwardDynamicsMethod,
     on: Passive,
+    contacts: Option<Contacts>,
     /// Effort evaluations clamped to their limits.
     clamped: u64,
 }
@@ -114,15 +121,15 @@ impl Evaluator {
         out: &mut [f64],
     ) -> Result<(), DynamicsError> {
         self.clamped += self.passive.total(&self.on, q, v, tau_cmd, &mut self.tau) as u64;
-        let a = forward_dynamics(
-            model,
-            &mut self.ws,
-            q,
-            v,
-            &self.tau,
-            self.method,
-            &Externals::none(),
-        )?;
+        let wrenches = match &mut self.contacts {
+            Some(c) if !c.is_empty() => Some(c.wrenches(model, &mut self.ws, q, v)?),
+            _ => None,
+        };
+        let ext = Externals {
+            wrenches,
+            ..Default::default()
+        };
+        let a = forward_dynamics(model, &mut self.ws, q, v, &self.tau, self.method, &ext)?;
         out.copy_from_slice(a);
         Ok(())
     }
@@ -153,17 +160,23 @@ pub struct Simulator {
 }
 
 impl Simulator {
-    /// A simulator for `model`.
-    pub fn new(model: &Model, config: SimConfig) -> Simulator {
+    /// A simulator for `model`; fails when a contact point names a link the model lacks.
+    pub fn new(model: &Model, config: SimConfig) -> Result<Simulator, String> {
+        let contacts = config
+            .ground
+            .as_ref()
+            .map(|g| Contacts::new(model, g))
+            .transpose()?;
         let (nq, nv) = (model.nq, model.nv);
         let vecs = || [vec![0.0; nv], vec![0.0; nv], vec![0.0; nv], vec![0.0; nv]];
-        Simulator {
+        Ok(Simulator {
             eval: Evaluator {
                 ws: Workspace::new(model),
                 passive: PassiveForces::new(model),
                 tau: vec![0.0; nv],
                 method: config.method,
                 on: config.passive,
+                contacts,
                 clamped: 0,
             },
             scratch: Scratch {
@@ -179,7 +192,15 @@ impl Simulator {
             config,
             initial_energy: None,
             work: 0.0,
-        }
+        })
+    }
+
+    /// Deepest ground penetration of any contact point so far (m).
+    pub fn max_penetration(&self) -> f64 {
+        self.eval
+            .contacts
+            .as_ref()
+            .map_or(0.0, |c| c.max_penetration)
     }
 
     /// How many effort evaluations were clamped to their limits so far.

@@ -76,7 +76,12 @@ impl Engine {
             )
         };
         let model = model.map_err(|e| e.to_string())?;
-        let passive: Vec<String> = model.locked_joints.iter().map(|(n, _)| n.clone()).collect();
+        let passive: Vec<String> = model
+            .locked_joints
+            .iter()
+            .map(|(n, _)| n.clone())
+            .chain(model.fixed_joints.iter().cloned())
+            .collect();
         let map = JointMap::new(&model, &passive)?;
         let command_slots = if settings.command_joints.is_empty() {
             (0..map.names().len()).collect()
@@ -297,7 +302,12 @@ impl Engine {
             method: self.method.name().into(),
             ..Default::default()
         };
-        for joint in self.model.coordinate_joints() {
+        let base = self.map.base().map(|(q, _)| q);
+        for joint in self
+            .model
+            .coordinate_joints()
+            .filter(|j| Some(j.q_index) != base)
+        {
             let limits = &self
                 .model
                 .bodies
@@ -318,7 +328,7 @@ impl Engine {
             .model
             .locked_joints
             .iter()
-            .map(|(n, v)| format!("{n}={v}"))
+            .map(|(n, v)| format!("{n}={v:?}"))
             .collect();
         r.fused_links = self.model.fused_links.clone();
         r.message = format!(
@@ -357,6 +367,8 @@ impl Engine {
     /// `~/effort_command` (by name).
     pub fn set_effort_command(&mut self, js: &JointState) -> Result<(), String> {
         self.map.match_names(&js.name, "name")?;
+        // Joints only: a floating base is never commanded.
+        self.tau.iter_mut().for_each(|t| *t = 0.0);
         self.map
             .scatter("effort", &js.effort, Target::Rate, false, &mut self.tau)?;
         self.command.copy_from_slice(&self.tau);

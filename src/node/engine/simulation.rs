@@ -41,6 +41,7 @@ impl Engine {
             dt: settings.sim_dt,
             substeps: 1,
             passive: parse_passive(&settings.passive)?,
+            ground: None,
         };
         let mut q = vec![0.0; self.model.nq];
         if let Some((qi, _)) = self.map.base() {
@@ -56,7 +57,7 @@ impl Engine {
             q[self.map.slot(index).0] = *value;
         }
         self.simulation = Some(Simulation {
-            sim: Simulator::new(&self.model, config),
+            sim: Simulator::new(&self.model, config)?,
             state: State::at_rest(&self.model, q),
             paused: false,
             diverged: None,

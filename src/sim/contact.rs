@@ -1,0 +1,123 @@
+//! Ground contact for the scenes that need it: a horizontal plane `z = height` (world frame) and
+//! named points on named links, each pushed by a penalty spring–damper with smoothed Coulomb
+//! friction, applied to the bodies as external wrenches. A scene without contact points pays
+//! nothing for it.
+//!
+//! For a point at depth `d = height − z > 0` moving with world velocity `u`:
+//! `f_n = max(0, k d − b u_z)`, `f_t = −μ f_n u_t / √(|u_t|² + ε²)` (ε = 0.01 m/s), the force
+//! `[f_t; f_n]` acts at the point.
+
+use crate::algorithms::kinematics::body_motion;
+use crate::error::DynamicsError;
+use crate::spatial::{Force, Vector3};
+use crate::{Model, Workspace};
+
+/// A contact point: a link name and a point in that link's frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContactPoint {
+    pub link: String,
+    pub point: Vector3,
+}
+
+/// The ground and the points that can touch it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Ground {
+    /// Height of the plane (m, world z).
+    pub height: f64,
+    /// Spring stiffness k (N/m) and damping b (N·s/m) per point.
+    pub stiffness: f64,
+    pub damping: f64,
+    /// Friction coefficient μ.
+    pub friction: f64,
+    pub points: Vec<ContactPoint>,
+}
+
+impl Default for Ground {
+    fn default() -> Self {
+        Ground {
+            height: 0.0,
+            stiffness: 2e4,
+            damping: 200.0,
+            friction: 0.8,
+            points: Vec::new(),
+        }
+    }
+}
+
+/// Tangential smoothing velocity of contact friction (m/s).
+pub const CONTACT_FRICTION_SMOOTHING: f64 = 0.01;
+
+/// Contact points resolved to bodies, and the wrenches they produce.
+#[derive(Clone, Debug)]
+pub(crate) struct Contacts {
+    ground: Ground,
+    /// `(body, point in the body frame)` per contact point.
+    points: Vec<(usize, Vector3)>,
+    wrenches: Vec<Force>,
+    /// Deepest penetration seen so far (m).
+    pub max_penetration: f64,
+}
+
+impl Contacts {
+    /// Resolves each point's link to its body (fused links included).
+    pub(crate) fn new(model: &Model, ground: &Ground) -> Result<Contacts, String> {
+        let mut points = Vec::new();
+        for p in &ground.points {
+            let link = model
+                .link(&p.link)
+                .ok_or_else(|| format!("contact point on unknown link '{}'", p.link))?;
+            let body = link.body.ok_or_else(|| {
+                format!(
+                    "contact point on link '{}', which is fixed to the world",
+                    p.link
+                )
+            })?;
+            // Point in link frame → body frame: x_body_link maps body to link coordinates.
+            let x = &link.x_body_link;
+            points.push((body, x.trans + x.rot.tr_mul(&p.point)));
+        }
+        Ok(Contacts {
+            ground: ground.clone(),
+            points,
+            wrenches: vec![Force::zero(); model.nbodies()],
+            max_penetration: 0.0,
+        })
+    }
+
+    /// True when there is nothing to compute.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// The contact wrench on every body (body frames) at `(q, v)`.
+    pub(crate) fn wrenches(
+        &mut self,
+        model: &Model,
+        ws: &mut Workspace,
+        q: &[f64],
+        v: &[f64],
+    ) -> Result<&[Force], DynamicsError> {
+        self.wrenches.iter_mut().for_each(|w| *w = Force::zero());
+        body_motion(model, ws, q, v)?;
+        let g = &self.ground;
+        for &(body, p) in &self.points {
+            let x = ws.world_to_body(body);
+            let position = x.trans + x.rot.tr_mul(&p);
+            let depth = g.height - position.z;
+            if depth <= 0.0 {
+                continue;
+            }
+            self.max_penetration = self.max_penetration.max(depth);
+            let twist = ws.body_velocity(body);
+            let velocity = x.rot.tr_mul(&(twist.lin + twist.ang.cross(&p)));
+            let normal = (g.stiffness * depth - g.damping * velocity.z).max(0.0);
+            let slip = Vector3::new(velocity.x, velocity.y, 0.0);
+            let tangential = -slip
+                * (g.friction * normal
+                    / (slip.norm_squared() + CONTACT_FRICTION_SMOOTHING.powi(2)).sqrt());
+            let force_body = x.rot * (tangential + Vector3::new(0.0, 0.0, normal));
+            self.wrenches[body] += Force::new(p.cross(&force_body), force_body);
+        }
+        Ok(&self.wrenches)
+    }
+}

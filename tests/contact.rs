@@ -1,0 +1,99 @@
+//! Ground contact: the handout's lamp rests on the plane with the static penetration a spring
+//! model predicts, and jumps and lands without sinking deeper than a stated depth.
+
+use spatial_dynamics::model::examples::LAMP_URDF;
+use spatial_dynamics::sim::{ContactPoint, Ground, Integrator, SimConfig, Simulator, State};
+use spatial_dynamics::spatial::Vector3;
+use spatial_dynamics::{urdf, Model, ModelOptions};
+
+/// The lamp's foot is a 0.20 × 0.10 m box whose bottom face is at z = 0 of its frame.
+fn lamp(locked: &[(&str, f64)]) -> (Model, SimConfig) {
+    let locked = locked.iter().map(|(n, v)| (n.to_string(), *v)).collect();
+    let model = urdf::model_from_str(
+        LAMP_URDF,
+        &ModelOptions {
+            locked,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let points = [(0.1, 0.05), (0.1, -0.05), (-0.1, 0.05), (-0.1, -0.05)]
+        .iter()
+        .map(|&(x, y)| ContactPoint {
+            link: "foot".into(),
+            point: Vector3::new(x, y, 0.0),
+        })
+        .collect();
+    let ground = Ground {
+        points,
+        ..Ground::default()
+    };
+    (
+        model,
+        SimConfig {
+            integrator: Integrator::SemiImplicitEuler,
+            dt: 2e-4,
+            ground: Some(ground),
+            ..Default::default()
+        },
+    )
+}
+
+const MASS: f64 = 1.2; // config/models/README.md
+
+#[test]
+fn resting_lamp_sinks_by_its_weight_over_the_springs() {
+    // Hinges locked (a limp lamp would fold): a rigid body on four springs, q = [x, z, θ].
+    let (model, config) = lamp(&[("hinge1", 0.3), ("hinge2", -0.6)]);
+    let k = config.ground.as_ref().unwrap().stiffness;
+    let mut sim = Simulator::new(&model, config).unwrap();
+    let mut state = State::at_rest(&model, vec![0.0, 0.0, 0.0]);
+    for _ in 0..10_000 {
+        sim.step(&model, &mut state, &[0.0; 3]).unwrap();
+    }
+    // Σ k d_i = m g with the four corners symmetric about the foot's centre: mean depth = −z.
+    let expected = -MASS * 9.81 / (4.0 * k);
+    assert!(
+        (state.q[1] - expected).abs() < 0.05 * expected.abs(),
+        "base z {} vs {expected}",
+        state.q[1]
+    );
+    assert!(
+        state.v.iter().all(|v| v.abs() < 1e-3),
+        "not at rest: {:?}",
+        state.v
+    );
+}
+
+#[test]
+fn lamp_jumps_and_lands_within_the_stated_depth() {
+    // Extend both hinges hard for 0.1 s, then go limp: the lamp leaves the ground and lands.
+    // Stated bound: with k = 2e4 N/m and b = 200 N·s/m, no corner sinks deeper than 5 mm.
+    let (model, config) = lamp(&[]);
+    let mut sim = Simulator::new(&model, config).unwrap();
+    let mut state = State::at_rest(&model, vec![0.0, 0.0, 0.0, 0.6, -1.4]);
+    let push = [0.0, 0.0, 0.0, -1.0, 3.0];
+    let (mut highest, mut airborne) = (0.0_f64, false);
+    for step in 0..5_000 {
+        let tau = if step < 500 { push } else { [0.0; 5] };
+        sim.step(&model, &mut state, &tau).unwrap();
+        highest = highest.max(state.q[1]);
+        // Airborne: the foot's lowest corner above the ground.
+        let (z, theta) = (state.q[1], state.q[2]);
+        airborne |= z - 0.1 * theta.sin().abs() > 0.01;
+    }
+    assert!(
+        airborne && highest > 0.15,
+        "no jump: highest base {highest} m"
+    );
+    assert!(
+        state.q[1].abs() < 0.005,
+        "did not land: base at {} m",
+        state.q[1]
+    );
+    assert!(
+        sim.max_penetration() < 0.005,
+        "sank {} m into the ground",
+        sim.max_penetration()
+    );
+}
