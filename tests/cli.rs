@@ -260,3 +260,27 @@ fn simulate_writes_the_trajectory_and_reports_divergence() {
         "{err}"
     );
 }
+
+#[test]
+fn lock_reduces_the_model() {
+    let (ok, out, err) = run(
+        &[
+            "model",
+            "--lock",
+            "joint7=0.5",
+            "--lock",
+            "joint6=-0.2",
+            "--json",
+        ],
+        "",
+    );
+    assert!(ok, "{err}");
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["nv"], 5);
+    let (ok, out, _) = run(&["model", "--lock", "joint7=0.5"], "");
+    assert!(ok && out.contains("locked: 'joint7' at 0.5"), "{out}");
+    let (ok, _, err) = run(&["model", "--lock", "joint9=0.5"], "");
+    assert!(!ok && err.contains("cannot lock joint 'joint9'"), "{err}");
+    let (ok, _, err) = run(&["model", "--lock", "joint7"], "");
+    assert!(!ok && err.contains("--lock 'joint7'"), "{err}");
+}

@@ -50,6 +50,9 @@ pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
             c.offset
         );
     }
+    for (name, value) in &model.locked_joints {
+        println!("locked: '{name}' at {value}");
+    }
     if !model.fused_links.is_empty() {
         println!("fused (fixed joints): {}", model.fused_links.join(", "));
     }

@@ -21,6 +21,10 @@ pub struct ModelArgs {
     /// Treat <mimic> joints as independent joints.
     #[arg(long)]
     pub ignore_mimic: bool,
+    /// Lock a joint at a position, NAME=VALUE (repeatable): it becomes fixed and its child fuses
+    /// into the parent body.
+    #[arg(long = "lock", value_name = "NAME=VALUE")]
+    pub locks: Vec<String>,
     /// Gravity in the world frame, m/s² (default 0,0,-9.81).
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub gravity: Option<String>,
@@ -36,6 +40,17 @@ impl ModelArgs {
         };
         if let Some(g) = &self.gravity {
             options.gravity = parse_gravity(g)?;
+        }
+        for lock in &self.locks {
+            let parsed = lock.split_once('=').and_then(|(n, v)| {
+                Some((
+                    n.trim().to_string(),
+                    v.trim().parse::<f64>().ok().filter(|x| x.is_finite())?,
+                ))
+            });
+            options.locked.push(parsed.ok_or_else(|| {
+                format!("--lock '{lock}': expected NAME=VALUE with a finite value")
+            })?);
         }
         let result = match (&self.urdf, &self.builtin) {
             (Some(path), _) => urdf::model_from_file(path, &options),
