@@ -19,7 +19,7 @@
 //! them are refused (use the `crba` or `rnea_columns` method).
 
 use super::kinematics::update_joints;
-use super::validate::{check_externals, check_q, check_result, check_v};
+use super::validate::{check_forward_inputs, check_result};
 use super::{pivot_is_sound, Externals};
 use crate::error::DynamicsError;
 use crate::model::Model;
@@ -44,10 +44,7 @@ pub fn aba<'w>(
             ),
         });
     }
-    check_q(model, q)?;
-    check_v(model, "v", v)?;
-    check_v(model, "tau", tau)?;
-    check_externals(model, ext)?;
+    check_forward_inputs(model, q, v, tau, ext)?;
     update_joints(model, ws, q);
     velocity_pass(model, ws, v, ext);
     articulated_pass(model, ws, tau)?;

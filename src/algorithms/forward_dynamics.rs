@@ -11,7 +11,7 @@ use super::crba::crba_passes;
 use super::kinematics::update_joints;
 use super::ltl::{ltl_factor, ltl_solve};
 use super::rnea::rnea_passes;
-use super::validate::{check_externals, check_q, check_result, check_v};
+use super::validate::{check_forward_inputs, check_result};
 use super::{aba, rnea_columns, Externals};
 use crate::error::DynamicsError;
 use crate::model::Model;
@@ -89,10 +89,7 @@ fn crba_solve<'w>(
     tau: &[f64],
     ext: &Externals<'_>,
 ) -> Result<&'w [f64], DynamicsError> {
-    check_q(model, q)?;
-    check_v(model, "v", v)?;
-    check_v(model, "tau", tau)?;
-    check_externals(model, ext)?;
+    check_forward_inputs(model, q, v, tau, ext)?;
     update_joints(model, ws, q);
     rnea_passes(model, ws, Some(v), None, ext);
     crba_passes(model, ws);

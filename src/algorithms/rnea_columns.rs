@@ -12,7 +12,7 @@
 use super::cholesky::{cholesky_factor, cholesky_solve};
 use super::kinematics::update_joints;
 use super::rnea::rnea_passes;
-use super::validate::{check_externals, check_q, check_result, check_v};
+use super::validate::{check_forward_inputs, check_result};
 use super::Externals;
 use crate::error::DynamicsError;
 use crate::model::Model;
@@ -27,10 +27,7 @@ pub fn rnea_columns<'w>(
     tau: &[f64],
     ext: &Externals<'_>,
 ) -> Result<&'w [f64], DynamicsError> {
-    check_q(model, q)?;
-    check_v(model, "v", v)?;
-    check_v(model, "tau", tau)?;
-    check_externals(model, ext)?;
+    check_forward_inputs(model, q, v, tau, ext)?;
     inverse_dynamics(model, ws, q, v, None, ext);
     ws.bias.copy_from(&ws.tau);
     ws.unit.fill(0.0);

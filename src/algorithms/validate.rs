@@ -68,6 +68,20 @@ pub(crate) fn check_externals(model: &Model, ext: &Externals<'_>) -> Result<(), 
     Ok(())
 }
 
+/// The inputs of forward dynamics: `q`, `v`, `τ` and the externals.
+pub(crate) fn check_forward_inputs(
+    model: &Model,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    ext: &Externals<'_>,
+) -> Result<(), DynamicsError> {
+    check_q(model, q)?;
+    check_v(model, "v", v)?;
+    check_v(model, "tau", tau)?;
+    check_externals(model, ext)
+}
+
 /// A result vector is finite; names the first coordinate that is not.
 pub(crate) fn check_result(
     model: &Model,
