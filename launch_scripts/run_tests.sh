@@ -21,4 +21,12 @@ export SPATIAL_DYNAMICS_BIN="$repo/target/release/spatial_dynamics"
 "$repo/.venv/bin/python" -m pytest -q "$repo/tests/python"
 
 echo "== DDS: the node against rclpy, in a private network namespace (loopback only) =="
+if ! command -v ip >/dev/null 2>&1; then
+    if [[ "$(id -u)" -eq 0 ]] && command -v apt-get >/dev/null 2>&1; then
+        apt-get update -qq </dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq iproute2 </dev/null
+    else
+        echo "the DDS tests need 'ip' (Debian package iproute2) and 'unshare' (util-linux)" >&2
+        exit 1
+    fi
+fi
 "$repo/launch_scripts/netns_exec.sh" "$repo/.venv/bin/python" -m pytest -q "$repo/tests/dds"
