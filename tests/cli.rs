@@ -284,3 +284,57 @@ fn lock_reduces_the_model() {
     let (ok, _, err) = run(&["model", "--lock", "joint7"], "");
     assert!(!ok && err.contains("--lock 'joint7'"), "{err}");
 }
+
+#[test]
+fn bench_prints_the_json_contract() {
+    let (ok, out, err) = run(
+        &[
+            "bench",
+            "--builtin",
+            "pendulum:3",
+            "--json",
+            "--states",
+            "1000",
+            "--repeats",
+            "3",
+            "--min-time",
+            "0.001",
+        ],
+        "",
+    );
+    assert!(ok, "{err}");
+    let v: Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(v["nv"], 3);
+    for kernel in [
+        "rnea",
+        "crba",
+        "fd_aba",
+        "fd_crba",
+        "fd_rnea_columns",
+        "gravity",
+    ] {
+        let ns = v["ns_per_call"][kernel]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{kernel} missing in {out}"));
+        assert!(ns > 0.0 && ns.is_finite(), "{kernel}: {ns}");
+    }
+    // Mimic joints: aba refuses, reported as null.
+    let (ok, out, err) = run(
+        &[
+            "bench",
+            "--builtin",
+            "mimic_gripper",
+            "--json",
+            "--states",
+            "1000",
+            "--repeats",
+            "1",
+            "--min-time",
+            "0.001",
+        ],
+        "",
+    );
+    assert!(ok, "{err}");
+    let v: Value = serde_json::from_str(out.trim()).unwrap();
+    assert!(v["ns_per_call"]["fd_aba"].is_null(), "{out}");
+}
