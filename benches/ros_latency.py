@@ -6,18 +6,20 @@
   JointState it receives;
 - the node's own computation per message, from its /diagnostics ("compute mean (us)").
 
+The probe and the echo node share one single-threaded executor in this process (the echo node's
+callbacks run when the probe spins), so both paths pay the same client-side costs.
+
 Run inside a private network namespace: launch_scripts/bench_ros_latency.sh
 Prints a markdown table (p50 / p99 in microseconds).
 """
 import os
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
 import rclpy
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -48,7 +50,6 @@ class Probe(Node):
     def __init__(self):
         super().__init__("latency_probe")
         self.arrivals = {}
-        self.cond = threading.Condition()
         best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         for topic in ("/spatial_dynamics/gravity_effort", "/echo/out"):
             self.create_subscription(JointState, topic, self.arrived, best_effort)
@@ -56,10 +57,7 @@ class Probe(Node):
         self.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics, 10)
 
     def arrived(self, msg):
-        key = (msg.header.stamp.sec, msg.header.stamp.nanosec)
-        with self.cond:
-            self.arrivals[key] = time.perf_counter()
-            self.cond.notify_all()
+        self.arrivals[(msg.header.stamp.sec, msg.header.stamp.nanosec)] = time.perf_counter()
 
     def diagnostics(self, msg):
         for status in msg.status:
@@ -73,10 +71,17 @@ def percentiles(samples):
     return np.percentile(a, 50), np.percentile(a, 99)
 
 
-def service_latency(probe, name):
+def spin_until(executor, done, timeout):
+    end = time.perf_counter() + timeout
+    while not done() and time.perf_counter() < end:
+        executor.spin_once(timeout_sec=0.01)
+    return done()
+
+
+def service_latency(executor, probe, name):
     client = probe.create_client(InverseDynamics, name)
-    assert client.wait_for_service(timeout_sec=20), name
-    time.sleep(0.5)
+    assert spin_until(executor, client.service_is_ready, 20), name
+    spin_until(executor, lambda: False, 0.5)
     rng = np.random.default_rng(1)
     samples = []
     for i in range(N_CALLS + 100):
@@ -84,19 +89,17 @@ def service_latency(probe, name):
                                       velocity=list(rng.uniform(-1, 1, 7)), acceleration=list(rng.uniform(-1, 1, 7)))
         t0 = time.perf_counter()
         future = client.call_async(req)
-        while not future.done():
-            time.sleep(0)
-            if time.perf_counter() - t0 > 5:
-                raise RuntimeError(f"{name}: no answer")
+        if not spin_until(executor, future.done, 5):
+            raise RuntimeError(f"{name}: no answer")
         if i >= 100:
             samples.append(time.perf_counter() - t0)
         assert future.result().success, future.result().message
     return samples
 
 
-def topic_latency(probe, topic_in, period=0.002):
+def topic_latency(executor, probe, topic_in, period=0.002):
     pub = probe.create_publisher(JointState, topic_in, 10)
-    time.sleep(1.0)
+    spin_until(executor, lambda: False, 1.0)
     samples, lost = [], 0
     rng = np.random.default_rng(2)
     for i in range(N_CALLS + 100):
@@ -105,14 +108,13 @@ def topic_latency(probe, topic_in, period=0.002):
         key = (1000 + i, 0)
         t0 = time.perf_counter()
         pub.publish(msg)
-        with probe.cond:
-            probe.cond.wait_for(lambda: key in probe.arrivals, timeout=1.0)
+        spin_until(executor, lambda: key in probe.arrivals, 1.0)
         if key in probe.arrivals:
             if i >= 100:
                 samples.append(probe.arrivals[key] - t0)
         else:
             lost += 1
-        time.sleep(period)
+        spin_until(executor, lambda: False, period)
     probe.arrivals.clear()
     return samples, lost
 
@@ -122,21 +124,19 @@ def main():
     node_proc = subprocess.Popen([binary, "node"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     rclpy.init()
     echo, probe = Echo(), Probe()
-    executor = MultiThreadedExecutor(num_threads=2)
+    executor = SingleThreadedExecutor()
     executor.add_node(echo)
     executor.add_node(probe)
-    spin_thread = threading.Thread(target=executor.spin, daemon=True)
-    spin_thread.start()
     try:
         rows = []
         for label, name in (("spatial_dynamics ~/inverse_dynamics", "/spatial_dynamics/inverse_dynamics"), ("rclpy echo service", "/echo/inverse_dynamics")):
-            p50, p99 = percentiles(service_latency(probe, name))
+            p50, p99 = percentiles(service_latency(executor, probe, name))
             rows.append((f"service round trip: {label}", p50, p99, ""))
         for label, topic in (("joint_states → spatial_dynamics ~/gravity_effort", "/joint_states"), ("rclpy echo node", "/echo/in")):
-            samples, lost = topic_latency(probe, topic)
+            samples, lost = topic_latency(executor, probe, topic)
             p50, p99 = percentiles(samples)
             rows.append((f"topic in → out: {label}", p50, p99, f"{lost} lost of {N_CALLS + 100}"))
-        time.sleep(1.5)
+        spin_until(executor, lambda: False, 1.5)
         compute = float(np.median(probe.compute_us)) if probe.compute_us else float("nan")
         print(f"\n{N_CALLS} samples each, loopback, 7-DOF arm (sd_arm7)\n")
         print("| path | p50 (µs) | p99 (µs) | notes |\n|---|---|---|---|")
@@ -147,7 +147,6 @@ def main():
         node_proc.terminate()
         node_proc.wait()
         executor.shutdown()
-        spin_thread.join(timeout=2)
         echo.destroy_node()
         probe.destroy_node()
         rclpy.try_shutdown()
