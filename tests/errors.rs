@@ -127,3 +127,26 @@ fn drawing_details_never_refuse_a_model() {
     let text = r#"<robot name="x"><material name="m"><texture/></material><link name="a"><visual><geometry><mesh filename="nowhere.dae"/></geometry><material name="n"><texture/></material></visual><collision><geometry><box size="1 1 1"/></geometry></collision></link></robot>"#;
     assert!(model(text).is_ok());
 }
+
+#[test]
+fn doubtful_inertias_load_with_a_warning_naming_the_link() {
+    // Principal moments 1, 1, 5 break I1 + I2 ≥ I3; real URDFs have such links (ANYmal's cameras).
+    let text = r#"<robot name="x"><link name="a"/><link name="b"><inertial><mass value="1"/>
+        <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="5"/></inertial></link>
+        <joint name="j" type="continuous"><parent link="a"/><child link="b"/></joint></robot>"#;
+    let m = model(text).unwrap();
+    assert_eq!(m.warnings.len(), 1, "{:?}", m.warnings);
+    assert!(
+        m.warnings[0].contains("link 'b'") && m.warnings[0].contains("triangle"),
+        "{:?}",
+        m.warnings
+    );
+    let fine = model(&text.replace(r#"izz="5""#, r#"izz="1.5""#)).unwrap();
+    assert!(fine.warnings.is_empty(), "{:?}", fine.warnings);
+    let not_psd = model(&text.replace(r#"izz="5""#, r#"izz="-1""#)).unwrap();
+    assert!(
+        not_psd.warnings[0].contains("not positive semi-definite"),
+        "{:?}",
+        not_psd.warnings
+    );
+}

@@ -57,7 +57,11 @@ impl ModelArgs {
             (None, Some(name)) => urdf::model_from_str(&builtin_urdf(name)?, &options),
             (None, None) => urdf::model_from_str(examples::DEFAULT_ARM_URDF, &options),
         };
-        result.map_err(|e| e.to_string())
+        let model = result.map_err(|e| e.to_string())?;
+        for warning in &model.warnings {
+            eprintln!("spatial_dynamics: warning: {warning}");
+        }
+        Ok(model)
     }
 }
 

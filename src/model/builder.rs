@@ -209,6 +209,7 @@ impl TreeState {
             fused_links: Vec::new(),
             locked_joints: Vec::new(),
             fixed_joints: Vec::new(),
+            warnings: Vec::new(),
             gravity: options.gravity,
             nq: 0,
             nv: 0,
@@ -254,6 +255,7 @@ impl TreeState {
         options: &ModelOptions,
     ) -> Result<(), ModelError> {
         check_inertia(link)?;
+        self.model.warnings.extend(inertia_doubts(link));
         let parent = self
             .model
             .link(&joint.parent)
@@ -438,4 +440,27 @@ fn check_inertia(link: &BodySpec) -> Result<(), ModelError> {
         )));
     }
     Ok(())
+}
+
+/// Physical doubts about a link's inertia that real URDFs do have (so they warn rather than
+/// refuse): rotational inertia about the centre of mass not positive semi-definite, or principal
+/// moments breaking the triangle inequality `I1 + I2 ≥ I3`.
+fn inertia_doubts(link: &BodySpec) -> Option<String> {
+    let i = &link.inertia;
+    if i.mass <= 0.0 {
+        return None;
+    }
+    // I_c = Ī + m c× c× = Ī + h× h× / m.
+    let hx = crate::spatial::skew(&i.h);
+    let i_com = i.i_bar + hx * hx / i.mass;
+    let mut moments = nalgebra::SymmetricEigen::new(i_com).eigenvalues;
+    moments.as_mut_slice().sort_by(f64::total_cmp);
+    let scale = moments[2].abs().max(f64::MIN_POSITIVE);
+    if moments[0] < -1e-9 * scale {
+        Some(format!("link '{}': its rotational inertia is not positive semi-definite (principal moments {:.3e}, {:.3e}, {:.3e})", link.name, moments[0], moments[1], moments[2]))
+    } else if moments[0] + moments[1] < moments[2] * (1.0 - 1e-6) {
+        Some(format!("link '{}': its principal moments {:.3e}, {:.3e}, {:.3e} break the triangle inequality (no real body has them)", link.name, moments[0], moments[1], moments[2]))
+    } else {
+        None
+    }
 }

@@ -126,6 +126,9 @@ pub struct Model {
     pub locked_joints: Vec<(String, f64)>,
     /// Joints that are fixed in the description.
     pub fixed_joints: Vec<String>,
+    /// Doubts about the description that did not stop it loading (each names the link), such as
+    /// an inertia that breaks the triangle inequality, as some real robots' URDFs do.
+    pub warnings: Vec<String>,
     /// Gravity acceleration in root (world) coordinates, m/s²; default (0, 0, −9.81).
     pub gravity: Vector3,
     /// Number of position coordinates.

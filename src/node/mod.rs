@@ -60,6 +60,9 @@ pub fn run(args: &[String]) -> Result<(), String> {
         settings.apply_arg(name, value)?;
     }
     let engine = Engine::from_settings(&settings, None)?;
+    for warning in &engine.model.warnings {
+        eprintln!("[WARN] [spatial_dynamics]: {warning}");
+    }
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
