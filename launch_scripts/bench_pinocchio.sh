@@ -5,7 +5,10 @@
 #
 # Usage: launch_scripts/bench_pinocchio.sh
 #   Environment: STATES (1024), REPEATS (7), MIN_TIME (0.2 s per repeat) go to both benches;
-#   SKIP_BUILD=1 uses target/release/spatial_dynamics as it is; PYTHON picks python3.11.
+#   MARCH (native) is g++'s -march for the Pinocchio bench; OURS_NATIVE=1 also builds ours with
+#   -C target-cpu=native (into target/bench-native, so the shared target/release is untouched);
+#   SKIP_BUILD=1 uses our binary as it is, OURS_BIN=PATH another binary (implies SKIP_BUILD);
+#   PYTHON picks python3.11.
 #
 # What it does, idempotently:
 #   1. target/bench-venv: a venv (git-ignored) with Pinocchio's C++ headers and libraries (PyPI
@@ -13,11 +16,11 @@
 #      (example-robot-data). Reinstalled only when the package list below changes.
 #   2. target/bench-pinocchio/bench from benches/pinocchio/bench.cpp, g++ -O3 -march=native
 #      -DNDEBUG, Pinocchio's algorithms compiled from its headers (no template instantiation
-#      from the shared library), rebuilt when the source or the flags change.
+#      from the shared library), rebuilt when the source or the flags change (about 4 minutes).
 #   3. cargo build --release, then for each robot `spatial_dynamics bench --json --ignore-mimic`
 #      (Pinocchio's URDF parser treats mimic joints as independent) and the Pinocchio bench.
-# Note: our binary is built for the baseline x86-64 target (no -C target-cpu=native) while the
-# Pinocchio bench gets -march=native: the comparison is against Pinocchio at its best.
+# Note: by default our binary is built for the baseline x86-64 target while the Pinocchio bench
+# gets -march=native: the comparison is against Pinocchio at its best.
 set -euo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -47,7 +50,11 @@ robots="$prefix/share/example-robot-data/robots"
 
 # --- 2. the Pinocchio bench ----------------------------------------------------------------------
 src="$repo/benches/pinocchio/bench.cpp"
-cxx_flags=(-std=c++17 -O3 -march=native -DNDEBUG
+# The URDF parser lives in libpinocchio_parsers.so, built for baseline x86-64, and hands us a
+# Model: with AVX Eigen would align (and free) its memory differently from the library, so keep
+# the library's 16-byte alignment and plain malloc (the vector instructions stay).
+cxx_flags=(-std=c++17 -O3 -march="${MARCH:-native}" -DNDEBUG
+    -DEIGEN_MAX_ALIGN_BYTES=16 -DEIGEN_MALLOC_ALREADY_ALIGNED=1
     -DPINOCCHIO_WITH_URDFDOM -DPINOCCHIO_URDFDOM_HEADERS_MAJOR_VERSION=3
     -DPINOCCHIO_URDFDOM_HEADERS_MINOR_VERSION=0 -DPINOCCHIO_URDFDOM_HEADERS_PATCH_VERSION=0
     -DBOOST_MPL_LIMIT_LIST_SIZE=30 -DBOOST_MPL_LIMIT_VECTOR_SIZE=30
@@ -59,17 +66,25 @@ ld_flags=(-L"$prefix/lib" -Wl,-rpath,"$prefix/lib"
 flags_stamp="$build/.flags"
 if [[ ! -x "$build/bench" || "$src" -nt "$build/bench" \
       || "$(cat "$flags_stamp" 2>/dev/null)" != "${cxx_flags[*]} ${ld_flags[*]}" ]]; then
-    log "compiling $src (a minute or two)"
+    log "compiling $src (about 4 minutes)"
     mkdir -p "$build"
-    g++ "${cxx_flags[@]}" "$src" -o "$build/bench" "${ld_flags[@]}"
+    g++ "${cxx_flags[@]}" "$src" -o "$build/bench" "${ld_flags[@]}" > "$build/compile.log" 2>&1 \
+        || { tail -40 "$build/compile.log" >&2; die "g++ failed (see $build/compile.log)"; }
     echo "${cxx_flags[*]} ${ld_flags[*]}" > "$flags_stamp"
 fi
 
 # --- 3. ours, then the runs ----------------------------------------------------------------------
 ours="$repo/target/release/spatial_dynamics"
-if [[ "${SKIP_BUILD:-0}" != 1 ]]; then
-    log "cargo build --release"
-    (cd "$repo" && cargo build --release --quiet)
+cargo_env=()
+if [[ "${OURS_NATIVE:-0}" == 1 ]]; then
+    ours="$repo/target/bench-native/release/spatial_dynamics"
+    cargo_env=(CARGO_TARGET_DIR="$repo/target/bench-native" RUSTFLAGS="-C target-cpu=native")
+fi
+if [[ -n "${OURS_BIN:-}" ]]; then
+    ours="$OURS_BIN"
+elif [[ "${SKIP_BUILD:-0}" != 1 ]]; then
+    log "cargo build --release ${cargo_env[*]}"
+    (cd "$repo" && env "${cargo_env[@]}" cargo build --release --quiet)
 fi
 [[ -x "$ours" ]] || die "no $ours (cargo build --release)"
 

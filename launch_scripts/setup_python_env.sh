@@ -46,7 +46,7 @@ build_packages=(
 # .venv/lib/python3.11/site-packages/cmeel.prefix/share/example-robot-data/robots/);
 # its Python module `example_robot_data` (load("ur5"), ...) is in example-robot-data-loaders,
 # which pins the matching example-robot-data version.
-tool_packages=(pytest numpy pin example-robot-data example-robot-data-loaders rosbags)
+tool_packages=(pytest numpy mpmath pin example-robot-data example-robot-data-loaders rosbags)
 
 log() { printf '== %s\n' "$*"; }
 die() { printf 'setup_python_env.sh: %s\n' "$*" >&2; exit 1; }

@@ -150,3 +150,35 @@ fn doubtful_inertias_load_with_a_warning_naming_the_link() {
         not_psd.warnings
     );
 }
+
+#[test]
+fn a_subnormal_tip_mass_is_refused_by_aba_with_its_pivot() {
+    // 1e-310 kg is subnormal: D⁻¹ would overflow. ABA refuses, naming the joint and the pivot;
+    // CRBA still solves it.
+    let text = |mass: &str| {
+        format!(
+            r#"<robot name="x"><link name="a"/>
+        <link name="b"><inertial><origin xyz="0 0 -0.5"/><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.01"/></inertial></link>
+        <link name="c"><inertial><origin xyz="0 0 -0.5"/><mass value="{mass}"/><inertia ixx="{mass}" ixy="0" ixz="0" iyy="{mass}" iyz="0" izz="{mass}"/></inertial></link>
+        <joint name="j1" type="continuous"><parent link="a"/><child link="b"/><axis xyz="0 1 0"/></joint>
+        <joint name="j2" type="continuous"><parent link="b"/><child link="c"/><origin xyz="0 0 -1"/><axis xyz="0 1 0"/></joint></robot>"#
+        )
+    };
+    let m = model(&text("1e-310")).unwrap();
+    let mut ws = Workspace::new(&m);
+    let err = forward_dynamics(
+        &m,
+        &mut ws,
+        &[0.3, 0.2],
+        &[0.0; 2],
+        &[0.0; 2],
+        ForwardDynamicsMethod::Aba,
+        &Externals::none(),
+    )
+    .unwrap_err();
+    let message = err.to_string();
+    assert!(
+        message.contains("'j2'") && !message.contains("inf"),
+        "{message}"
+    );
+}

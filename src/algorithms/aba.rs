@@ -153,11 +153,13 @@ fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
 /// is the identity), or `None` when a Cholesky pivot is not clearly positive relative to the
 /// scale of the articulated inertia `ia`.
 fn invert_spd(d: &Matrix6, nv: usize, ia: &Matrix6) -> Option<Matrix6> {
-    // D's scale is that of the articulated inertia; a pivot within a few ulps of it is zero.
+    // D's scale is that of the articulated inertia; a pivot within a few ulps of it is zero,
+    // and a subnormal one has no finite inverse (D⁻¹ would overflow).
     let reference = 64.0 * ia.amax();
+    let sound = |pivot: f64| pivot_is_sound(pivot, reference) && pivot >= f64::MIN_POSITIVE;
     if nv == 1 {
         let pivot = d[(0, 0)];
-        if !pivot_is_sound(pivot, reference) {
+        if !sound(pivot) {
             return None;
         }
         let mut inv = Matrix6::identity();
@@ -166,12 +168,14 @@ fn invert_spd(d: &Matrix6, nv: usize, ia: &Matrix6) -> Option<Matrix6> {
     }
     let chol = d.cholesky()?;
     let l = chol.l_dirty();
-    if (0..nv).any(|k| !pivot_is_sound(l[(k, k)] * l[(k, k)], reference)) {
+    if (0..nv).any(|k| !sound(l[(k, k)] * l[(k, k)])) {
         return None;
     }
     Some(chol.inverse())
 }
 
 fn smallest_pivot(d: &Matrix6, nv: usize) -> f64 {
-    (0..nv).map(|k| d[(k, k)]).fold(f64::INFINITY, f64::min)
+    (0..nv)
+        .map(|k| d[(k, k)].abs())
+        .fold(f64::INFINITY, f64::min)
 }
