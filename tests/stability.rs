@@ -81,6 +81,27 @@ fn explicit_euler_gains_energy_at_any_step() {
 }
 
 #[test]
+fn explicit_euler_gains_energy_on_the_double_pendulum_too() {
+    let model = pendulum(2, None);
+    for dt in [1e-4, 1e-3, 1e-2] {
+        let (e, err) = run(
+            &model,
+            Integrator::ExplicitEuler,
+            dt,
+            (2.0 / dt) as usize,
+            &[0.4, -0.3],
+            Passive::default(),
+        );
+        assert!(err.is_none(), "dt {dt}: {err:?}");
+        // Sampled once a step, the energy trend is upward: the last tenth is above the first.
+        let tenth = e.len() / 10;
+        let first = e[..tenth].iter().sum::<f64>() / tenth as f64;
+        let last = e[e.len() - tenth..].iter().sum::<f64>() / tenth as f64;
+        assert!(last > first, "dt {dt}: energy {first} → {last}");
+    }
+}
+
+#[test]
 fn semi_implicit_euler_is_bounded_below_omega_h_2_and_fails_above() {
     let model = pendulum(1, None);
     let rest = -G * 0.5;
