@@ -12,6 +12,7 @@ import subprocess
 
 import numpy as np
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from spatial_dynamics_msgs.srv import DescribeModel, Reset
@@ -69,19 +70,28 @@ def test_commands_drive_the_arm_like_the_offline_simulator(ros, sim, tmp_path):
     assert ros.call(SetBool, f"{NODE}/pause", SetBool.Request(data=True)).success
     reset = ros.call(Reset, f"{NODE}/reset", Reset.Request(name=ARM_JOINTS, position=Q0, velocity=[]))
     assert reset.success, reset.message
-    commands = ros.publisher(Float64MultiArray, f"{NODE}/commands")
-    commands.publish(Float64MultiArray(data=EFFORT))
-    ros.spin_for(0.5)  # paused: nothing moves while the command arrives
-    states = ros.collector(JointState, "/joint_states", sd.qos_reliable())
-    for _ in range(STEPS):
-        answer = ros.call(Trigger, f"{NODE}/step", Trigger.Request())
-        assert answer.success, answer.message
-    last = states.wait(n=STEPS, timeout=10)[-1]
-    assert list(last.effort) == EFFORT, "the command in force is echoed as effort"
-    q, v = offline(tmp_path)
-    np.testing.assert_allclose(last.position, q, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(last.velocity, v, rtol=0, atol=1e-9)
-    assert ros.call(SetBool, f"{NODE}/pause", SetBool.Request(data=False)).success
+    try:
+        # Paused, nothing moves while the command arrives: publish it until /diagnostics counts
+        # it (the first samples of a fresh writer can be lost while discovery settles).
+        commands = ros.publisher(Float64MultiArray, f"{NODE}/commands")
+        diagnostics = ros.collector(DiagnosticArray, "/diagnostics")
+        ros.exchange(lambda: commands.publish(Float64MultiArray(data=EFFORT)), diagnostics, commands_counted, timeout=10, period=0.3)
+        states = ros.collector(JointState, "/joint_states", sd.qos_reliable())
+        for _ in range(STEPS):
+            answer = ros.call(Trigger, f"{NODE}/step", Trigger.Request())
+            assert answer.success, answer.message
+        last = states.wait(n=STEPS, timeout=10)[-1]
+        assert list(last.effort) == EFFORT, "the command in force is echoed as effort"
+        q, v = offline(tmp_path)
+        np.testing.assert_allclose(last.position, q, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(last.velocity, v, rtol=0, atol=1e-9)
+    finally:
+        assert ros.call(SetBool, f"{NODE}/pause", SetBool.Request(data=False)).success
+
+
+def commands_counted(array):
+    """True when a /diagnostics message counts at least one message received on ~/commands."""
+    return any(kv.key == f"{NODE}/commands received" and int(kv.value) >= 1 for status in array.status for kv in status.values)
 
 
 def test_bad_reset_and_step_while_running_are_refused(ros, sim):
