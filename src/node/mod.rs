@@ -575,10 +575,11 @@ async fn serve(
                 let nanos = node.time_now().to_nanos();
                 let stamp = Time { sec: nanos.div_euclid(1_000_000_000) as i32, nanosec: nanos.rem_euclid(1_000_000_000) as u32 };
                 let mut status = health.report(&diagnostics_name, &engine.model.name, true);
-                if let Some((t, rtf, paused, diverged)) = engine.simulation_status() {
+                if let Some((t, rtf, paused, diverged, clamped)) = engine.simulation_status() {
                     status.values.push(KeyValue { key: "simulated time (s)".into(), value: format!("{t:.6}") });
                     status.values.push(KeyValue { key: "real-time factor".into(), value: format!("{rtf:.3}") });
                     status.values.push(KeyValue { key: "paused".into(), value: paused.to_string() });
+                    status.values.push(KeyValue { key: "efforts clamped".into(), value: clamped.to_string() });
                     if let Some(why) = diverged {
                         status.level = 2;
                         status.message = why;

@@ -64,6 +64,13 @@ def test_runs_in_real_time_with_clock(ros, sim):
     assert np.allclose(steps[steps > 0], 0.02, atol=1e-9), steps
     assert states.messages[-1].name == ARM_JOINTS
     assert all(np.isfinite(m.position).all() and np.isfinite(m.velocity).all() for m in states.messages)
+    # /diagnostics reports the simulation: time, real-time factor (about 1 here), clamps.
+    diagnostics = ros.collector(DiagnosticArray, "/diagnostics")
+    array = diagnostics.wait(n=2, timeout=5)[-1]
+    values = {kv.key: kv.value for status in array.status for kv in status.values}
+    assert float(values["simulated time (s)"]) > 0
+    assert 0.5 < float(values["real-time factor"]) < 1.5, values
+    assert values["paused"] == "false" and values["efforts clamped"] == "0", values
 
 
 def test_commands_drive_the_arm_like_the_offline_simulator(ros, sim, tmp_path):

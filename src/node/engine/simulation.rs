@@ -199,11 +199,18 @@ impl Engine {
         }
     }
 
-    /// Simulation figures for `/diagnostics`.
-    pub fn simulation_status(&self) -> Option<(f64, f64, bool, Option<String>)> {
-        self.simulation
-            .as_ref()
-            .map(|s| (s.state.t, s.measured_rtf, s.paused, s.diverged.clone()))
+    /// Simulation figures for `/diagnostics`: simulated time, real-time factor, paused, why it
+    /// stopped (if it did), and how many effort evaluations were clamped to their URDF limits.
+    pub fn simulation_status(&self) -> Option<(f64, f64, bool, Option<String>, u64)> {
+        self.simulation.as_ref().map(|s| {
+            (
+                s.state.t,
+                s.measured_rtf,
+                s.paused,
+                s.diverged.clone(),
+                s.sim.clamped(),
+            )
+        })
     }
 }
 
