@@ -12,9 +12,8 @@ pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     for (i, body) in model.bodies.iter().enumerate() {
         let nq = body.joint.kind.nq();
         joint_positions(&body.joint, q, &mut ws.q_joint[i]);
-        let (x_j, s) = body.joint.kind.jcalc(&ws.q_joint[i][..nq]);
+        let x_j = body.joint.kind.jcalc(&ws.q_joint[i][..nq], &mut ws.s[i]);
         ws.x_up[i] = x_j.compose(&body.x_tree);
-        ws.s[i] = s;
     }
 }
 

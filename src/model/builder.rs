@@ -1,7 +1,7 @@
 //! Building a [`Model`] from links and joints, whatever file format they came from: the tree is
 //! ordered, fixed joints are fused, mimic joints are resolved and coordinates are numbered.
 
-use super::{Body, CoordinateMap, Joint, JointKind, JointLimits, LinkFrame, Model};
+use super::{Body, CoordinateMap, Joint, JointKind, JointLimits, LinkFrame, Model, MotionSubspace};
 use crate::error::ModelError;
 use crate::spatial::{Inertia, Transform, Vector3};
 use std::collections::{HashMap, HashSet};
@@ -269,7 +269,9 @@ impl TreeState {
                 return Err(ModelError::Invalid(format!("cannot lock joint '{}' at {position}: only revolute, continuous and prismatic joints lock, at a finite position", joint.name)));
             }
             // Frozen at q: the child frame sits at X_J(q) from the joint frame, for good.
-            x_body_joint = k.jcalc(&[position]).0.compose(&x_body_joint);
+            x_body_joint = k
+                .jcalc(&[position], &mut MotionSubspace::default())
+                .compose(&x_body_joint);
             kind = None;
             self.model
                 .locked_joints

@@ -38,12 +38,6 @@ pub struct MotionSubspace {
 }
 
 impl MotionSubspace {
-    fn single(col: Motion) -> Self {
-        let mut cols = [Motion::zero(); 6];
-        cols[0] = col;
-        MotionSubspace { cols, nv: 1 }
-    }
-
     /// `S q̇ = Σ_k S_k q̇_k`, with every rate scaled by `scale`.
     pub fn apply(&self, rates: &[f64], scale: f64) -> Motion {
         let mut m = Motion::zero();
@@ -106,39 +100,36 @@ impl JointKind {
         }
     }
 
-    /// `jcalc`: the joint transform `X_J(q)` (joint frame → child body frame) and the motion
-    /// subspace `S(q)` in child body coordinates. `q` holds this joint's `nq()` coordinates.
-    pub fn jcalc(&self, q: &[f64]) -> (Transform, MotionSubspace) {
+    /// `jcalc`: the joint transform `X_J(q)` (joint frame → child body frame), returned, and the
+    /// motion subspace `S(q)` in child body coordinates, written into `s` (its first `nv()`
+    /// columns; in place, as it is 288 bytes). `q` holds this joint's `nq()` coordinates.
+    pub fn jcalc(&self, q: &[f64], s: &mut MotionSubspace) -> Transform {
+        s.nv = self.nv();
         match *self {
-            JointKind::Revolute { axis } | JointKind::Continuous { axis } => (
-                Transform::rotation(axis_rotation(&axis, q[0]).transpose()),
-                MotionSubspace::single(Motion::new(axis, Vector3::zeros())),
-            ),
-            JointKind::Prismatic { axis } => (
-                Transform::translation(axis * q[0]),
-                MotionSubspace::single(Motion::new(Vector3::zeros(), axis)),
-            ),
+            JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
+                s.cols[0] = Motion::new(axis, Vector3::zeros());
+                Transform::rotation(axis_rotation(&axis, q[0]).transpose())
+            }
+            JointKind::Prismatic { axis } => {
+                s.cols[0] = Motion::new(Vector3::zeros(), axis);
+                Transform::translation(axis * q[0])
+            }
             JointKind::Planar { normal, u, w } => {
                 let e = axis_rotation(&normal, q[2]).transpose();
-                let mut cols = [Motion::zero(); 6];
-                cols[0] = Motion::new(Vector3::zeros(), e * u);
-                cols[1] = Motion::new(Vector3::zeros(), e * w);
-                cols[2] = Motion::new(normal, Vector3::zeros());
-                let x = Transform {
+                s.cols[0] = Motion::new(Vector3::zeros(), e * u);
+                s.cols[1] = Motion::new(Vector3::zeros(), e * w);
+                s.cols[2] = Motion::new(normal, Vector3::zeros());
+                Transform {
                     rot: e,
                     trans: u * q[0] + w * q[1],
-                };
-                (x, MotionSubspace { cols, nv: 3 })
+                }
             }
             JointKind::Floating => {
-                let rotation = quaternion_rotation(q);
-                let x = Transform::from_pose(&rotation, &Vector3::new(q[0], q[1], q[2]));
-                let mut cols = [Motion::zero(); 6];
                 for k in 0..3 {
-                    cols[k].lin[k] = 1.0;
-                    cols[k + 3].ang[k] = 1.0;
+                    s.cols[k] = Motion::new(Vector3::zeros(), Vector3::ith(k, 1.0));
+                    s.cols[k + 3] = Motion::new(Vector3::ith(k, 1.0), Vector3::zeros());
                 }
-                (x, MotionSubspace { cols, nv: 6 })
+                Transform::from_pose(&quaternion_rotation(q), &Vector3::new(q[0], q[1], q[2]))
             }
         }
     }
@@ -234,9 +225,11 @@ mod tests {
             let qd: Vec<f64> = (0..n).map(|i| -0.7 + 0.5 * i as f64).collect();
             let h = 1e-6;
             let step = |s: f64| -> Vec<f64> { q.iter().zip(&qd).map(|(a, b)| a + s * b).collect() };
-            let (x0, s) = kind.jcalc(&q);
-            let (xp, _) = kind.jcalc(&step(h));
-            let (xm, _) = kind.jcalc(&step(-h));
+            let mut s = MotionSubspace::default();
+            let mut scratch = MotionSubspace::default();
+            let x0 = kind.jcalc(&q, &mut s);
+            let xp = kind.jcalc(&step(h), &mut scratch);
+            let xm = kind.jcalc(&step(-h), &mut scratch);
             // Child pose in joint frame: R = Eᵀ, p = r. Body-frame twist: ω× = Rᵀ Ṙ, v = Rᵀ ṗ.
             let r = x0.rot.transpose();
             let r_dot = (xp.rot.transpose() - xm.rot.transpose()) / (2.0 * h);
