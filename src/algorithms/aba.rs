@@ -79,16 +79,15 @@ fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'
 /// Pass 2: articulated-body inertias and bias forces, from the leaves inward.
 fn articulated_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) -> Result<(), DynamicsError> {
     for (i, body) in model.bodies.iter().enumerate().rev() {
-        let s = ws.s[i];
+        // Work on body i's slots in place (each is a 6×6 or six 6-vectors: no copies).
+        let s = &ws.s[i];
         let nv = s.nv;
         let c = body.joint.coords;
-        let ia = ws.ia[i];
+        let (u_cols, d_inv, u) = (&mut ws.u[i], &mut ws.d_inv[i], &mut ws.u_bias[i]);
         // U = I^A S, D = Sᵀ U, u = τ − Sᵀ p^A.
-        let mut u_cols = [Force::zero(); 6];
         let mut d = Matrix6::identity();
-        let mut u = [0.0; 6];
         for k in 0..nv {
-            u_cols[k] = Force::from_vector(&(ia * s.cols[k].to_vector()));
+            u_cols[k] = Force::from_vector(&(ws.ia[i] * s.cols[k].to_vector()));
         }
         for k in 0..nv {
             for k2 in 0..nv {
@@ -96,18 +95,15 @@ fn articulated_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) -> Result<()
             }
             u[k] = tau[c.v_index + k] - s.project(k, &ws.pa[i]);
         }
-        let d_inv =
-            invert_spd(&d, nv, &ia).ok_or_else(|| DynamicsError::SingularArticulatedInertia {
+        *d_inv = invert_spd(&d, nv, &ws.ia[i]).ok_or_else(|| {
+            DynamicsError::SingularArticulatedInertia {
                 joint: body.joint.name.clone(),
                 pivot: smallest_pivot(&d, nv),
-            })?;
-        ws.u[i] = u_cols;
-        ws.d_inv[i] = d_inv;
-        ws.u_bias[i] = u;
+            }
+        })?;
         if let Some(p) = body.parent {
-            // I^a = I^A − U D⁻¹ Uᵀ,  p^a = p^A + I^a c + U D⁻¹ u.
-            let mut ia_a = ia;
-            let mut pa_a = ws.pa[i];
+            // I^a = I^A − U D⁻¹ Uᵀ,  p^a = p^A + I^a c + U D⁻¹ u  (I^a and p^a overwrite I^A, p^A,
+            // which body i no longer needs).
             for k in 0..nv {
                 let mut d_inv_u = 0.0;
                 let mut w = Force::zero();
@@ -116,12 +112,16 @@ fn articulated_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) -> Result<()
                     w += u_cols[k2] * d_inv[(k, k2)];
                 }
                 // Σ_k U_k (D⁻¹ Uᵀ)_k: w is row k of D⁻¹ applied to U's columns.
-                ia_a -= u_cols[k].to_vector() * w.to_vector().transpose();
-                pa_a += u_cols[k] * d_inv_u;
+                ws.ia[i] -= u_cols[k].to_vector() * w.to_vector().transpose();
+                ws.pa[i] += u_cols[k] * d_inv_u;
             }
-            pa_a += Force::from_vector(&(ia_a * ws.c[i].to_vector()));
-            ws.ia[p] += ws.x_up[i].transpose_apply_matrix6(&ia_a);
-            ws.pa[p] += ws.x_up[i].transpose_apply_force(&pa_a);
+            let bias = Force::from_vector(&(ws.ia[i] * ws.c[i].to_vector()));
+            ws.pa[i] += bias;
+            // The parent comes before the child: split so both can be borrowed.
+            let (before, from_i) = ws.ia.split_at_mut(i);
+            before[p] += ws.x_up[i].transpose_apply_matrix6(&from_i[0]);
+            let pa_parent = ws.x_up[i].transpose_apply_force(&ws.pa[i]);
+            ws.pa[p] += pa_parent;
         }
     }
     Ok(())
