@@ -99,7 +99,8 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
         method: args.method,
         dt: args.dt,
         substeps: args.substeps,
-        passive: parse_passive(&args.passive)?,
+        passive: Passive::from_names(args.passive.split(','))
+            .map_err(|e| format!("--passive: {e}"))?,
         ground: ground(model_args, args)?,
     };
     let zero = vec![0.0; model.nv];
@@ -183,22 +184,6 @@ fn ground(model_args: &ModelArgs, args: &SimulateArgs) -> Result<Option<Ground>,
         friction: args.ground_friction,
         points,
     }))
-}
-
-fn parse_passive(text: &str) -> Result<Passive, String> {
-    let mut p = Passive::default();
-    for item in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-        match item {
-            "none" => {}
-            "all" => p = Passive::all(),
-            "damping" => p.damping = true,
-            "friction" => p.friction = true,
-            "effort_limits" => p.effort_limits = true,
-            "position_limits" => p.position_limits = true,
-            other => return Err(format!("--passive: unknown item '{other}' (damping, friction, effort_limits, position_limits, all, none)")),
-        }
-    }
-    Ok(p)
 }
 
 /// Zero for every coordinate; unit quaternions for floating joints.

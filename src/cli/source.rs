@@ -1,7 +1,7 @@
 //! Where the model comes from: a URDF file or a built-in example, and the model options.
 
 use clap::Args;
-use spatial_dynamics::model::examples;
+use spatial_dynamics::model::{examples, joint_position};
 use spatial_dynamics::spatial::Vector3;
 use spatial_dynamics::{urdf, Model, ModelOptions};
 use std::path::PathBuf;
@@ -42,15 +42,9 @@ impl ModelArgs {
             options.gravity = parse_gravity(g)?;
         }
         for lock in &self.locks {
-            let parsed = lock.split_once('=').and_then(|(n, v)| {
-                Some((
-                    n.trim().to_string(),
-                    v.trim().parse::<f64>().ok().filter(|x| x.is_finite())?,
-                ))
-            });
-            options.locked.push(parsed.ok_or_else(|| {
-                format!("--lock '{lock}': expected NAME=VALUE with a finite value")
-            })?);
+            options
+                .locked
+                .push(joint_position(lock).map_err(|e| format!("--lock {e}"))?);
         }
         let result = match (&self.urdf, &self.builtin) {
             (Some(path), _) => urdf::model_from_file(path, &options),

@@ -54,6 +54,20 @@ impl Default for ModelOptions {
     }
 }
 
+/// Parses `NAME=POSITION` (a joint and a finite position, as `--lock` and the node's
+/// `locked_joints` and `initial_positions` take them).
+pub fn joint_position(spec: &str) -> Result<(String, f64), String> {
+    spec.split_once('=')
+        .and_then(|(n, v)| {
+            Some((
+                n.trim().to_string(),
+                v.trim().parse::<f64>().ok().filter(|x| x.is_finite())?,
+            ))
+        })
+        .filter(|(n, _)| !n.is_empty())
+        .ok_or_else(|| format!("'{spec}' must be NAME=POSITION with a finite position"))
+}
+
 /// Collects links and joints, then builds the model.
 #[derive(Clone, Debug, Default)]
 pub struct ModelBuilder {

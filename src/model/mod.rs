@@ -10,7 +10,7 @@ mod builder;
 pub mod examples;
 mod joint;
 
-pub use builder::{BodySpec, JointSpec, ModelBuilder, ModelOptions};
+pub use builder::{joint_position, BodySpec, JointSpec, ModelBuilder, ModelOptions};
 pub use joint::{axis_rotation, quaternion_rotation, JointKind, MotionSubspace};
 
 use crate::error::ModelError;

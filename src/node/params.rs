@@ -24,6 +24,7 @@
 //! rebuild the model; a change that would give an unusable model is refused).
 
 use ros2_client::ParameterValue;
+use spatial_dynamics::model::joint_position;
 use spatial_dynamics::sim::{Integrator, Passive};
 use spatial_dynamics::spatial::Vector3;
 use spatial_dynamics::{ForwardDynamicsMethod, ModelOptions};
@@ -291,29 +292,11 @@ fn positive(value: &ParameterValue) -> Option<f64> {
 
 /// The passive forces named in `items`.
 pub fn parse_passive(items: &[String]) -> Result<Passive, String> {
-    let mut p = Passive::default();
-    for item in items {
-        match item.as_str() {
-            "damping" => p.damping = true,
-            "friction" => p.friction = true,
-            "effort_limits" => p.effort_limits = true,
-            "position_limits" => p.position_limits = true,
-            other => return Err(format!("passive: unknown item '{other}' (damping, friction, effort_limits, position_limits)")),
-        }
-    }
-    Ok(p)
+    Passive::from_names(items.iter().map(String::as_str)).map_err(|e| format!("passive: {e}"))
 }
 
 fn parse_lock(item: &str) -> Result<(String, f64), String> {
-    item.split_once('=')
-        .and_then(|(n, v)| {
-            Some((
-                n.trim().to_string(),
-                v.trim().parse::<f64>().ok().filter(|x| x.is_finite())?,
-            ))
-        })
-        .filter(|(n, _)| !n.is_empty())
-        .ok_or_else(|| format!("entry '{item}' must be NAME=POSITION with a finite position"))
+    joint_position(item).map_err(|e| format!("entry {e}"))
 }
 
 /// Nested mappings become dotted names, as ROS reads them.

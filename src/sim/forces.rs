@@ -30,6 +30,23 @@ impl Passive {
             position_limits: true,
         }
     }
+
+    /// From names: `damping`, `friction`, `effort_limits`, `position_limits`, `all`, `none`.
+    pub fn from_names<'a>(names: impl IntoIterator<Item = &'a str>) -> Result<Passive, String> {
+        let mut p = Passive::default();
+        for name in names {
+            match name.trim() {
+                "none" | "" => {}
+                "all" => p = Passive::all(),
+                "damping" => p.damping = true,
+                "friction" => p.friction = true,
+                "effort_limits" => p.effort_limits = true,
+                "position_limits" => p.position_limits = true,
+                other => return Err(format!("unknown passive force '{other}' (damping, friction, effort_limits, position_limits, all, none)")),
+            }
+        }
+        Ok(p)
+    }
 }
 
 /// Smoothing velocity of Coulomb friction.
@@ -107,5 +124,27 @@ impl PassiveForces {
             out[vi] = tau;
         }
         clamped
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn passive_forces_by_name() {
+        assert_eq!(
+            Passive::from_names(["damping", " friction"]).unwrap(),
+            Passive {
+                damping: true,
+                friction: true,
+                ..Default::default()
+            }
+        );
+        assert_eq!(Passive::from_names(["all"]).unwrap(), Passive::all());
+        assert_eq!(Passive::from_names(["none"]).unwrap(), Passive::default());
+        assert!(Passive::from_names(["springs"])
+            .unwrap_err()
+            .contains("'springs'"));
     }
 }
