@@ -286,6 +286,40 @@ fn lock_reduces_the_model() {
 }
 
 #[test]
+fn root_and_tip_reduce_the_model_and_say_so() {
+    let (ok, out, err) = run(
+        &["model", "--root", "link2", "--tip", "link5", "--json"],
+        "",
+    );
+    assert!(ok, "{err}");
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["nv"], 3);
+    let r = &v["reduction"];
+    assert_eq!(r["root"], "link2");
+    assert_eq!(r["frozen_joints"][0][0], "joint1");
+    assert_eq!(r["payload_links"][0], "link6");
+    let (ok, out, _) = run(&["model", "--tip", "link3"], "");
+    assert!(
+        ok && out
+            .contains("reduced: frozen (outside the kept part): joint4, joint5, joint6, joint7"),
+        "{out}"
+    );
+    // Every command takes the reduction: eval answers for the three joints kept.
+    let (ok, out, err) = run(
+        &["eval", "--tip", "link3"],
+        "{\"op\": \"gravity\", \"q\": [0.1, 0.2, 0.3]}\n",
+    );
+    assert!(ok, "{err}");
+    let answer: Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(answer["tau"].as_array().map(Vec::len), Some(3), "{out}");
+    let (ok, _, err) = run(&["model", "--tip", "nowhere"], "");
+    assert!(
+        !ok && err.contains("tip: there is no link named 'nowhere'"),
+        "{err}"
+    );
+}
+
+#[test]
 fn bench_prints_the_json_contract() {
     let (ok, out, err) = run(
         &[

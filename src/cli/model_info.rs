@@ -11,9 +11,22 @@ pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
             .coordinate_joints()
             .map(|j| json!({"name": j.name, "type": j.kind.type_name(), "q_index": j.q_index, "nq": j.nq, "v_index": j.v_index, "nv": j.nv}))
             .collect();
+        let r = &model.reduction;
+        let reduction = json!({
+            "root": r.root, "tips": r.tips,
+            "frozen_joints": r.frozen_joints, "payload_links": r.payload_links,
+            "removed_links": r.removed_links, "pruned_joints": r.pruned_joints,
+            "pruned_links": r.pruned_links,
+        });
+        let locked: Vec<_> = model
+            .locked_joints
+            .iter()
+            .map(|(n, v)| json!([n, v]))
+            .collect();
         println!(
             "{}",
-            json!({"nq": model.nq, "nv": model.nv, "joints": joints})
+            json!({"nq": model.nq, "nv": model.nv, "nbodies": model.nbodies(), "joints": joints,
+                   "locked_joints": locked, "fused_links": model.fused_links, "reduction": reduction})
         );
         return Ok(());
     }
@@ -52,6 +65,9 @@ pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
     }
     for (name, value) in &model.locked_joints {
         println!("locked: '{name}' at {value}");
+    }
+    for line in model.reduction.summary() {
+        println!("reduced: {line}");
     }
     if !model.fused_links.is_empty() {
         println!("fused (fixed joints): {}", model.fused_links.join(", "));

@@ -7,7 +7,6 @@
 
 use super::ModelArgs;
 use clap::Args;
-use spatial_dynamics::model::JointKind;
 use spatial_dynamics::sim::{
     ContactPoint, Ground, Integrator, Passive, SimConfig, Simulator, State,
 };
@@ -78,7 +77,7 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
             args.dt, args.duration
         ));
     }
-    let mut q = neutral(&model);
+    let mut q = model.neutral();
     apply_map(
         &model,
         args.initial.as_deref(),
@@ -184,17 +183,6 @@ fn ground(model_args: &ModelArgs, args: &SimulateArgs) -> Result<Option<Ground>,
         friction: args.ground_friction,
         points,
     }))
-}
-
-/// Zero for every coordinate; unit quaternions for floating joints.
-fn neutral(model: &Model) -> Vec<f64> {
-    let mut q = vec![0.0; model.nq];
-    for j in model.coordinate_joints() {
-        if *j.kind == JointKind::Floating {
-            q[j.q_index + 6] = 1.0;
-        }
-    }
-    q
 }
 
 #[derive(Clone, Copy, PartialEq)]

@@ -25,6 +25,17 @@ pub struct ModelArgs {
     /// into the parent body.
     #[arg(long = "lock", value_name = "NAME=VALUE")]
     pub locks: Vec<String>,
+    /// Keep only this link's subtree; it becomes the fixed base (joints above and beside it
+    /// freeze at their --lock value or zero).
+    #[arg(long, value_name = "LINK")]
+    pub root: Option<String>,
+    /// Keep only the joints from the root to this link (repeatable); the bodies past it become
+    /// a payload lumped onto it, side branches freeze.
+    #[arg(long = "tip", value_name = "LINK")]
+    pub tips: Vec<String>,
+    /// Remove moving joints whose whole subtree is massless (and their coordinates).
+    #[arg(long)]
+    pub prune_massless: bool,
     /// Gravity in the world frame, m/s² (default 0,0,-9.81).
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub gravity: Option<String>,
@@ -36,6 +47,9 @@ impl ModelArgs {
         let mut options = ModelOptions {
             floating_base: self.floating_base,
             ignore_mimic: self.ignore_mimic,
+            root: self.root.clone(),
+            tips: self.tips.clone(),
+            prune_massless: self.prune_massless,
             ..ModelOptions::default()
         };
         if let Some(g) = &self.gravity {

@@ -1,7 +1,10 @@
 //! Building a [`Model`] from links and joints, whatever file format they came from: the tree is
 //! ordered, fixed joints are fused, mimic joints are resolved and coordinates are numbered.
 
-use super::{Body, CoordinateMap, Joint, JointKind, JointLimits, LinkFrame, Model, MotionSubspace};
+use super::reduction::{neutral_position, Plan, Topology};
+use super::{
+    Body, CoordinateMap, Joint, JointKind, JointLimits, LinkFrame, Model, MotionSubspace, Reduction,
+};
 use crate::error::ModelError;
 use crate::spatial::{Inertia, Transform, Vector3};
 use std::collections::{HashMap, HashSet};
@@ -41,6 +44,15 @@ pub struct ModelOptions {
     /// Joints frozen at a position: each becomes fixed and its child link fuses into the parent
     /// body (a mimic follower of a locked leader is locked with it).
     pub locked: Vec<(String, f64)>,
+    /// Keep only the subtree below this link (it becomes the fixed base): every joint outside
+    /// it is frozen at its `locked` value or neutral position, and its links are fixed to the
+    /// world. `None`: the description's root.
+    pub root: Option<String>,
+    /// Keep only the joints on the paths from the root to these links: the rest freeze, and
+    /// the bodies past each tip become a payload lumped onto it. Empty: the whole subtree.
+    pub tips: Vec<String>,
+    /// Remove moving joints whose whole subtree has zero inertia (with their coordinates).
+    pub prune_massless: bool,
 }
 
 impl Default for ModelOptions {
@@ -50,6 +62,9 @@ impl Default for ModelOptions {
             ignore_mimic: false,
             gravity: Vector3::new(0.0, 0.0, -9.81),
             locked: Vec::new(),
+            root: None,
+            tips: Vec::new(),
+            prune_massless: false,
         }
     }
 }
@@ -102,10 +117,79 @@ impl ModelBuilder {
 
     /// Checks the tree and builds the model.
     pub fn build(&self, options: &ModelOptions) -> Result<Model, ModelError> {
+        let topo = self.topology()?;
+        let plan = Plan::new(&topo, options)?;
+        let root_link = &self.links[topo.root];
+        check_inertia(root_link)?;
+        let mut state = TreeState::new(&self.name, root_link, options);
+        state.model.reduction.root = options.root.clone();
+        state.model.reduction.tips = options.tips.clone();
+        let mut stack: Vec<usize> = topo.children[topo.root].iter().rev().copied().collect();
+        while let Some(j) = stack.pop() {
+            let joint = &self.joints[j];
+            let child = topo.link_index[joint.child.as_str()];
+            if plan.pruned[j] {
+                // The first joint of a massless subtree: drop it and everything below it.
+                let below = topo.joints_below(child);
+                let reduction = &mut state.model.reduction;
+                reduction.pruned_joints.push(joint.name.clone());
+                reduction.pruned_links.push(joint.child.clone());
+                for k in below {
+                    reduction.pruned_joints.push(self.joints[k].name.clone());
+                    reduction.pruned_links.push(self.joints[k].child.clone());
+                }
+                continue;
+            }
+            let lock = self.lock_position(j, &topo, &plan, options);
+            state.attach(joint, &self.links[child], lock, options)?;
+            stack.extend(topo.children[child].iter().rev());
+        }
+        if let Some((name, _)) = options.locked.iter().find(|(name, _)| {
+            !state.model.locked_joints.iter().any(|(l, _)| l == name)
+                && !state.model.reduction.pruned_joints.contains(name)
+        }) {
+            return Err(ModelError::Invalid(format!(
+                "cannot lock joint '{name}': there is no moving joint of that name"
+            )));
+        }
+        if state.model.links.len() + state.model.reduction.pruned_links.len() != self.links.len() {
+            let reached: HashSet<&str> = state
+                .model
+                .links
+                .iter()
+                .map(|l| l.name.as_str())
+                .chain(
+                    state
+                        .model
+                        .reduction
+                        .pruned_links
+                        .iter()
+                        .map(|l| l.as_str()),
+                )
+                .collect();
+            let lost: Vec<&str> = self
+                .links
+                .iter()
+                .map(|l| l.name.as_str())
+                .filter(|l| !reached.contains(l))
+                .collect();
+            return Err(ModelError::Invalid(format!(
+                "links {} are not connected to the root '{}': their joints form a cycle",
+                lost.join(", "),
+                root_link.name
+            )));
+        }
+        state.number_coordinates()?;
+        let model = state.model;
+        model.with_gravity(options.gravity)
+    }
+
+    /// Indexes the links and joints and checks that they form one tree.
+    fn topology(&self) -> Result<Topology<'_>, ModelError> {
         let invalid = |msg: String| Err(ModelError::Invalid(msg));
         let link_index = self.index_links()?;
         let mut joint_names = HashSet::new();
-        let mut parent_joint: HashMap<&str, usize> = HashMap::new();
+        let mut parent_joint: Vec<Option<usize>> = vec![None; self.links.len()];
         let mut children: Vec<Vec<usize>> = vec![Vec::new(); self.links.len()];
         for (j, joint) in self.joints.iter().enumerate() {
             if !joint_names.insert(joint.name.as_str()) {
@@ -119,77 +203,73 @@ impl ModelBuilder {
                     ));
                 }
             }
-            if let Some(&other) = parent_joint.get(joint.child.as_str()) {
+            let child = link_index[joint.child.as_str()];
+            if let Some(other) = parent_joint[child] {
                 return invalid(format!(
                     "link '{}' is the child of two joints, '{}' and '{}'",
                     joint.child, self.joints[other].name, joint.name
                 ));
             }
-            parent_joint.insert(&joint.child, j);
+            parent_joint[child] = Some(j);
             children[link_index[joint.parent.as_str()]].push(j);
         }
-        let roots: Vec<&str> = self
-            .links
-            .iter()
-            .map(|l| l.name.as_str())
-            .filter(|l| !parent_joint.contains_key(l))
+        let roots: Vec<usize> = (0..self.links.len())
+            .filter(|&l| parent_joint[l].is_none())
             .collect();
-        let root =
-            match roots.as_slice() {
-                [root] => *root,
-                [] => return invalid(
+        let root = match roots.as_slice() {
+            [root] => *root,
+            [] => {
+                return invalid(
                     "no root link: every link is some joint's child, so the joints form a cycle"
                         .into(),
-                ),
-                many => {
-                    return invalid(format!(
-                        "several root links ({}): a URDF must describe one tree",
-                        many.join(", ")
-                    ))
-                }
-            };
+                )
+            }
+            many => {
+                let names: Vec<&str> = many.iter().map(|&l| self.links[l].name.as_str()).collect();
+                return invalid(format!(
+                    "several root links ({}): a URDF must describe one tree",
+                    names.join(", ")
+                ));
+            }
+        };
+        Ok(Topology {
+            joints: &self.joints,
+            link_names: self.links.iter().map(|l| l.name.as_str()).collect(),
+            inertias: self.links.iter().map(|l| &l.inertia).collect(),
+            link_index,
+            children,
+            parent_joint,
+            root,
+        })
+    }
 
-        let root_link = &self.links[link_index[root]];
-        check_inertia(root_link)?;
-        let mut state = TreeState::new(&self.name, root_link, options);
-        // Depth-first from the root, children in document order (an explicit stack: a chain of
-        // ten thousand links must not overflow the call stack).
-        let mut stack: Vec<usize> = children[link_index[root]].iter().rev().copied().collect();
-        while let Some(j) = stack.pop() {
-            let joint = &self.joints[j];
-            state.attach(
-                joint,
-                &self.links[link_index[joint.child.as_str()]],
-                options,
-            )?;
-            stack.extend(children[link_index[joint.child.as_str()]].iter().rev());
-        }
-        if let Some((name, _)) = options
-            .locked
-            .iter()
-            .find(|(name, _)| !state.model.locked_joints.iter().any(|(l, _)| l == name))
-        {
-            return invalid(format!(
-                "cannot lock joint '{name}': there is no moving joint of that name"
-            ));
-        }
-        if state.model.links.len() != self.links.len() {
-            let reached: HashSet<&str> =
-                state.model.links.iter().map(|l| l.name.as_str()).collect();
-            let lost: Vec<&str> = self
-                .links
-                .iter()
-                .map(|l| l.name.as_str())
-                .filter(|l| !reached.contains(l))
-                .collect();
-            return invalid(format!(
-                "links {} are not connected to the root '{root}': their joints form a cycle",
-                lost.join(", ")
-            ));
-        }
-        state.number_coordinates()?;
-        let model = state.model;
-        model.with_gravity(options.gravity)
+    /// The position joint `j` is held at, if it does not move: its `--lock` value, the neutral
+    /// position if the reduction freezes it, or its mimic leader's held position mapped through
+    /// it. The flag tells whether the user asked for it (a lock) or the reduction did (a freeze).
+    fn lock_position(
+        &self,
+        j: usize,
+        topo: &Topology,
+        plan: &Plan,
+        options: &ModelOptions,
+    ) -> Option<(Vec<f64>, bool)> {
+        let joint = &self.joints[j];
+        let held = |k: usize| {
+            let name = &self.joints[k].name;
+            if let Some((_, v)) = options.locked.iter().find(|(n, _)| n == name) {
+                Some((vec![*v], true))
+            } else {
+                let kind = self.joints[k].kind.as_ref()?;
+                plan.frozen[k].then(|| (neutral_position(kind), false))
+            }
+        };
+        held(j).or_else(|| match (&joint.mimic, options.ignore_mimic) {
+            (Some((leader, multiplier, offset)), false) => {
+                let l = topo.joints.iter().position(|x| x.name == *leader)?;
+                held(l).map(|(q, by_user)| (vec![multiplier * q[0] + offset], by_user))
+            }
+            _ => None,
+        })
     }
 
     fn index_links(&self) -> Result<HashMap<&str, usize>, ModelError> {
@@ -223,6 +303,7 @@ impl TreeState {
             fused_links: Vec::new(),
             locked_joints: Vec::new(),
             fixed_joints: Vec::new(),
+            reduction: Reduction::default(),
             warnings: Vec::new(),
             gravity: options.gravity,
             nq: 0,
@@ -266,6 +347,7 @@ impl TreeState {
         &mut self,
         joint: &JointSpec,
         link: &BodySpec,
+        lock: Option<(Vec<f64>, bool)>,
         options: &ModelOptions,
     ) -> Result<(), ModelError> {
         check_inertia(link)?;
@@ -278,18 +360,27 @@ impl TreeState {
         // Body frame → parent link frame → joint frame.
         let mut x_body_joint = joint.origin.compose(&parent.x_body_link);
         let mut kind = joint.kind;
-        if let (Some(k), Some(position)) = (kind, lock_position(joint, options)) {
-            if k.nq() != 1 || !position.is_finite() {
-                return Err(ModelError::Invalid(format!("cannot lock joint '{}' at {position}: only revolute, continuous and prismatic joints lock, at a finite position", joint.name)));
+        if let (Some(k), Some((position, by_user))) = (kind, lock) {
+            if position.len() != k.nq() || !position.iter().all(|x| x.is_finite()) {
+                return Err(ModelError::Invalid(format!("cannot lock joint '{}' at {position:?}: only revolute, continuous and prismatic joints lock, at a finite position", joint.name)));
             }
             // Frozen at q: the child frame sits at X_J(q) from the joint frame, for good.
             x_body_joint = k
-                .jcalc(&[position], &mut MotionSubspace::default())
+                .jcalc(&position, &mut MotionSubspace::default())
                 .compose(&x_body_joint);
             kind = None;
-            self.model
-                .locked_joints
-                .push((joint.name.clone(), position));
+            let reduction = &mut self.model.reduction;
+            if by_user {
+                self.model
+                    .locked_joints
+                    .push((joint.name.clone(), position[0]));
+            } else if parent.body.is_some() {
+                reduction.frozen_joints.push((joint.name.clone(), position));
+                reduction.payload_links.push(link.name.clone());
+            } else {
+                reduction.frozen_joints.push((joint.name.clone(), position));
+                reduction.removed_links.push(link.name.clone());
+            }
         }
         match kind {
             None => {
@@ -401,23 +492,6 @@ impl TreeState {
         self.model.dof_parent = (!self.model.has_mimic()).then(|| dof_parents(&self.model));
         Ok(())
     }
-}
-
-/// The position a joint is locked at: its own lock, or its mimic leader's mapped through it.
-fn lock_position(joint: &JointSpec, options: &ModelOptions) -> Option<f64> {
-    let locked = |name: &str| {
-        options
-            .locked
-            .iter()
-            .find(|(n, _)| n == name)
-            .map(|(_, v)| *v)
-    };
-    locked(&joint.name).or_else(|| match (&joint.mimic, options.ignore_mimic) {
-        (Some((leader, multiplier, offset)), false) => {
-            locked(leader).map(|v| multiplier * v + offset)
-        }
-        _ => None,
-    })
 }
 
 /// Featherstone's `λ` over degrees of freedom: dof `k` of a joint hangs from dof `k − 1` of the

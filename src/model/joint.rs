@@ -89,6 +89,15 @@ impl JointKind {
         }
     }
 
+    /// The neutral configuration into `q` (its `nq()` coordinates): zero for every kind but the
+    /// floating joint, whose quaternion is the identity (`q = [0 0 0 0 0 0 1]`).
+    pub fn neutral(&self, q: &mut [f64]) {
+        q.fill(0.0);
+        if *self == JointKind::Floating {
+            q[6] = 1.0;
+        }
+    }
+
     /// The name used in URDF and on the command line.
     pub fn type_name(&self) -> &'static str {
         match self {

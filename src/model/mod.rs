@@ -9,6 +9,7 @@
 mod builder;
 pub mod examples;
 mod joint;
+mod reduction;
 
 pub use builder::{joint_position, BodySpec, JointSpec, ModelBuilder, ModelOptions};
 pub use joint::{axis_rotation, quaternion_rotation, JointKind, MotionSubspace};
@@ -108,6 +109,69 @@ pub struct LinkFrame {
     pub x_body_link: Transform,
 }
 
+/// What [`ModelOptions::root`](crate::ModelOptions), `tips` and `prune_massless` removed from
+/// the description (see the `reduction` module for why each removal is exact).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Reduction {
+    /// The link whose subtree was kept, if not the description's root.
+    pub root: Option<String>,
+    /// The links whose paths from the root were kept (empty: the whole subtree).
+    pub tips: Vec<String>,
+    /// Moving joints frozen because they lie outside the kept part, with their position (the
+    /// `--lock` value given for them, else their neutral position).
+    pub frozen_joints: Vec<(String, Vec<f64>)>,
+    /// Links that hang from a frozen joint below a kept body: a payload lumped onto it.
+    pub payload_links: Vec<String>,
+    /// Links that hang from a frozen joint with no kept joint above it: fixed to the world (their
+    /// inertia never enters).
+    pub removed_links: Vec<String>,
+    /// Joints removed because everything below them is massless (with their coordinates).
+    pub pruned_joints: Vec<String>,
+    /// The links below the pruned joints.
+    pub pruned_links: Vec<String>,
+}
+
+impl Reduction {
+    /// True when nothing was reduced.
+    pub fn is_empty(&self) -> bool {
+        *self == Reduction::default()
+    }
+
+    /// One line per kind of reduction, for `model` and the node's `describe_model`.
+    pub fn summary(&self) -> Vec<String> {
+        let mut lines = Vec::new();
+        if let Some(root) = &self.root {
+            lines.push(format!("root: '{root}' (its subtree only)"));
+        }
+        if !self.tips.is_empty() {
+            lines.push(format!("tips: {}", self.tips.join(", ")));
+        }
+        let lists = [
+            ("frozen (outside the kept part)", self.frozen_joint_names()),
+            (
+                "payload lumped onto kept bodies",
+                self.payload_links.clone(),
+            ),
+            (
+                "fixed to the world (no kept joint above them)",
+                self.removed_links.clone(),
+            ),
+            ("pruned massless joints", self.pruned_joints.clone()),
+        ];
+        for (what, names) in lists {
+            if !names.is_empty() {
+                lines.push(format!("{what}: {}", names.join(", ")));
+            }
+        }
+        lines
+    }
+
+    /// The frozen joints' names.
+    pub fn frozen_joint_names(&self) -> Vec<String> {
+        self.frozen_joints.iter().map(|(n, _)| n.clone()).collect()
+    }
+}
+
 /// The immutable robot model. Algorithms read it and write only into a
 /// [`Workspace`](crate::Workspace).
 #[derive(Clone, Debug)]
@@ -126,6 +190,8 @@ pub struct Model {
     pub locked_joints: Vec<(String, f64)>,
     /// Joints that are fixed in the description.
     pub fixed_joints: Vec<String>,
+    /// What the root/tip reduction and massless pruning removed.
+    pub reduction: Reduction,
     /// Doubts about the description that did not stop it loading (each names the link), such as
     /// an inertia that breaks the triangle inequality, as some real robots' URDFs do.
     pub warnings: Vec<String>,
@@ -219,6 +285,15 @@ impl Model {
             let (qs, vs) = (j.q_index..j.q_index + j.nq, j.v_index..j.v_index + j.nv);
             j.kind.integrate(&q[qs.clone()], &v[vs], dt, &mut out[qs]);
         }
+    }
+
+    /// The neutral configuration: every joint at [`JointKind::neutral`].
+    pub fn neutral(&self) -> Vec<f64> {
+        let mut q = vec![0.0; self.nq];
+        for j in self.coordinate_joints() {
+            j.kind.neutral(&mut q[j.q_index..j.q_index + j.nq]);
+        }
+        q
     }
 
     /// The model with a different gravity vector.

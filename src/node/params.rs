@@ -7,6 +7,9 @@
 //! | `floating_base` | bool | `false` | add a floating joint at the root link |
 //! | `ignore_mimic` | bool | `false` | treat `<mimic>` joints as independent |
 //! | `locked_joints` | string[] | `[]` | `"NAME=POSITION"`: joints frozen and fused |
+//! | `root_link` | string | `""` | keep only this link's subtree (it becomes the fixed base); `""`: the URDF's root |
+//! | `tip_links` | string[] | `[]` | keep only the joints from the root to these links; bodies past a tip lump onto it |
+//! | `prune_massless` | bool | `false` | remove moving joints whose whole subtree is massless |
 //! | `gravity` | double[3] | `[0, 0, -9.81]` | gravity in the world frame, m/s² |
 //! | `method` | string | `aba` | forward dynamics: `aba`, `crba` or `rnea_columns` |
 //! | `command_joints` | string[] | `[]` | order of `~/commands` and `~/feedforward_commands` (empty: all joints in model order) |
@@ -38,6 +41,9 @@ pub struct Settings {
     pub floating_base: bool,
     pub ignore_mimic: bool,
     pub locked_joints: Vec<(String, f64)>,
+    pub root_link: String,
+    pub tip_links: Vec<String>,
+    pub prune_massless: bool,
     pub gravity: [f64; 3],
     pub method: ForwardDynamicsMethod,
     pub command_joints: Vec<String>,
@@ -60,6 +66,9 @@ impl Default for Settings {
             floating_base: false,
             ignore_mimic: false,
             locked_joints: Vec::new(),
+            root_link: String::new(),
+            tip_links: Vec::new(),
+            prune_massless: false,
             gravity: [0.0, 0.0, -9.81],
             method: ForwardDynamicsMethod::Aba,
             command_joints: Vec::new(),
@@ -77,24 +86,30 @@ impl Default for Settings {
 }
 
 /// The names of all parameters, in declaration order.
-pub const NAMES: [&str; 8] = [
+pub const NAMES: [&str; 11] = [
     "robot_description",
     "urdf_file",
     "floating_base",
     "ignore_mimic",
     "locked_joints",
+    "root_link",
+    "tip_links",
+    "prune_massless",
     "gravity",
     "method",
     "command_joints",
 ];
 
 /// Parameters that change the model (a change rebuilds it).
-pub const MODEL_PARAMETERS: [&str; 6] = [
+pub const MODEL_PARAMETERS: [&str; 9] = [
     "robot_description",
     "urdf_file",
     "floating_base",
     "ignore_mimic",
     "locked_joints",
+    "root_link",
+    "tip_links",
+    "prune_massless",
     "gravity",
 ];
 
@@ -121,6 +136,9 @@ impl Settings {
                     .map(|(n, v)| format!("{n}={v:?}"))
                     .collect(),
             ),
+            "root_link" => P::String(self.root_link.clone()),
+            "tip_links" => P::StringArray(self.tip_links.clone()),
+            "prune_massless" => P::Boolean(self.prune_massless),
             "gravity" => P::DoubleArray(self.gravity.to_vec()),
             "method" => P::String(self.method.name().to_string()),
             "command_joints" => P::StringArray(self.command_joints.clone()),
@@ -161,6 +179,9 @@ impl Settings {
                     .map(|s| parse_lock(s))
                     .collect::<Result<_, _>>()?
             }
+            ("root_link", P::String(s)) => self.root_link = s.clone(),
+            ("tip_links", P::StringArray(items)) => self.tip_links = items.clone(),
+            ("prune_massless", P::Boolean(b)) => self.prune_massless = *b,
             ("gravity", P::DoubleArray(g)) if g.len() == 3 && g.iter().all(|x| x.is_finite()) => {
                 self.gravity = [g[0], g[1], g[2]]
             }
@@ -204,9 +225,13 @@ impl Settings {
             ("integrator", _) => return wrong("a string"),
             ("publish_clock", _) => return wrong("a bool"),
             ("passive" | "initial_positions", _) => return wrong("a list of strings"),
-            ("robot_description" | "urdf_file" | "method", _) => return wrong("a string"),
-            ("floating_base" | "ignore_mimic", _) => return wrong("a bool"),
-            ("locked_joints" | "command_joints", _) => return wrong("a list of strings"),
+            ("robot_description" | "urdf_file" | "method" | "root_link", _) => {
+                return wrong("a string")
+            }
+            ("floating_base" | "ignore_mimic" | "prune_massless", _) => return wrong("a bool"),
+            ("locked_joints" | "command_joints" | "tip_links", _) => {
+                return wrong("a list of strings")
+            }
             _ => {
                 return Err(format!(
                     "unknown parameter '{name}' (known: {})",
@@ -224,6 +249,9 @@ impl Settings {
             ignore_mimic: self.ignore_mimic,
             gravity: Vector3::from(self.gravity),
             locked: self.locked_joints.clone(),
+            root: (!self.root_link.is_empty()).then(|| self.root_link.clone()),
+            tips: self.tip_links.clone(),
+            prune_massless: self.prune_massless,
         }
     }
 

@@ -81,6 +81,8 @@ impl Engine {
             .iter()
             .map(|(n, _)| n.clone())
             .chain(model.fixed_joints.iter().cloned())
+            .chain(model.reduction.frozen_joint_names())
+            .chain(model.reduction.pruned_joints.iter().cloned())
             .collect();
         let map = JointMap::new(&model, &passive)?;
         let command_slots = if settings.command_joints.is_empty() {
@@ -329,6 +331,16 @@ impl Engine {
             .locked_joints
             .iter()
             .map(|(n, v)| format!("{n}={v:?}"))
+            .chain(
+                self.model
+                    .reduction
+                    .frozen_joints
+                    .iter()
+                    .map(|(n, q)| match q.as_slice() {
+                        [v] => format!("{n}={v:?}"),
+                        q => format!("{n}={q:?}"),
+                    }),
+            )
             .collect();
         r.fused_links = self.model.fused_links.clone();
         r.message = format!(
@@ -341,6 +353,10 @@ impl Engine {
                 ModelSource::Default => "the embedded default (sd_arm7)".to_string(),
             }
         );
+        for line in self.model.reduction.summary() {
+            r.message += "; ";
+            r.message += &line;
+        }
         r
     }
 

@@ -1,0 +1,228 @@
+//! Model reduction: which joints of a description stay moving when only part of the robot matters
+//! ([`ModelOptions::root`], [`ModelOptions::tips`]) and which massless subtrees are pruned
+//! ([`ModelOptions::prune_massless`]). The builder then freezes, fuses and drops accordingly.
+//!
+//! Why each reduction is exact for the coordinates kept:
+//! - A joint outside the kept part is *frozen* at a position `q₀` (its `--lock` value, else the
+//!   neutral one) with `q̇ = q̈ = 0`. Its child then moves rigidly with its parent, so fusing the
+//!   child into the parent body (inertia transformed by `X_J(q₀) X_tree` and added) leaves the
+//!   kept equations of motion unchanged: the reduced model's `τ_k`, `H_kk` and `C_k` are the full
+//!   model's with the frozen coordinates at `q₀`. Bodies past a tip become a payload lumped onto
+//!   the tip; side branches lump onto the kept body they hang from.
+//! - Links outside the root's subtree are fixed to the world: their inertia never enters the
+//!   kept equations, and their frozen joints only place the root in the world (which fixes the
+//!   direction of gravity in the root's frame).
+//! - A moving joint whose whole subtree has zero spatial inertia carries nothing: every force in
+//!   the subtree is zero, so its own `Sᵀ f = 0` and it adds nothing to its ancestors' forces.
+//!   Removing it (and its coordinate) leaves every other coordinate's `τ`, `H` and `C` unchanged;
+//!   it also removes the zero row and column that would make `H` singular.
+
+use super::builder::{JointSpec, ModelOptions};
+use super::JointKind;
+use crate::error::ModelError;
+use crate::spatial::Inertia;
+use std::collections::HashMap;
+
+/// The description's tree, by index: links and joints as the builder listed them.
+pub(super) struct Topology<'a> {
+    pub joints: &'a [JointSpec],
+    /// Link names and inertias, by link index.
+    pub link_names: Vec<&'a str>,
+    pub inertias: Vec<&'a Inertia>,
+    pub link_index: HashMap<&'a str, usize>,
+    /// Joints whose parent is each link, in document order.
+    pub children: Vec<Vec<usize>>,
+    /// The joint whose child is each link (`None` for the root).
+    pub parent_joint: Vec<Option<usize>>,
+    /// The description's root link.
+    pub root: usize,
+}
+
+impl Topology<'_> {
+    fn child(&self, j: usize) -> usize {
+        self.link_index[self.joints[j].child.as_str()]
+    }
+
+    fn parent(&self, j: usize) -> usize {
+        self.link_index[self.joints[j].parent.as_str()]
+    }
+
+    /// The joints below `link`, depth first, children in document order (an explicit stack: a
+    /// chain of ten thousand links must not overflow the call stack).
+    pub fn joints_below(&self, link: usize) -> Vec<usize> {
+        let mut order = Vec::new();
+        let mut stack: Vec<usize> = self.children[link].iter().rev().copied().collect();
+        while let Some(j) = stack.pop() {
+            order.push(j);
+            stack.extend(self.children[self.child(j)].iter().rev());
+        }
+        order
+    }
+
+    fn link_named(&self, name: &str, option: &str) -> Result<usize, ModelError> {
+        self.link_index.get(name).copied().ok_or_else(|| {
+            ModelError::Invalid(format!("{option}: there is no link named '{name}'"))
+        })
+    }
+}
+
+/// What happens to each joint (indices into [`Topology::joints`]).
+pub(super) struct Plan {
+    /// Moving joints outside the kept part: frozen at their lock value or neutral position.
+    pub frozen: Vec<bool>,
+    /// Joints removed with their whole (massless) subtree: the first of each subtree and every
+    /// joint below it.
+    pub pruned: Vec<bool>,
+}
+
+impl Plan {
+    /// Decides, for `options`, which joints stay moving, which freeze and which go.
+    pub fn new(topo: &Topology, options: &ModelOptions) -> Result<Plan, ModelError> {
+        let n = topo.joints.len();
+        let invalid = |msg: String| Err(ModelError::Invalid(msg));
+        let base = match &options.root {
+            Some(name) => topo.link_named(name, "root")?,
+            None => topo.root,
+        };
+        if options.floating_base && base != topo.root {
+            return invalid(format!(
+                "root '{}': with a floating base the root must be the description's root link '{}', where the floating joint attaches",
+                topo.link_names[base], topo.link_names[topo.root]
+            ));
+        }
+        let moving = |j: usize| topo.joints[j].kind.is_some();
+        // Kept: every moving joint below the base, or only those on the paths base → tips.
+        let mut kept = vec![false; n];
+        let mut tip_links = vec![false; topo.inertias.len()];
+        if options.tips.is_empty() {
+            for j in topo.joints_below(base) {
+                kept[j] = moving(j);
+            }
+        }
+        for tip in &options.tips {
+            let mut link = topo.link_named(tip, "tip")?;
+            tip_links[link] = true;
+            while link != base {
+                let Some(j) = topo.parent_joint[link] else {
+                    return invalid(format!(
+                        "tip '{tip}' is not below the root '{}'",
+                        topo.link_names[base]
+                    ));
+                };
+                kept[j] = moving(j);
+                link = topo.parent(j);
+            }
+        }
+        let mut pruned = vec![false; n];
+        if options.prune_massless {
+            prune_massless(topo, base, &kept, &tip_links, options, &mut pruned);
+        }
+        let frozen = (0..n)
+            .map(|j| moving(j) && !kept[j] && !pruned[j])
+            .collect();
+        let plan = Plan { frozen, pruned };
+        plan.check_mimic(topo, options)?;
+        Ok(plan)
+    }
+
+    /// A mimic follower cannot freeze while its leader keeps moving (the coupling would break);
+    /// the converse is fine (the follower locks with its leader).
+    fn check_mimic(&self, topo: &Topology, options: &ModelOptions) -> Result<(), ModelError> {
+        if options.ignore_mimic {
+            return Ok(());
+        }
+        let index: HashMap<&str, usize> = topo
+            .joints
+            .iter()
+            .enumerate()
+            .map(|(j, joint)| (joint.name.as_str(), j))
+            .collect();
+        for (f, follower) in topo.joints.iter().enumerate() {
+            let Some(&l) = follower
+                .mimic
+                .as_ref()
+                .and_then(|m| index.get(m.0.as_str()))
+            else {
+                continue;
+            };
+            let user_locked = options
+                .locked
+                .iter()
+                .any(|(n, _)| *n == topo.joints[l].name);
+            let leader_moves = !self.frozen[l] && !self.pruned[l] && !user_locked;
+            if self.frozen[f] && leader_moves {
+                return Err(ModelError::Invalid(format!(
+                    "joint '{}' mimics '{}', which stays moving, but lies outside the kept part of the tree: add a tip below it, or lock '{}'",
+                    follower.name, topo.joints[l].name, topo.joints[l].name
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Marks, among the kept moving joints, those whose whole subtree has zero spatial inertia,
+/// carries no tip and leads no mimic joint outside it (largest subtrees first).
+fn prune_massless(
+    topo: &Topology,
+    base: usize,
+    kept: &[bool],
+    tip_links: &[bool],
+    options: &ModelOptions,
+    pruned: &mut [bool],
+) {
+    let order = topo.joints_below(base);
+    // Bottom-up (reverse depth-first order): a link's subtree is massless and tip-free when the
+    // link is and every child subtree is.
+    let mut empty: Vec<bool> = (0..topo.inertias.len())
+        .map(|l| is_zero(topo.inertias[l]) && !tip_links[l])
+        .collect();
+    for &j in order.iter().rev() {
+        if !empty[topo.child(j)] {
+            empty[topo.parent(j)] = false;
+        }
+    }
+    let mut removed = vec![false; topo.joints.len()];
+    for &j in &order {
+        if removed[j] || !kept[j] || !empty[topo.child(j)] {
+            continue;
+        }
+        let subtree: Vec<usize> = std::iter::once(j)
+            .chain(topo.joints_below(topo.child(j)))
+            .collect();
+        if !options.ignore_mimic && leads_outside(topo, &subtree) {
+            continue;
+        }
+        for &k in &subtree {
+            removed[k] = true;
+            pruned[k] = true;
+        }
+    }
+}
+
+/// True when a joint outside `subtree` mimics one inside it.
+fn leads_outside(topo: &Topology, subtree: &[usize]) -> bool {
+    let inside: Vec<&str> = subtree
+        .iter()
+        .map(|&j| topo.joints[j].name.as_str())
+        .collect();
+    topo.joints.iter().enumerate().any(|(f, joint)| {
+        !subtree.contains(&f)
+            && joint
+                .mimic
+                .as_ref()
+                .is_some_and(|(leader, _, _)| inside.contains(&leader.as_str()))
+    })
+}
+
+/// Zero mass, first moment and rotational inertia: a link that weighs nothing and spins freely.
+fn is_zero(i: &Inertia) -> bool {
+    i.mass == 0.0 && i.h.iter().chain(i.i_bar.iter()).all(|x| *x == 0.0)
+}
+
+/// The position a frozen joint of `kind` takes when no `--lock` gives one.
+pub(super) fn neutral_position(kind: &JointKind) -> Vec<f64> {
+    let mut q = vec![0.0; kind.nq()];
+    kind.neutral(&mut q);
+    q
+}

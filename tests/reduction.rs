@@ -1,0 +1,306 @@
+//! Model reduction is exact for the coordinates kept: with every removed joint held at its
+//! position (locked or frozen) with zero velocity and acceleration, the reduced model's τ, H and
+//! q̈ equal the full model's. Pruned massless subtrees may move as they like: they exert nothing.
+
+mod common;
+
+use common::{random_q, Rng};
+use spatial_dynamics::algorithms::{crba, forward_dynamics, rnea};
+use spatial_dynamics::model::examples::{DEFAULT_ARM_URDF, MIMIC_GRIPPER_URDF};
+use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
+
+const TREE: &str = include_str!("models/tree.urdf");
+
+/// The default arm with a massless sensor head on two revolute joints at its flange (and a
+/// massless frame fixed to it): the full model's H has two zero rows and columns.
+fn arm_with_massless_sensor() -> String {
+    DEFAULT_ARM_URDF.replace(
+        "</robot>",
+        r#"<joint name="sensor_pan" type="revolute"><parent link="link7"/><child link="sensor_mount"/>
+             <origin xyz="0 0.05 0.1"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+           <link name="sensor_mount"/>
+           <joint name="sensor_tilt" type="revolute"><parent link="sensor_mount"/><child link="sensor"/>
+             <origin xyz="0 0 0.02" rpy="0.3 0 0"/><axis xyz="1 0 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+           <link name="sensor"/>
+           <joint name="sensor_optical" type="fixed"><parent link="sensor"/><child link="sensor_optical_frame"/></joint>
+           <link name="sensor_optical_frame"/>
+         </robot>"#,
+    )
+}
+
+fn load(text: &str, options: ModelOptions) -> Model {
+    urdf::model_from_str(text, &options).unwrap_or_else(|e| panic!("{options:?}: {e}"))
+}
+
+/// The full model's coordinate slots of a joint: (q index, v index, nq, nv).
+fn slots(model: &Model, name: &str) -> (usize, usize, usize, usize) {
+    let j = model
+        .coordinate_joints()
+        .find(|j| j.name == name)
+        .unwrap_or_else(|| panic!("no coordinate joint '{name}'"));
+    (j.q_index, j.v_index, j.nq, j.nv)
+}
+
+/// Checks τ, H and q̈ of `reduced` against `full` at random states: kept coordinates random,
+/// locked and frozen ones at the positions the reduced model reports with zero rates, pruned
+/// ones random (position, velocity and acceleration).
+fn assert_exact(full: &Model, reduced: &Model, seed: u64) {
+    let held: Vec<(String, Vec<f64>)> = reduced
+        .locked_joints
+        .iter()
+        .map(|(n, v)| (n.clone(), vec![*v]))
+        .chain(reduced.reduction.frozen_joints.iter().cloned())
+        .collect();
+    // (reduced v index, full v index) of every kept velocity coordinate.
+    let kept: Vec<(usize, usize)> = reduced
+        .coordinate_joints()
+        .flat_map(|j| {
+            let (_, fv, _, _) = slots(full, j.name);
+            (0..j.nv).map(move |k| (j.v_index + k, fv + k))
+        })
+        .collect();
+    let kept_q: Vec<(usize, usize)> = reduced
+        .coordinate_joints()
+        .flat_map(|j| {
+            let (fq, _, _, _) = slots(full, j.name);
+            (0..j.nq).map(move |k| (j.q_index + k, fq + k))
+        })
+        .collect();
+    let (mut wr, mut wf) = (Workspace::new(reduced), Workspace::new(full));
+    let mut rng = Rng::new(seed);
+    for _ in 0..5 {
+        let qr = random_q(reduced, &mut rng);
+        let (vr, ar) = (rng.vector(reduced.nv, 1.0), rng.vector(reduced.nv, 1.0));
+        // Pruned coordinates (and anything else not held) random; held ones overwritten below.
+        let mut qf = random_q(full, &mut rng);
+        let (mut vf, mut af) = (rng.vector(full.nv, 1.0), rng.vector(full.nv, 1.0));
+        for (name, position) in &held {
+            if let Some(j) = full.coordinate_joints().find(|j| j.name == name) {
+                qf[j.q_index..j.q_index + j.nq].copy_from_slice(position);
+                vf[j.v_index..j.v_index + j.nv].fill(0.0);
+                af[j.v_index..j.v_index + j.nv].fill(0.0);
+            }
+        }
+        for &(r, f) in &kept_q {
+            qf[f] = qr[r];
+        }
+        for &(r, f) in &kept {
+            (vf[f], af[f]) = (vr[r], ar[r]);
+        }
+        let tau_r = rnea(reduced, &mut wr, &qr, &vr, &ar).unwrap().to_vec();
+        let tau_f = rnea(full, &mut wf, &qf, &vf, &af).unwrap().to_vec();
+        let scale = 1.0 + tau_f.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        for &(r, f) in &kept {
+            let d = (tau_r[r] - tau_f[f]).abs();
+            assert!(d < 1e-12 * scale, "τ at {}: {d:e}", reduced.v_name(r));
+        }
+        // H_kk with pruned coordinates anywhere: CRBA's kept block ignores them.
+        let h_r = crba(reduced, &mut wr, &qr).unwrap().clone();
+        let h_f = crba(full, &mut wf, &qf).unwrap().clone();
+        for &(r, f) in &kept {
+            for &(r2, f2) in &kept {
+                let d = (h_r[(r, r2)] - h_f[(f, f2)]).abs();
+                assert!(
+                    d < 1e-12 * (1.0 + h_f[(f, f)].abs()),
+                    "H at {r},{r2}: {d:e}"
+                );
+            }
+        }
+        // q̈ of the reduced model under τ_r, fed to the full model's inverse dynamics, gives τ_r
+        // back on the kept coordinates.
+        // (ABA does not take mimic joints.)
+        let methods = [ForwardDynamicsMethod::Crba, ForwardDynamicsMethod::Aba];
+        for &method in &methods[..if reduced.has_mimic() { 1 } else { 2 }] {
+            let qdd = forward_dynamics(reduced, &mut wr, &qr, &vr, &ar, method, &Externals::none())
+                .unwrap()
+                .to_vec();
+            for &(r, f) in &kept {
+                af[f] = qdd[r];
+            }
+            let tau_back = rnea(full, &mut wf, &qf, &vf, &af).unwrap().to_vec();
+            for &(r, f) in &kept {
+                let d = (tau_back[f] - ar[r]).abs();
+                assert!(
+                    d < 1e-9 * (1.0 + ar[r].abs()),
+                    "{method:?}: q̈ at {}: {d:e}",
+                    reduced.v_name(r)
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn locking_a_joint_keeps_the_other_coordinates_exact() {
+    let full = load(TREE, ModelOptions::default());
+    let reduced = load(
+        TREE,
+        ModelOptions {
+            locked: vec![("left_shoulder".into(), 0.7), ("right_wrist".into(), -1.2)],
+            ..Default::default()
+        },
+    );
+    assert_eq!(reduced.nv, full.nv - 2);
+    assert_exact(&full, &reduced, 14);
+}
+
+#[test]
+fn a_tip_keeps_the_chain_and_lumps_the_rest_onto_it() {
+    let full = load(DEFAULT_ARM_URDF, ModelOptions::default());
+    let reduced = load(
+        DEFAULT_ARM_URDF,
+        ModelOptions {
+            tips: vec!["link4".into()],
+            locked: vec![("joint6".into(), 0.8)],
+            ..Default::default()
+        },
+    );
+    assert_eq!(reduced.nv, 4);
+    let r = &reduced.reduction;
+    assert_eq!(r.frozen_joint_names(), ["joint5", "joint7"]);
+    assert_eq!(reduced.locked_joints, [("joint6".to_string(), 0.8)]);
+    assert!(r.payload_links.contains(&"link5".to_string()));
+    assert_exact(&full, &reduced, 21);
+}
+
+#[test]
+fn root_and_tips_keep_a_subtree_of_a_branching_tree() {
+    let full = load(TREE, ModelOptions::default());
+    // From the torso (its planar base frozen, gravity still in the world frame) to the left
+    // hand and the right arm: the head and the right wrist freeze.
+    let reduced = load(
+        TREE,
+        ModelOptions {
+            root: Some("torso".into()),
+            tips: vec!["left_hand".into(), "right_arm".into()],
+            ..Default::default()
+        },
+    );
+    let names: Vec<&str> = reduced.coordinate_joints().map(|j| j.name).collect();
+    assert_eq!(names, ["left_shoulder", "left_slide", "right_shoulder"]);
+    assert_eq!(
+        reduced.reduction.frozen_joints[0],
+        ("base".to_string(), vec![0.0; 3])
+    );
+    assert_exact(&full, &reduced, 22);
+    // A root alone keeps its whole subtree.
+    let subtree = load(
+        TREE,
+        ModelOptions {
+            root: Some("torso".into()),
+            ..Default::default()
+        },
+    );
+    assert_eq!(subtree.nv, full.nv - 3);
+    assert_exact(&full, &subtree, 23);
+}
+
+#[test]
+fn massless_leaves_are_pruned_with_their_coordinates() {
+    let text = arm_with_massless_sensor();
+    let full = load(&text, ModelOptions::default());
+    let pruned = load(
+        &text,
+        ModelOptions {
+            prune_massless: true,
+            ..Default::default()
+        },
+    );
+    assert_eq!((full.nv, pruned.nv), (9, 7));
+    assert_eq!(
+        pruned.reduction.pruned_joints,
+        ["sensor_pan", "sensor_tilt", "sensor_optical"]
+    );
+    // The full model cannot even run forward dynamics: H has zero rows.
+    let mut ws = Workspace::new(&full);
+    let (q, v) = (vec![0.1; full.nq], vec![0.0; full.nv]);
+    assert!(forward_dynamics(
+        &full,
+        &mut ws,
+        &q,
+        &v,
+        &v,
+        ForwardDynamicsMethod::Crba,
+        &Externals::none()
+    )
+    .is_err());
+    assert_exact(&full, &pruned, 24);
+    // A link that carries mass stops the pruning: nothing in the plain arm goes.
+    let arm = load(
+        DEFAULT_ARM_URDF,
+        ModelOptions {
+            prune_massless: true,
+            ..Default::default()
+        },
+    );
+    assert!(arm.reduction.is_empty() && arm.nv == 7);
+}
+
+#[test]
+fn reductions_combine_with_mimic_joints() {
+    let full = load(MIMIC_GRIPPER_URDF, ModelOptions::default());
+    // Keep the wrist only: the fingers (leader and follower) freeze and lump onto the palm; the
+    // thumb mimics the kept wrist and stays coupled to it.
+    let reduced = load(
+        MIMIC_GRIPPER_URDF,
+        ModelOptions {
+            tips: vec!["palm".into(), "thumb_link".into()],
+            ..Default::default()
+        },
+    );
+    assert_eq!(reduced.nv, 1);
+    assert_exact(&full, &reduced, 25);
+}
+
+#[test]
+fn bad_reductions_are_refused_by_name() {
+    let refuse = |text: &str, options: ModelOptions, expected: &str| {
+        let err = urdf::model_from_str(text, &options)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(expected), "{err}");
+    };
+    refuse(
+        TREE,
+        ModelOptions {
+            root: Some("nope".into()),
+            ..Default::default()
+        },
+        "root: there is no link named 'nope'",
+    );
+    refuse(
+        TREE,
+        ModelOptions {
+            tips: vec!["nope".into()],
+            ..Default::default()
+        },
+        "tip: there is no link named 'nope'",
+    );
+    refuse(
+        TREE,
+        ModelOptions {
+            root: Some("left_arm".into()),
+            tips: vec!["right_hand".into()],
+            ..Default::default()
+        },
+        "tip 'right_hand' is not below the root 'left_arm'",
+    );
+    refuse(
+        TREE,
+        ModelOptions {
+            root: Some("torso".into()),
+            floating_base: true,
+            ..Default::default()
+        },
+        "with a floating base the root must be the description's root link 'world'",
+    );
+    // The follower finger would freeze while its leader keeps moving.
+    refuse(
+        MIMIC_GRIPPER_URDF,
+        ModelOptions {
+            tips: vec!["left_finger".into()],
+            ..Default::default()
+        },
+        "joint 'finger_right' mimics 'finger_left', which stays moving",
+    );
+}
