@@ -21,13 +21,17 @@ T = Parameter.Type
 ID = "/spatial_dynamics/inverse_dynamics"
 FD = "/spatial_dynamics/forward_dynamics"
 DM = "/spatial_dynamics/describe_model"
-NAMES = ["robot_description", "urdf_file", "floating_base", "ignore_mimic", "locked_joints", "gravity", "method", "command_joints"]
+NAMES = ["robot_description", "urdf_file", "floating_base", "ignore_mimic", "locked_joints", "root_link", "tip_links",
+         "prune_massless", "gravity", "method", "command_joints"]
 DEFAULTS = {
     "robot_description": "",
     "urdf_file": "",
     "floating_base": False,
     "ignore_mimic": False,
     "locked_joints": [],
+    "root_link": "",
+    "tip_links": [],
+    "prune_massless": False,
     "gravity": [0.0, 0.0, -9.81],
     "method": "aba",
     "command_joints": [],
@@ -38,6 +42,9 @@ TYPES = {
     "floating_base": T.BOOL,
     "ignore_mimic": T.BOOL,
     "locked_joints": T.STRING_ARRAY,
+    "root_link": T.STRING,
+    "tip_links": T.STRING_ARRAY,
+    "prune_massless": T.BOOL,
     "gravity": T.DOUBLE_ARRAY,
     "method": T.STRING,
     "command_joints": T.STRING_ARRAY,
@@ -136,6 +143,10 @@ INVALID = {
     "locked_joints_no_position": ("locked_joints", T.STRING_ARRAY, ["joint7"]),
     "locked_joints_bad_number": ("locked_joints", T.STRING_ARRAY, ["joint7=abc"]),
     "locked_joints_unknown_joint": ("locked_joints", T.STRING_ARRAY, ["elbow=0.1"]),
+    "root_link_unknown": ("root_link", T.STRING, "elbow_link"),
+    "tip_links_unknown": ("tip_links", T.STRING_ARRAY, ["link4", "gripper"]),
+    "tip_links_string": ("tip_links", T.STRING, "link4"),
+    "prune_massless_string": ("prune_massless", T.STRING, "yes"),
     "command_joints_unknown": ("command_joints", T.STRING_ARRAY, ["joint1", "elbow"]),
     "urdf_file_missing": ("urdf_file", T.STRING, "/nonexistent/robot.urdf"),
     "robot_description_not_urdf": ("robot_description", T.STRING, "<robot name='broken'><link"),
@@ -255,6 +266,31 @@ def test_locked_joints_take_effect(arm, ros, restore, locked):
     pq = ref_l.q(free, q)
     want = ref_l.rnea(pq, ref_l.v(free, v), ref_l.v(free, a), ref_l.fext(pq, wrenches))
     assert_close(resp.effort, ref_l.pick(want, free), f"ID with wrenches, {entries} locked")
+
+
+def test_root_and_tip_links_take_effect(arm, ros, restore):
+    # Keep joint2..joint4 (root link1, tip link4): joint1 freezes at zero (link1 becomes the
+    # fixed base), joint5..joint7 freeze and their links lump onto link4. Pinocchio's reduced
+    # model with those joints locked at zero is the independent reference.
+    set_ok(ros, "root_link", "link1")
+    set_ok(ros, "tip_links", ["link4"])
+    kept = ["joint2", "joint3", "joint4"]
+    r = wait_model(ros, lambda r: list(r.joint_names) == kept)
+    assert parse_locks(r.locked_joints) == {n: 0.0 for n in ["joint1", "joint5", "joint6", "joint7"]}
+    assert "root: 'link1'" in r.message and "tips: link4" in r.message, r.message
+    ref_r = sd.PinRef(DEFAULT_ARM_URDF, locked={n: 0.0 for n in ["joint1", "joint5", "joint6", "joint7"]})
+    assert ref_r.names == kept
+    q, v, a = [0.4, -0.3, 0.8], [0.5, -0.2, 0.1], [1.0, 0.3, -0.7]
+    want = ref_r.pick(ref_r.rnea(ref_r.q(kept, q), ref_r.v(kept, v), ref_r.v(kept, a)), kept)
+    assert_close(id_ok(ros, kept, q, v, a).effort, want, "ID of the root/tip-reduced arm")
+    # The frozen joints' names (as /joint_states carries them) are accepted and ignored.
+    names = ARM_JOINTS
+    pos = {**dict(zip(kept, q)), **{n: 5.0 for n in names if n not in kept}}
+    vel = {**dict(zip(kept, v)), **{n: 5.0 for n in names if n not in kept}}
+    acc = {**dict(zip(kept, a)), **{n: 5.0 for n in names if n not in kept}}
+    resp = id_ok(ros, names, [pos[n] for n in names], [vel[n] for n in names], [acc[n] for n in names])
+    assert list(resp.name) == kept
+    assert_close(resp.effort, want, "frozen names ignored")
 
 
 def test_floating_base_takes_effect(arm, ros, restore):
