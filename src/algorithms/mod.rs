@@ -9,6 +9,7 @@
 //! | [`aba`] | forward dynamics in O(n) (articulated-body algorithm) |
 //! | [`rnea_columns`] | forward dynamics from n+1 inverse-dynamics calls (the handout's method) |
 //! | [`forward_dynamics`] | forward dynamics by a chosen [`ForwardDynamicsMethod`] |
+//! | [`method_choice`] | the fastest forward-dynamics method accurate enough for a model, measured |
 //! | [`energy`] | kinetic and potential energy |
 //! | [`ltl`], [`cholesky`] | the factorisations that solve `H q̈ = τ − C` |
 
@@ -24,6 +25,7 @@ pub mod forward_dynamics;
 pub mod gravity;
 pub mod kinematics;
 pub mod ltl;
+pub mod method_choice;
 pub mod rnea;
 pub mod rnea_columns;
 mod validate;
@@ -34,6 +36,7 @@ pub use crba::crba;
 pub use energy::energy;
 pub use forward_dynamics::{forward_dynamics, ForwardDynamicsMethod};
 pub use gravity::gravity;
+pub use method_choice::{choose_method, MethodChoice};
 pub use rnea::{rnea, rnea_with};
 
 use crate::spatial::{Force, Motion};

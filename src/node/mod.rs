@@ -385,12 +385,16 @@ async fn serve(
     let mut health = Health::default();
     let diagnostics_name = format!("{}: dynamics", node.fully_qualified_name());
     eprintln!(
-        "[INFO] [spatial_dynamics]: {} serving robot '{}' ({} joints, nv = {}), method {}",
+        "[INFO] [spatial_dynamics]: {} serving robot '{}' ({} joints, nv = {}), method {}{}",
         node.fully_qualified_name(),
         engine.model.name,
         engine.names().len(),
         engine.model.nv,
-        engine.method
+        engine.method,
+        engine
+            .method_choice
+            .as_ref()
+            .map_or(String::new(), |c| format!(" ({c})"))
     );
 
     let js_stream = js_sub.async_stream();
@@ -560,7 +564,7 @@ async fn serve(
             Some(name) = changes_rx.recv() => {
                 let settings = shared.lock().map_err(|e| e.to_string())?.clone();
                 if name == "method" {
-                    engine.method = settings.method;
+                    engine.set_method(settings.method);
                 } else {
                     let description = topic_description.lock().map_err(|e| e.to_string())?.clone();
                     match Engine::from_settings(&settings, description.as_deref()) {

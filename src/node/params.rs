@@ -11,7 +11,7 @@
 //! | `tip_links` | string[] | `[]` | keep only the joints from the root to these links; bodies past a tip lump onto it |
 //! | `prune_massless` | bool | `false` | remove moving joints whose whole subtree is massless |
 //! | `gravity` | double[3] | `[0, 0, -9.81]` | gravity in the world frame, m/s² |
-//! | `method` | string | `aba` | forward dynamics: `aba`, `crba` or `rnea_columns` |
+//! | `method` | string | `auto` | forward dynamics: `aba`, `crba`, `rnea_columns`, or `auto`: the fastest method that agrees with `aba` to 1e-10 on this model, measured at load |
 //! | `command_joints` | string[] | `[]` | order of `~/commands` and `~/feedforward_commands` (empty: all joints in model order) |
 //! | `mode` | string | `serve` | `serve`: dynamics of the measured state; `simulate`: the node owns and integrates the state |
 //! | `publish_rate` | double | `100` | simulate: `joint_states` per second (Hz) |
@@ -45,7 +45,8 @@ pub struct Settings {
     pub tip_links: Vec<String>,
     pub prune_massless: bool,
     pub gravity: [f64; 3],
-    pub method: ForwardDynamicsMethod,
+    /// `None`: `auto` (measured when the model loads).
+    pub method: Option<ForwardDynamicsMethod>,
     pub command_joints: Vec<String>,
     pub simulate: bool,
     pub publish_rate: f64,
@@ -70,7 +71,7 @@ impl Default for Settings {
             tip_links: Vec::new(),
             prune_massless: false,
             gravity: [0.0, 0.0, -9.81],
-            method: ForwardDynamicsMethod::Aba,
+            method: None,
             command_joints: Vec::new(),
             simulate: false,
             publish_rate: 100.0,
@@ -140,7 +141,7 @@ impl Settings {
             "tip_links" => P::StringArray(self.tip_links.clone()),
             "prune_massless" => P::Boolean(self.prune_massless),
             "gravity" => P::DoubleArray(self.gravity.to_vec()),
-            "method" => P::String(self.method.name().to_string()),
+            "method" => P::String(self.method.map_or("auto", |m| m.name()).to_string()),
             "command_joints" => P::StringArray(self.command_joints.clone()),
             "mode" => P::String(if self.simulate { "simulate" } else { "serve" }.into()),
             "publish_rate" => P::Double(self.publish_rate),
@@ -189,7 +190,8 @@ impl Settings {
                 self.gravity = [g[0] as f64, g[1] as f64, g[2] as f64]
             }
             ("gravity", _) => return wrong("three finite numbers [x, y, z] (m/s², world frame)"),
-            ("method", P::String(s)) => self.method = s.parse()?,
+            ("method", P::String(s)) if s == "auto" => self.method = None,
+            ("method", P::String(s)) => self.method = Some(s.parse()?),
             ("command_joints", P::StringArray(names)) => self.command_joints = names.clone(),
             ("mode", P::String(m)) if m == "serve" || m == "simulate" => {
                 self.simulate = m == "simulate"
@@ -389,12 +391,12 @@ mod tests {
         std::fs::write(&file, "/**:\n  ros__parameters:\n    method: crba\n    gravity: [0, 0, -1.62]\nother_node:\n  ros__parameters:\n    floating_base: true\n/robot/dyn:\n  ros__parameters:\n    locked_joints: ['joint7=0.5']\n").unwrap();
         let mut s = Settings::default();
         s.apply_file(&file, "/robot", "dyn").unwrap();
-        assert_eq!(s.method, ForwardDynamicsMethod::Crba);
+        assert_eq!(s.method, Some(ForwardDynamicsMethod::Crba));
         assert_eq!(s.gravity, [0.0, 0.0, -1.62]);
         assert!(!s.floating_base);
         assert_eq!(s.locked_joints, vec![("joint7".to_string(), 0.5)]);
         s.apply_arg("method", "rnea_columns").unwrap();
-        assert_eq!(s.method, ForwardDynamicsMethod::RneaColumns);
+        assert_eq!(s.method, Some(ForwardDynamicsMethod::RneaColumns));
         assert!(s
             .apply_arg("method", "magic")
             .unwrap_err()

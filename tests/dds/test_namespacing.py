@@ -79,7 +79,7 @@ def test_params_file_entry_for_the_namespaced_node(both, ros):
     r = ros.call(DescribeModel, "/robot1/spatial_dynamics/describe_model", DescribeModel.Request())
     assert r.method == "crba"
     assert ros.get_parameters(["method"], node="/robot1/spatial_dynamics") == {"method": "crba"}
-    assert ros.get_parameters(["method"], node="/dyn2") == {"method": "aba"}
+    assert ros.get_parameters(["method"], node="/dyn2") == {"method": "auto"}
 
 
 def test_relative_topics_under_the_namespace(both, ros, ref):

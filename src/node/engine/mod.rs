@@ -9,11 +9,15 @@ use super::msgs::*;
 use super::params::Settings;
 use simulation::Simulation;
 use spatial_dynamics::algorithms::kinematics::body_placements;
-use spatial_dynamics::algorithms::{crba, forward_dynamics, gravity, rnea_with};
+use spatial_dynamics::algorithms::{choose_method, crba, forward_dynamics, gravity, rnea_with};
 use spatial_dynamics::model::examples::DEFAULT_ARM_URDF;
 use spatial_dynamics::spatial::{Force, Transform};
 use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
-use std::time::Instant;
+use std::time::{Duration, Instant};
+
+/// `method: auto` takes the fastest method whose accelerations agree with `aba`'s to this
+/// (relative to the largest acceleration); see `algorithms::method_choice`.
+pub const AUTO_TOLERANCE: f64 = 1e-10;
 
 /// Where the model came from (for diagnostics and DescribeModel).
 #[derive(Clone, Debug, PartialEq)]
@@ -29,6 +33,8 @@ pub struct Engine {
     pub model: Model,
     pub source: ModelSource,
     pub method: ForwardDynamicsMethod,
+    /// How `method: auto` chose (`None` when the method was given).
+    pub method_choice: Option<String>,
     ws: Workspace,
     map: JointMap,
     /// For each `command_joints` entry, its index in the map's names.
@@ -117,12 +123,30 @@ impl Engine {
             simulation: None,
             base_q: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
             base_v: [0.0; 6],
-            method: settings.method,
+            method: ForwardDynamicsMethod::Aba,
+            method_choice: None,
             model,
             source,
         };
+        engine.set_method(settings.method);
         engine.configure_simulation(settings)?;
         Ok(engine)
+    }
+
+    /// Uses `method`, or with `None` (`auto`) the fastest method that agrees with `aba` to
+    /// [`AUTO_TOLERANCE`] on this model, measured now (about 10 ms per method). If no method can
+    /// run on the model (a singular mass matrix, say), `aba` stays and requests will say why.
+    pub fn set_method(&mut self, method: Option<ForwardDynamicsMethod>) {
+        (self.method, self.method_choice) = match method {
+            Some(m) => (m, None),
+            None => match choose_method(&self.model, AUTO_TOLERANCE, Duration::from_millis(10)) {
+                Ok(choice) => (choice.method, Some(format!("auto: {}", choice.summary()))),
+                Err(e) => (
+                    ForwardDynamicsMethod::Aba,
+                    Some(format!("auto: aba (no method could be measured: {e})")),
+                ),
+            },
+        };
     }
 
     /// Names of the joint coordinates, in model order.
@@ -353,6 +377,10 @@ impl Engine {
                 ModelSource::Default => "the embedded default (sd_arm7)".to_string(),
             }
         );
+        if let Some(choice) = &self.method_choice {
+            r.message += "; method ";
+            r.message += choice;
+        }
         for line in self.model.reduction.summary() {
             r.message += "; ";
             r.message += &line;

@@ -37,7 +37,7 @@ impl Engine {
         }
         let config = SimConfig {
             integrator: settings.integrator,
-            method: settings.method,
+            method: self.method,
             dt: settings.sim_dt,
             substeps: 1,
             passive: parse_passive(&settings.passive)?,
