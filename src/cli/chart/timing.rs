@@ -291,7 +291,7 @@ fn figure(timed: &[Timed], with_pinocchio: bool) -> Figure {
         "Chains: planar pendulums of 1 m, 1 kg rods.".to_string(),
         "Robots (nv):".to_string(),
     ];
-    legend_notes.extend(robots.iter().map(|t| format!("  {} ({})", t.name, t.nv)));
+    legend_notes.extend(robots.iter().map(|t| format!("· {} ({})", t.name, t.nv)));
     legend_notes.push("Median of repeats over random states;".into());
     legend_notes.push("one thread, shared 2-core machine.".into());
     Figure {
