@@ -3,7 +3,11 @@
 # markdown table: per robot and algorithm, our ns per call, Pinocchio's, and Pinocchio / ours
 # (> 1: we are faster).
 #
-# Usage: launch_scripts/bench_pinocchio.sh
+# Usage: launch_scripts/bench_pinocchio.sh [--build-only]
+#   --build-only: steps 1 and 2 only (no cargo build, no timing), then print what they made, one
+#   KEY=VALUE a line: `bench=PATH` (the Pinocchio bench) and, per robot of the table below,
+#   `robot=NAME=URDF[,floating]` (its first URDF that exists; the form `spatial_dynamics chart
+#   --robot` takes). launch_scripts/charts.sh uses it.
 #   Environment: STATES (1024), REPEATS (7), MIN_TIME (0.2 s per repeat) go to both benches;
 #   MARCH (native) is g++'s -march for the Pinocchio bench; OURS_NATIVE=1 also builds ours with
 #   -C target-cpu=native (into target/bench-native, so the shared target/release is untouched);
@@ -29,6 +33,23 @@ build="$repo/target/bench-pinocchio"
 python="${PYTHON:-python3.11}"
 packages=(pin==4.1.0 example-robot-data==6.0.0 cmeel-eigen==3.4.1 cmeel-urdfdom-headers==3.0.0)
 bench_args=(--states "${STATES:-1024}" --repeats "${REPEATS:-7}" --min-time "${MIN_TIME:-0.2}")
+
+build_only=0
+case "${1:-}" in
+    --build-only) build_only=1 ;;
+    "") ;;
+    *) printf 'usage: %s [--build-only]\n' "$0" >&2; exit 2 ;;
+esac
+
+# The robots: NAME FLOATING(0|1) URDF [FALLBACK_URDF], paths under example-robot-data's robots/.
+robot_table=(
+    "UR5 0 ur_description/urdf/ur5_robot.urdf"
+    "Panda 0 panda_description/urdf/panda.urdf"
+    "Baxter 0 baxter_description/urdf/baxter.urdf"
+    "TALOS 1 talos_data/robots/talos_full_v2.urdf talos_data/robots/talos_reduced.urdf"
+    "Solo12 1 solo_description/robots/solo12.urdf"
+    "ANYmal 1 anymal_b_simple_description/robots/anymal.urdf"
+)
 
 log() { printf '== %s\n' "$*" >&2; }
 die() { printf 'bench_pinocchio.sh: %s\n' "$*" >&2; exit 1; }
@@ -73,6 +94,16 @@ if [[ ! -x "$build/bench" || "$src" -nt "$build/bench" \
     echo "${cxx_flags[*]} ${ld_flags[*]}" > "$flags_stamp"
 fi
 
+if [[ "$build_only" == 1 ]]; then
+    echo "bench=$build/bench"
+    for row in "${robot_table[@]}"; do
+        read -r name floating urdf fallback <<< "$row"
+        [[ -f "$robots/$urdf" || -z "$fallback" ]] || urdf="$fallback"
+        echo "robot=$name=$robots/$urdf$([[ $floating == 1 ]] && echo ,floating)"
+    done
+    exit 0
+fi
+
 # --- 3. ours, then the runs ----------------------------------------------------------------------
 ours="$repo/target/release/spatial_dynamics"
 cargo_env=()
@@ -111,12 +142,10 @@ run_robot() {  # NAME FLOATING(0|1) URDF [FALLBACK_URDF]
 }
 
 log "timing (${bench_args[*]}): about 15 s per robot and library"
-run_robot UR5 0 ur_description/urdf/ur5_robot.urdf
-run_robot Panda 0 panda_description/urdf/panda.urdf
-run_robot Baxter 0 baxter_description/urdf/baxter.urdf
-run_robot TALOS 1 talos_data/robots/talos_full_v2.urdf talos_data/robots/talos_reduced.urdf
-run_robot Solo12 1 solo_description/robots/solo12.urdf
-run_robot ANYmal 1 anymal_b_simple_description/robots/anymal.urdf
+for row in "${robot_table[@]}"; do
+    # shellcheck disable=SC2086 # the row splits into run_robot's arguments
+    run_robot $row
+done
 
 "$venv/bin/python" - "$results" <<'EOF'
 import json, sys

@@ -19,13 +19,26 @@ use std::time::{Duration, Instant};
 pub struct Settings {
     /// Number of random states, generated before timing and cycled through.
     #[arg(long, default_value_t = 1024)]
-    states: usize,
+    pub states: usize,
     /// Number of timed repeats; the median is reported.
     #[arg(long, default_value_t = 7)]
-    repeats: usize,
+    pub repeats: usize,
     /// Minimum duration of one repeat, seconds.
     #[arg(long, value_name = "SECONDS", default_value_t = 0.2)]
-    min_time: f64,
+    pub min_time: f64,
+}
+
+impl Settings {
+    /// The error names the flag that is out of range.
+    pub fn check(&self) -> Result<(), String> {
+        if self.states == 0 || self.repeats == 0 {
+            return Err("--states and --repeats must be at least 1".into());
+        }
+        if !(self.min_time.is_finite() && self.min_time > 0.0) {
+            return Err("--min-time must be a positive number of seconds".into());
+        }
+        Ok(())
+    }
 }
 
 /// One random state: inputs for every kernel.
@@ -37,7 +50,7 @@ struct State {
 }
 
 /// The kernels, in the order they are reported.
-const KERNELS: [&str; 6] = [
+pub const KERNELS: [&str; 6] = [
     "rnea",
     "crba",
     "fd_aba",
@@ -48,28 +61,12 @@ const KERNELS: [&str; 6] = [
 
 /// Times every kernel and prints the result.
 pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), String> {
-    if settings.states == 0 || settings.repeats == 0 {
-        return Err("--states and --repeats must be at least 1".into());
-    }
-    if !(settings.min_time.is_finite() && settings.min_time > 0.0) {
-        return Err("--min-time must be a positive number of seconds".into());
-    }
+    settings.check()?;
     let model = args.load()?;
-    let mut rng = Rng::new(0x5eed);
-    let states: Vec<State> = (0..settings.states)
-        .map(|_| State {
-            q: random_q(&model, &mut rng),
-            v: rng.vector(model.nv),
-            a_or_tau: rng.vector(model.nv),
-        })
+    let results: Vec<(&str, Option<f64>)> = KERNELS
+        .into_iter()
+        .zip(time_kernels(&model, &KERNELS, settings)?)
         .collect();
-    let mut results: Vec<(&str, Option<f64>)> = Vec::new();
-    for name in KERNELS {
-        let ns = time_kernel(&model, &states, name, settings)
-            .map_err(|e| format!("bench {name}: {e}"))?;
-        // Tenths of a nanosecond are more than the noise allows.
-        results.push((name, ns.map(|x| (x * 10.0).round() / 10.0)));
-    }
     if as_json {
         let per_call: Map<String, Value> = results
             .iter()
@@ -90,6 +87,37 @@ pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), S
         }
     }
     Ok(())
+}
+
+/// Median nanoseconds per call (to a tenth) of each of `kernels` (names from [`KERNELS`]) on
+/// `model`, over `settings.states` seeded random states; `None` where the method refuses the
+/// model (ABA with mimic joints). The same states for every kernel and every call.
+pub fn time_kernels(
+    model: &Model,
+    kernels: &[&str],
+    settings: &Settings,
+) -> Result<Vec<Option<f64>>, String> {
+    settings.check()?;
+    let mut rng = Rng::new(0x5eed);
+    let states: Vec<State> = (0..settings.states)
+        .map(|_| State {
+            q: random_q(model, &mut rng),
+            v: rng.vector(model.nv),
+            a_or_tau: rng.vector(model.nv),
+        })
+        .collect();
+    kernels
+        .iter()
+        .map(|&name| {
+            if !KERNELS.contains(&name) {
+                return Err(format!("bench: unknown kernel '{name}'"));
+            }
+            let ns = time_kernel(model, &states, name, settings)
+                .map_err(|e| format!("bench {name}: {e}"))?;
+            // Tenths of a nanosecond are more than the noise allows.
+            Ok(ns.map(|x| (x * 10.0).round() / 10.0))
+        })
+        .collect()
 }
 
 /// Median nanoseconds per call of kernel `name`, or `None` when the method refuses the model
@@ -175,15 +203,15 @@ fn measure(
 }
 
 /// xorshift64*: deterministic, no dependency.
-struct Rng(u64);
+pub struct Rng(u64);
 
 impl Rng {
-    fn new(seed: u64) -> Self {
+    pub fn new(seed: u64) -> Self {
         Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
     }
 
     /// Uniform in [-1, 1).
-    fn uniform(&mut self) -> f64 {
+    pub fn uniform(&mut self) -> f64 {
         self.0 ^= self.0 >> 12;
         self.0 ^= self.0 << 25;
         self.0 ^= self.0 >> 27;

@@ -1,6 +1,7 @@
 //! Command-line front end: argument parsing and dispatch. The numerics live in the library.
 
 mod bench;
+mod chart;
 mod eval;
 mod model_info;
 mod simulate;
@@ -44,6 +45,9 @@ enum Command {
         #[command(flatten)]
         settings: bench::Settings,
     },
+    /// Regenerate the README's charts (SVG) and the CSV behind each: timing against nv,
+    /// forward-dynamics error against time, integrator work-precision.
+    Chart(chart::ChartArgs),
     /// Integrate forward dynamics in time and write the trajectory as CSV.
     Simulate {
         #[command(flatten)]
@@ -71,6 +75,7 @@ pub fn run() -> ExitCode {
             json,
             settings,
         } => bench::run(&model, json, &settings),
+        Command::Chart(args) => chart::run(&args),
         Command::Simulate { model, sim } => simulate::run(&model, &sim),
         #[cfg(feature = "node")]
         Command::Node { args } => crate::node::run(&args),
