@@ -149,7 +149,9 @@ struct TimeSource {
     clock: NodeClock,
     topic: Topic,
     name: String,
-    subscription: Option<Subscription<Clock>>,
+    /// The `/clock` subscription and when it was made: RustDDS may hand a new reader samples
+    /// its participant received before (an earlier reader's), which are older than the switch.
+    subscription: Option<(Subscription<Clock>, ros2_client::ROSTime)>,
     shared: Arc<Mutex<Settings>>,
 }
 
@@ -176,13 +178,15 @@ impl TimeSource {
                 &self.topic,
                 Some(qos(false, Durability::Volatile, 1)),
             ) {
-                Ok(sub) => self.subscription = Some(sub),
+                Ok(sub) => self.subscription = Some((sub, node.time_now_not_simulated())),
                 Err(e) => health.dropped(&self.name, &format!("cannot subscribe: {e:?}")),
             }
         }
-        if let Some(sub) = &self.subscription {
+        if let Some((sub, since)) = &self.subscription {
             loop {
                 match sub.take() {
+                    Ok(Some((_, info)))
+                        if info.received_timestamp().is_some_and(|t| t < *since) => {}
                     Ok(Some((message, _))) => {
                         health.received(&self.name);
                         if let Some(note) = self.clock.clock_received(&message.clock) {
