@@ -6,7 +6,9 @@
 //! `~/inverse_dynamics`, `~/forward_dynamics`, `~/mass_matrix`, `~/describe_model`, and the
 //! standard parameter services. In simulate mode (`mode: simulate`) the node also publishes
 //! `joint_states` (and `/clock` if `publish_clock`) from its own integrated state and serves
-//! `~/reset`, `~/pause` (std_srvs/SetBool) and `~/step` (std_srvs/Trigger). QoS (chosen on purpose):
+//! `~/reset`, `~/pause` (std_srvs/SetBool) and `~/step` (std_srvs/Trigger). With `use_sim_time`
+//! (serve mode) the node reads `/clock` and stamps its outputs with it; the rules are in
+//! [`engine::clock`]. QoS (chosen on purpose):
 //!
 //! | what | reliability | durability | depth |
 //! |---|---|---|---|
@@ -15,6 +17,7 @@
 //! | outputs, `/diagnostics` | reliable | volatile | 10 |
 //! | `robot_description` | reliable | transient local | 1 |
 //! | `joint_states` (simulate), `/clock` | reliable (matches best-effort readers too) | volatile | 10, 1 |
+//! | `/clock` read (`use_sim_time`) | best effort (rclcpp's ClockQoS: matches any publisher) | volatile | 1 |
 //! | services | reliable | volatile | 10 |
 
 mod engine;
@@ -24,20 +27,21 @@ mod msgs;
 mod params;
 mod ros_args;
 
+use engine::clock::{self, NodeClock};
 use engine::Engine;
 use futures::StreamExt;
 use health::Health;
 use msgs::*;
 use params::Settings;
-use ros2_client::dds::rustdds::DomainParticipantBuilder;
+use ros2_client::dds::rustdds::{DomainParticipantBuilder, Topic};
 use ros2_client::qos::{Durability, History, WhenFull};
 use ros2_client::{
-    Context, Message, MessageTypeName, Name, Node, NodeName, NodeOptions, QosProfile,
-    ServiceMapping, ServiceTypeName,
+    Context, Message, MessageTypeName, Name, Node, NodeName, NodeOptions, ParameterValue,
+    QosProfile, ServiceMapping, ServiceTypeName, Subscription,
 };
 use ros_args::{NameResolver, RosArgs};
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime};
 
 /// Runs the node until it is stopped. Configuration errors at start-up are returned (and the
 /// process exits non-zero); after that, bad input is answered or dropped, never fatal.
@@ -136,6 +140,69 @@ impl Finite for Float64MultiArray {
 
 struct Endpoints {
     resolver: NameResolver,
+}
+
+/// The node's clock fed from DDS: `use_sim_time` as ros2-client's parameter store holds it (the
+/// store keeps that parameter to itself, so it is read before each use), and a `/clock`
+/// subscription that exists while simulated time is read from it.
+struct TimeSource {
+    clock: NodeClock,
+    topic: Topic,
+    name: String,
+    /// The `/clock` subscription and when it was made: RustDDS may hand a new reader samples
+    /// its participant received before (an earlier reader's), which are older than the switch.
+    subscription: Option<(Subscription<Clock>, ros2_client::ROSTime)>,
+    shared: Arc<Mutex<Settings>>,
+}
+
+impl TimeSource {
+    /// Follows `use_sim_time`, reads any `/clock` that arrived, and returns the node's time (ns;
+    /// `None` while simulated time has not arrived).
+    fn now(&mut self, node: &mut Node, engine: &Engine, health: &mut Health) -> Option<i64> {
+        let wanted = matches!(
+            node.get_parameter("use_sim_time"),
+            Some(ParameterValue::Boolean(true))
+        );
+        if wanted != self.clock.use_sim_time() {
+            self.clock.set_use_sim_time(wanted);
+            if let Ok(mut settings) = self.shared.lock() {
+                settings.use_sim_time = wanted;
+            }
+            eprintln!("[INFO] [spatial_dynamics]: parameter 'use_sim_time' now in effect: {wanted}; the node's clock is the {}", clock::source_name(wanted, engine.simulated_time().is_some()));
+        }
+        if !self.clock.reads_clock(engine.simulated_time().is_some()) {
+            self.subscription = None;
+        } else if self.subscription.is_none() {
+            // rclcpp's ClockQoS: best effort, keep last 1.
+            match node.create_subscription::<Clock>(
+                &self.topic,
+                Some(qos(false, Durability::Volatile, 1)),
+            ) {
+                Ok(sub) => self.subscription = Some((sub, node.time_now_not_simulated())),
+                Err(e) => health.dropped(&self.name, &format!("cannot subscribe: {e:?}")),
+            }
+        }
+        if let Some((sub, since)) = &self.subscription {
+            loop {
+                match sub.take() {
+                    Ok(Some((_, info)))
+                        if info.received_timestamp().is_some_and(|t| t < *since) => {}
+                    Ok(Some((message, _))) => {
+                        health.received(&self.name);
+                        if let Some(note) = self.clock.clock_received(&message.clock) {
+                            eprintln!("[INFO] [spatial_dynamics]: {note}");
+                        }
+                    }
+                    Ok(None) => break,
+                    Err(e) => {
+                        health.dropped(&self.name, &format!("unreadable message: {e:?}"));
+                        break;
+                    }
+                }
+            }
+        }
+        self.clock.now(SystemTime::now(), engine.simulated_time())
+    }
 }
 
 impl Endpoints {
@@ -363,13 +430,15 @@ async fn serve(
         "JointState",
         reliable
     );
-    let (_, clock_pub) = publisher!(
-        Clock,
+    let (clock_name, clock_topic) = topic!(
         "/clock",
         "rosgraph_msgs",
         "Clock",
         qos(true, Durability::Volatile, 1)
     );
+    let clock_pub = node
+        .create_publisher::<Clock>(&clock_topic, None)
+        .map_err(|e| format!("publisher {clock_name}: {e:?}"))?;
     let (reset_name, reset_server) = server!(ResetRequest, ResetResponse, "~/reset", "Reset");
     let (pause_name, pause_server) =
         std_server!(SetBoolRequest, SetBoolResponse, "~/pause", "SetBool");
@@ -383,6 +452,15 @@ async fn serve(
 
     let mut engine = engine;
     let mut health = Health::default();
+    let mut time = TimeSource {
+        clock: NodeClock::new(&*shared.lock().map_err(|e| e.to_string())?),
+        topic: clock_topic,
+        name: clock_name,
+        subscription: None,
+        shared: shared.clone(),
+    };
+    // Subscribes to /clock now if simulated time is on, so that discovery starts at once.
+    time.now(&mut node, &engine, &mut health);
     let diagnostics_name = format!("{}: dynamics", node.fully_qualified_name());
     eprintln!(
         "[INFO] [spatial_dynamics]: {} serving robot '{}' ({} joints, nv = {}), method {}{}",
@@ -439,8 +517,14 @@ async fn serve(
             _ = terminate.recv() => break,
             Some(item) = js_stream.next() => {
                 health.received(&js_name);
+                let now = time.now(&mut node, &engine, &mut health);
                 let started = Instant::now();
-                match item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(js, _)| engine.joint_states(&js)) {
+                match item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(js, _)| {
+                    let stamp = time.clock.admit(&js.header.stamp, now)?;
+                    let (mut g, mut a) = engine.joint_states(&js)?;
+                    (g.header.stamp, a.header.stamp) = (stamp.clone(), stamp);
+                    Ok((g, a))
+                }) {
                     Ok((g, a)) => {
                         health.computed(started.elapsed());
                         send(&gravity_pub, g, &gravity_name, &mut health);
@@ -463,8 +547,14 @@ async fn serve(
             }
             Some(item) = reference_stream.next() => {
                 health.received(&reference_name);
+                let now = time.now(&mut node, &engine, &mut health);
                 let started = Instant::now();
-                match item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(m, _)| engine.reference(&m)) {
+                match item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(m, _)| {
+                    let stamp = time.clock.output_stamp(&m.header.stamp, now)?;
+                    let (mut effort, commands) = engine.reference(&m)?;
+                    effort.header.stamp = stamp;
+                    Ok((effort, commands))
+                }) {
                     Ok((effort, commands)) => {
                         health.computed(started.elapsed());
                         send(&ff_pub, effort, &ff_name, &mut health);
@@ -565,6 +655,8 @@ async fn serve(
                 let settings = shared.lock().map_err(|e| e.to_string())?.clone();
                 if name == "method" {
                     engine.set_method(settings.method);
+                } else if params::TIME_PARAMETERS.contains(&name.as_str()) {
+                    time.clock.configure(&settings);
                 } else {
                     let description = topic_description.lock().map_err(|e| e.to_string())?.clone();
                     match Engine::from_settings(&settings, description.as_deref()) {
@@ -576,9 +668,11 @@ async fn serve(
                 eprintln!("[INFO] [spatial_dynamics]: parameter '{name}' now in effect");
             }
             _ = diagnostics.tick() => {
-                let nanos = node.time_now().to_nanos();
-                let stamp = Time { sec: nanos.div_euclid(1_000_000_000) as i32, nanosec: nanos.rem_euclid(1_000_000_000) as u32 };
+                let now = time.now(&mut node, &engine, &mut health);
+                let stamp = NodeClock::stamp(now);
                 let mut status = health.report(&diagnostics_name, &engine.model.name, true);
+                status.values.push(KeyValue { key: "clock".into(), value: clock::source_name(time.clock.use_sim_time(), engine.simulated_time().is_some()).into() });
+                status.values.push(KeyValue { key: "clock time (s)".into(), value: now.map_or_else(|| "none yet".into(), |n| format!("{:.9}", n as f64 * 1e-9)) });
                 if let Some((t, rtf, paused, diverged, clamped)) = engine.simulation_status() {
                     status.values.push(KeyValue { key: "simulated time (s)".into(), value: format!("{t:.6}") });
                     status.values.push(KeyValue { key: "real-time factor".into(), value: format!("{rtf:.3}") });

@@ -22,9 +22,15 @@
 //! | `command_timeout` | double | `0.5` | simulate: a command older than this (wall s) drops to zero effort; 0: never |
 //! | `passive` | string[] | `[]` | simulate: URDF forces applied: `damping`, `friction`, `effort_limits`, `position_limits` |
 //! | `initial_positions` | string[] | `[]` | simulate: `"NAME=POSITION"` at start and on reload (others zero) |
+//! | `use_sim_time` | bool | `false` | the node's clock is ROS simulated time: the latest `/clock` (simulate mode: its own simulated time); outputs are stamped with it |
+//! | `max_stamp_age` | double | `0` | drop a `joint_states` stamped more than this (s) before the node's clock; 0: off |
+//! | `future_stamp_tolerance` | double | `0` | drop a `joint_states` stamped more than this (s) after the node's clock; 0: off |
 //!
 //! Every parameter can be changed at run time and takes effect at once (model parameters
-//! rebuild the model; a change that would give an unusable model is refused).
+//! rebuild the model; a change that would give an unusable model is refused). The clock and
+//! stamp rules are those of [`super::engine::clock`]. `use_sim_time` is kept by ros2-client's
+//! parameter store itself (every ROS node has it): our validator never sees it, so the node
+//! reads its value from the store before each use.
 
 use ros2_client::ParameterValue;
 use spatial_dynamics::model::joint_position;
@@ -57,6 +63,9 @@ pub struct Settings {
     pub command_timeout: f64,
     pub passive: Vec<String>,
     pub initial_positions: Vec<(String, f64)>,
+    pub use_sim_time: bool,
+    pub max_stamp_age: f64,
+    pub future_stamp_tolerance: f64,
 }
 
 impl Default for Settings {
@@ -82,12 +91,15 @@ impl Default for Settings {
             command_timeout: 0.5,
             passive: Vec::new(),
             initial_positions: Vec::new(),
+            use_sim_time: false,
+            max_stamp_age: 0.0,
+            future_stamp_tolerance: 0.0,
         }
     }
 }
 
 /// The names of all parameters, in declaration order.
-pub const NAMES: [&str; 11] = [
+pub const NAMES: [&str; 14] = [
     "robot_description",
     "urdf_file",
     "floating_base",
@@ -99,7 +111,14 @@ pub const NAMES: [&str; 11] = [
     "gravity",
     "method",
     "command_joints",
+    "use_sim_time",
+    "max_stamp_age",
+    "future_stamp_tolerance",
 ];
+
+/// Parameters of the node's clock and stamp policy (a change touches neither the model nor the
+/// simulation).
+pub const TIME_PARAMETERS: [&str; 3] = ["use_sim_time", "max_stamp_age", "future_stamp_tolerance"];
 
 /// Parameters that change the model (a change rebuilds it).
 pub const MODEL_PARAMETERS: [&str; 9] = [
@@ -157,6 +176,9 @@ impl Settings {
                     .map(|(n, v)| format!("{n}={v:?}"))
                     .collect(),
             ),
+            "use_sim_time" => P::Boolean(self.use_sim_time),
+            "max_stamp_age" => P::Double(self.max_stamp_age),
+            "future_stamp_tolerance" => P::Double(self.future_stamp_tolerance),
             _ => return None,
         })
     }
@@ -207,11 +229,22 @@ impl Settings {
                     _ => &mut self.real_time_factor,
                 } = x;
             }
-            ("command_timeout", P::Double(x)) if *x >= 0.0 && x.is_finite() => {
-                self.command_timeout = *x
+            ("command_timeout" | "max_stamp_age" | "future_stamp_tolerance", _) => {
+                let x = match value {
+                    P::Double(x) => *x,
+                    P::Integer(x) => *x as f64,
+                    _ => f64::NAN,
+                };
+                if !(x >= 0.0 && x.is_finite()) {
+                    return wrong("a number of seconds ≥ 0");
+                }
+                *match name {
+                    "command_timeout" => &mut self.command_timeout,
+                    "max_stamp_age" => &mut self.max_stamp_age,
+                    _ => &mut self.future_stamp_tolerance,
+                } = x;
             }
-            ("command_timeout", P::Integer(x)) if *x >= 0 => self.command_timeout = *x as f64,
-            ("command_timeout", _) => return wrong("a number of seconds ≥ 0"),
+            ("use_sim_time", P::Boolean(b)) => self.use_sim_time = *b,
             ("integrator", P::String(s)) => self.integrator = s.parse()?,
             ("publish_clock", P::Boolean(b)) => self.publish_clock = *b,
             ("passive", P::StringArray(items)) => {
@@ -225,7 +258,7 @@ impl Settings {
                     .collect::<Result<_, _>>()?
             }
             ("integrator", _) => return wrong("a string"),
-            ("publish_clock", _) => return wrong("a bool"),
+            ("publish_clock" | "use_sim_time", _) => return wrong("a bool"),
             ("passive" | "initial_positions", _) => return wrong("a list of strings"),
             ("robot_description" | "urdf_file" | "method" | "root_link", _) => {
                 return wrong("a string")
@@ -417,5 +450,37 @@ mod tests {
             .apply_arg("nonsense", "1")
             .unwrap_err()
             .contains("unknown parameter 'nonsense'"));
+    }
+
+    #[test]
+    fn clock_parameters_are_checked() {
+        let mut s = Settings::default();
+        assert!(!s.use_sim_time && s.max_stamp_age == 0.0 && s.future_stamp_tolerance == 0.0);
+        s.apply_arg("use_sim_time", "true").unwrap();
+        s.apply_arg("max_stamp_age", "0.25").unwrap();
+        s.apply_arg("future_stamp_tolerance", "1").unwrap();
+        assert!(s.use_sim_time);
+        assert_eq!((s.max_stamp_age, s.future_stamp_tolerance), (0.25, 1.0));
+        assert_eq!(
+            s.get("future_stamp_tolerance"),
+            Some(ParameterValue::Double(1.0))
+        );
+        for (name, value, why) in [
+            ("use_sim_time", "1", "must be a bool"),
+            ("max_stamp_age", "-0.1", "must be a number of seconds ≥ 0"),
+            (
+                "future_stamp_tolerance",
+                ".inf",
+                "must be a number of seconds ≥ 0",
+            ),
+            ("max_stamp_age", "soon", "must be a number of seconds ≥ 0"),
+        ] {
+            let err = s.apply_arg(name, value).unwrap_err();
+            assert!(
+                err.contains(why) && err.contains(name),
+                "{name}:={value}: {err}"
+            );
+        }
+        assert_eq!(s.max_stamp_age, 0.25, "a refused value leaves the old one");
     }
 }

@@ -2,6 +2,7 @@
 //! the joint-name map, and the latest state and command received. Every entry point answers a
 //! message with a message, or with an error text that names the joint, field or value.
 
+pub mod clock;
 mod simulation;
 
 use super::joint_map::{JointMap, Target};

@@ -199,6 +199,11 @@ impl Engine {
         }
     }
 
+    /// The simulated time (s), in simulate mode: the node's clock with `use_sim_time`.
+    pub fn simulated_time(&self) -> Option<f64> {
+        self.simulation.as_ref().map(|s| s.state.t)
+    }
+
     /// Simulation figures for `/diagnostics`: simulated time, real-time factor, paused, why it
     /// stopped (if it did), and how many effort evaluations were clamped to their URDF limits.
     pub fn simulation_status(&self) -> Option<(f64, f64, bool, Option<String>, u64)> {
@@ -216,9 +221,5 @@ impl Engine {
 
 /// Seconds as builtin_interfaces/Time.
 pub fn time_of(t: f64) -> Time {
-    let nanos = (t * 1e9).round() as i64;
-    Time {
-        sec: nanos.div_euclid(1_000_000_000) as i32,
-        nanosec: nanos.rem_euclid(1_000_000_000) as u32,
-    }
+    super::clock::time_from_nanos((t * 1e9).round() as i64)
 }
