@@ -371,4 +371,36 @@ fn bench_prints_the_json_contract() {
     assert!(ok, "{err}");
     let v: Value = serde_json::from_str(out.trim()).unwrap();
     assert!(v["ns_per_call"]["fd_aba"].is_null(), "{out}");
+    assert_ne!(v["auto_method"], "aba", "{out}");
+    // A reduction: the full model is timed beside it, with the speed-up.
+    let (ok, out, err) = run(
+        &[
+            "bench",
+            "--tip",
+            "link3",
+            "--json",
+            "--states",
+            "100",
+            "--repeats",
+            "1",
+            "--min-time",
+            "0.001",
+        ],
+        "",
+    );
+    assert!(ok, "{err}");
+    let v: Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(
+        (v["nv"].as_u64(), v["full"]["nv"].as_u64()),
+        (Some(3), Some(7)),
+        "{out}"
+    );
+    for kernel in ["rnea", "crba", "fd_aba", "gravity"] {
+        let (ours, full, up) = (
+            v["ns_per_call"][kernel].as_f64().unwrap(),
+            v["full"]["ns_per_call"][kernel].as_f64().unwrap(),
+            v["speedup"][kernel].as_f64().unwrap(),
+        );
+        assert!((up - full / ours).abs() < 0.01 * up, "{kernel}: {out}");
+    }
 }

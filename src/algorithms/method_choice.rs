@@ -17,6 +17,10 @@ use super::{forward_dynamics, ForwardDynamicsMethod};
 use crate::{DynamicsError, Externals, Model, Workspace};
 use std::time::{Duration, Instant};
 
+/// The tolerance the node's `method: auto` and `bench` use: accelerations must agree with
+/// `aba`'s to this, relative to the largest acceleration (plus one).
+pub const AUTO_TOLERANCE: f64 = 1e-10;
+
 /// What [`choose_method`] measured and decided.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MethodChoice {

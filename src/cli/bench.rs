@@ -8,7 +8,8 @@
 use super::ModelArgs;
 use clap::Args;
 use serde_json::{json, Map, Value};
-use spatial_dynamics::algorithms::{crba, forward_dynamics, gravity, rnea};
+use spatial_dynamics::algorithms::method_choice::AUTO_TOLERANCE;
+use spatial_dynamics::algorithms::{choose_method, crba, forward_dynamics, gravity, rnea};
 use spatial_dynamics::model::JointKind;
 use spatial_dynamics::{DynamicsError, Externals, ForwardDynamicsMethod, Model, Workspace};
 use std::hint::black_box;
@@ -59,33 +60,82 @@ pub const KERNELS: [&str; 6] = [
     "gravity",
 ];
 
-/// Times every kernel and prints the result.
+/// Times every kernel and prints the result; with a reduction asked for, the full model too and
+/// the speed-up; and the method `auto` would choose.
 pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), String> {
     settings.check()?;
     let model = args.load()?;
-    let results: Vec<(&str, Option<f64>)> = KERNELS
-        .into_iter()
-        .zip(time_kernels(&model, &KERNELS, settings)?)
-        .collect();
+    let times = time_kernels(&model, &KERNELS, settings)?;
+    let full = if args.reduces() {
+        let full = args.without_reductions().load()?;
+        let full_times = time_kernels(&full, &KERNELS, settings)?;
+        Some((full, full_times))
+    } else {
+        None
+    };
+    let auto = choose_method(&model, AUTO_TOLERANCE, Duration::from_millis(50))
+        .map_err(|e| format!("bench: {e}"))?;
+    let speedup = |k: usize| match (&full, times[k]) {
+        (Some((_, f)), Some(ours)) => f[k].map(|f| f / ours),
+        _ => None,
+    };
     if as_json {
-        let per_call: Map<String, Value> = results
-            .iter()
-            .map(|(name, ns)| (name.to_string(), json!(ns)))
-            .collect();
-        println!("{}", json!({"nv": model.nv, "ns_per_call": per_call}));
+        let per_call = |t: &[Option<f64>]| -> Map<String, Value> {
+            KERNELS
+                .iter()
+                .zip(t)
+                .map(|(k, ns)| (k.to_string(), json!(ns)))
+                .collect()
+        };
+        let mut out = json!({"nv": model.nv, "ns_per_call": per_call(&times), "auto_method": auto.method.name()});
+        if let Some((full, full_times)) = &full {
+            out["full"] = json!({"nv": full.nv, "ns_per_call": per_call(full_times)});
+            out["speedup"] = KERNELS
+                .iter()
+                .enumerate()
+                .map(|(k, name)| {
+                    (
+                        name.to_string(),
+                        json!(speedup(k).map(|x| (x * 100.0).round() / 100.0)),
+                    )
+                })
+                .collect::<Map<String, Value>>()
+                .into();
+        }
+        println!("{out}");
         return Ok(());
     }
     println!(
         "robot '{}': nq = {}, nv = {}; {} random states, median of {} repeats of at least {:.2} s",
         model.name, model.nq, model.nv, settings.states, settings.repeats, settings.min_time
     );
-    println!("{:<16} {:>12}", "kernel", "ns/call");
-    for (name, ns) in results {
-        match ns {
-            Some(ns) => println!("{name:<16} {ns:>12.1}"),
-            None => println!("{name:<16} {:>12}", "n/a (mimic)"),
+    let cell = |ns: Option<f64>| ns.map_or("n/a (mimic)".to_string(), |x| format!("{x:.1}"));
+    match &full {
+        Some((full, full_times)) => {
+            println!(
+                "{:<16} {:>12} {:>16} {:>9}",
+                "kernel",
+                "ns/call",
+                format!("full nv={}", full.nv),
+                "speed-up"
+            );
+            for (k, name) in KERNELS.iter().enumerate() {
+                let up = speedup(k).map_or(String::new(), |x| format!("{x:.2}×"));
+                println!(
+                    "{name:<16} {:>12} {:>16} {up:>9}",
+                    cell(times[k]),
+                    cell(full_times[k])
+                );
+            }
+        }
+        None => {
+            println!("{:<16} {:>12}", "kernel", "ns/call");
+            for (name, ns) in KERNELS.iter().zip(&times) {
+                println!("{name:<16} {:>12}", cell(*ns));
+            }
         }
     }
+    println!("method auto would choose: {}", auto.summary());
     Ok(())
 }
 

@@ -42,6 +42,25 @@ pub struct ModelArgs {
 }
 
 impl ModelArgs {
+    /// True when any reduction (locks, root, tips, pruning) is asked for.
+    pub fn reduces(&self) -> bool {
+        !self.locks.is_empty()
+            || self.root.is_some()
+            || !self.tips.is_empty()
+            || self.prune_massless
+    }
+
+    /// The same model source and options without the reductions.
+    pub fn without_reductions(&self) -> ModelArgs {
+        ModelArgs {
+            locks: Vec::new(),
+            root: None,
+            tips: Vec::new(),
+            prune_massless: false,
+            ..self.clone()
+        }
+    }
+
     /// Loads the model; the error names the problem.
     pub fn load(&self) -> Result<Model, String> {
         let mut options = ModelOptions {

@@ -10,15 +10,12 @@ use super::msgs::*;
 use super::params::Settings;
 use simulation::Simulation;
 use spatial_dynamics::algorithms::kinematics::body_placements;
+use spatial_dynamics::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics::algorithms::{choose_method, crba, forward_dynamics, gravity, rnea_with};
 use spatial_dynamics::model::examples::DEFAULT_ARM_URDF;
 use spatial_dynamics::spatial::{Force, Transform};
 use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
 use std::time::{Duration, Instant};
-
-/// `method: auto` takes the fastest method whose accelerations agree with `aba`'s to this
-/// (relative to the largest acceleration); see `algorithms::method_choice`.
-pub const AUTO_TOLERANCE: f64 = 1e-10;
 
 /// Where the model came from (for diagnostics and DescribeModel).
 #[derive(Clone, Debug, PartialEq)]
