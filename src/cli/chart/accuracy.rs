@@ -221,11 +221,8 @@ fn figure(points: &[Point], quick: bool) -> Figure {
             (lo.min(t), hi.max(t))
         });
     series.push(
-        Series::reference(
-            "",
-            vec![(t_lo / 10.0, f64::EPSILON), (t_hi * 10.0, f64::EPSILON)],
-        )
-        .tagged("ε = 2.2e-16"),
+        Series::reference("", vec![(t_lo, f64::EPSILON), (t_hi, f64::EPSILON)])
+            .tagged("ε = 2.2e-16"),
     );
     let mut notes = Vec::new();
     for method in ForwardDynamicsMethod::ALL {
