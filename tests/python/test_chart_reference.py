@@ -37,7 +37,7 @@ CASES = [(1, 1.0), (3, 1.0), (8, 1.0), (24, 1.0), (64, 1.0), (6, 1e-3), (12, 1e-
 
 
 def masses(n, r):
-    """m_k = r^k by repeated multiplication, as Chain::geometric does (any doubles would do)."""
+    """m_k = r^k by repeated multiplication, as geometric_masses in reference.rs does (any doubles would do)."""
     out, m = [], 1.0
     for _ in range(n):
         out.append(m)

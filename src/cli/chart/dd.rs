@@ -166,7 +166,7 @@ impl DoubleDouble {
 
 /// π/2 as the unevaluated sum of three doubles (the leading parts of QD's quad-double π/2).
 const PI_2_PARTS: [f64; 3] = [
-    1.570_796_326_794_896_6,
+    std::f64::consts::FRAC_PI_2,
     6.123_233_995_736_766e-17,
     -1.497_384_904_859_169_8e-33, // the next part is 5.6e-50
 ];
@@ -286,7 +286,7 @@ mod tests {
     fn sqrt_holds_106_bits() {
         // sqrt(2) from mpmath (hi + lo of its 60-digit value).
         let r2 = Dd::from_f64(2.0).sqrt();
-        assert!(rel(r2, dd(1.4142135623730951, -9.667293313452913e-17)) < 1e-31);
+        assert!(rel(r2, dd(std::f64::consts::SQRT_2, -9.667293313452913e-17)) < 1e-31);
         assert!(rel(r2 * r2, Dd::from_f64(2.0)) < 1e-31);
         let third = Dd::ONE / Dd::from_f64(3.0);
         let s = third.sqrt();

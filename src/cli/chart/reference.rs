@@ -27,6 +27,9 @@
 //! shortest round-trip formatting, so the parsed doubles are exactly the reference's `m_k`,
 //! `Iyy_k = fl(m_k / 12)` (the unit test below checks it on the parsed model).
 
+// The loops index matrices the way the formulas do.
+#![allow(clippy::needless_range_loop)]
+
 use super::dd::DoubleDouble as Dd;
 
 /// Gravity along −z (m/s²): the model's default `(0, 0, −9.81)`, the same double.
@@ -61,18 +64,17 @@ impl Chain {
         Ok(Chain { masses, iyy })
     }
 
-    /// `n` links with masses `m_k = r^k`, `k = 0…n−1`, each the double obtained by repeated
-    /// multiplication (`m_0 = 1`, `m_k = fl(m_{k−1} r)`).
-    pub fn geometric(n: usize, r: f64) -> Result<Chain, String> {
-        let masses = std::iter::successors(Some(1.0), |m| Some(m * r))
-            .take(n)
-            .collect();
-        Chain::new(masses)
-    }
-
     pub fn len(&self) -> usize {
         self.masses.len()
     }
+}
+
+/// Masses `m_k = r^k`, `k = 0…n−1`, each the double obtained by repeated multiplication
+/// (`m_0 = 1`, `m_k = fl(m_{k−1} r)`).
+pub fn geometric_masses(n: usize, r: f64) -> Vec<f64> {
+    std::iter::successors(Some(1.0), |m| Some(m * r))
+        .take(n)
+        .collect()
 }
 
 /// The chain's URDF: joints `j1…jn`, links `link0…link<n−1>`.
@@ -193,7 +195,7 @@ fn cholesky_solve(mut h: Vec<Vec<Dd>>, b: &mut [Dd]) -> Result<(), String> {
         for k in 0..j {
             d = d - h[j][k] * h[j][k];
         }
-        if !(d.hi > 0.0) {
+        if d.hi.is_nan() || d.hi <= 0.0 {
             return Err(format!(
                 "reference: the mass matrix is not positive definite at joint 'j{}' (pivot {:e})",
                 j + 1,
@@ -234,7 +236,7 @@ mod tests {
 
     #[test]
     fn urdf_numbers_are_the_reference_numbers() {
-        let chain = Chain::geometric(12, 1e-7).unwrap();
+        let chain = Chain::new(geometric_masses(12, 1e-7)).unwrap();
         let text = chain_urdf(&chain);
         let model = urdf::model_from_str(&text, &ModelOptions::default()).unwrap();
         assert_eq!(model.nv, 12);
@@ -302,7 +304,7 @@ mod tests {
     fn bad_input_is_an_error_naming_it() {
         assert!(Chain::new(vec![1.0, 0.0]).unwrap_err().contains("link1"));
         assert!(Chain::new(vec![1.0, 1e-310]).unwrap_err().contains("link1"));
-        let chain = Chain::geometric(3, 0.5).unwrap();
+        let chain = Chain::new(geometric_masses(3, 0.5)).unwrap();
         assert!(forward_dynamics(&chain, &[0.0; 2], &[0.0; 3], &[0.0; 3]).is_err());
     }
 }
