@@ -3,6 +3,8 @@
 mod bench;
 mod eval;
 mod model_info;
+#[cfg(feature = "replay")]
+mod replay;
 mod simulate;
 mod source;
 
@@ -51,6 +53,14 @@ enum Command {
         #[command(flatten)]
         sim: simulate::SimulateArgs,
     },
+    /// Run the node's topic computations over a recorded bag (MCAP or sqlite3), offline, into a new MCAP bag.
+    #[cfg(feature = "replay")]
+    Replay {
+        #[command(flatten)]
+        model: ModelArgs,
+        #[command(flatten)]
+        replay: replay::ReplayArgs,
+    },
     /// Run the ROS 2 node: `node [--ros-args -r __node:=NAME -r __ns:=/NS --params-file FILE -p NAME:=VALUE]`.
     #[cfg(feature = "node")]
     Node {
@@ -72,6 +82,8 @@ pub fn run() -> ExitCode {
             settings,
         } => bench::run(&model, json, &settings),
         Command::Simulate { model, sim } => simulate::run(&model, &sim),
+        #[cfg(feature = "replay")]
+        Command::Replay { model, replay } => replay::run(&model, &replay),
         #[cfg(feature = "node")]
         Command::Node { args } => crate::node::run(&args),
     };
