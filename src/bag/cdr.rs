@@ -250,6 +250,7 @@ impl<'b> Writer<'b> {
         self.u32(values.len() as u32);
         if values.len() > 0 {
             self.align(8);
+            self.buf.reserve(8 * values.len());
             for x in values {
                 self.buf.extend_from_slice(&x.to_le_bytes());
             }

@@ -13,7 +13,7 @@ mod mcap_file;
 pub mod msgdefs;
 mod sqlite_file;
 
-pub use mcap_file::{Compression, McapWriter};
+pub use mcap_file::{ChunkBuilder, Compression, FinishedChunk, McapWriter};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 

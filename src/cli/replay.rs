@@ -20,7 +20,9 @@
 //! [`Workspace`] (no allocation per message); one writer thread writes the blocks in order.
 
 use super::ModelArgs;
-use crate::bag::{self, cdr, Bag, Flow, McapWriter, RawMessage, Wanted};
+use crate::bag::{
+    self, cdr, Bag, ChunkBuilder, FinishedChunk, Flow, McapWriter, RawMessage, Wanted,
+};
 use crate::node::joint_map::{JointMap, Target};
 use clap::{Args, ValueEnum};
 use serde_json::{json, Value};
@@ -44,8 +46,8 @@ const OUTPUTS: [(&str, &str); 3] = [
     ("acceleration", JOINT_DYNAMICS),
     ("measured_dynamics", JOINT_DYNAMICS),
 ];
-/// Samples per block of work.
-const BLOCK: usize = 2048;
+/// Samples per block of work: one MCAP chunk of about 1 MB (uncompressed) per block.
+const BLOCK: usize = 1024;
 
 /// Arguments of `replay` (besides the model's).
 #[derive(Args, Debug, Clone)]
@@ -234,6 +236,8 @@ struct Tables {
 struct Block {
     seq: u64,
     tables: Arc<Tables>,
+    /// Number of sample `lo` among all valid joint states (the outputs' sequence numbers).
+    base: u64,
     n: usize,
     lo: usize,
     hi: usize,
@@ -249,10 +253,10 @@ struct Block {
     q: Vec<f64>,
     v: Vec<f64>,
     command: Vec<f64>,
-    /// Serialized outputs, back to back; `records` says whose they are.
-    out: Vec<u8>,
-    /// `(sample, output index, end offset in out)`.
-    records: Vec<(u32, u8, u32)>,
+    /// The outputs, as one MCAP chunk with its message indexes.
+    chunk: FinishedChunk,
+    /// Why the chunk could not be made.
+    error: Option<String>,
     problems: Problems,
 }
 
@@ -262,6 +266,7 @@ impl Block {
         Block {
             seq: 0,
             tables: Arc::default(),
+            base: 0,
             n: 0,
             lo: 0,
             hi: 0,
@@ -275,8 +280,8 @@ impl Block {
             q: vec![0.0; cap * nq],
             v: vec![0.0; cap * nv],
             command: vec![0.0; cap * nv],
-            out: Vec::new(),
-            records: Vec::new(),
+            chunk: FinishedChunk::default(),
+            error: None,
             problems: Problems::default(),
         }
     }
@@ -321,6 +326,8 @@ struct Decoder {
     prev: Option<(i64, bool)>,
     problems: Problems,
     read: [u64; 2],
+    /// Joint states decoded so far (valid ones).
+    committed: u64,
     last_log_time: u64,
     log_time_backwards: u64,
 }
@@ -375,6 +382,7 @@ impl Decoder {
         block.joins_prev[i] = joins_prev;
         block.command[i * nv..(i + 1) * nv].copy_from_slice(&self.command);
         block.n += 1;
+        self.committed += 1;
     }
 
     fn skip(&mut self, kind: &'static str, log_time: u64, message: String) {
@@ -484,20 +492,26 @@ fn read_names(
 
 // ---- computing (in parallel) -------------------------------------------------------------------
 
-/// A worker's scratch: its workspace and `v`-sized buffers.
+/// A worker's scratch: its workspace, `v`-sized buffers and chunk builder.
 struct Scratch {
     ws: Workspace,
+    builder: ChunkBuilder,
     g: Vec<f64>,
     qdd: Vec<f64>,
     a: Vec<f64>,
     tau: Vec<f64>,
 }
 
-/// The dynamics and the serialized outputs of samples `lo..hi` of a block.
-fn compute(block: &mut Block, model: &Model, method: ForwardDynamicsMethod, s: &mut Scratch) {
+/// The dynamics of samples `lo..hi` of a block, serialized into one MCAP chunk; `channels`
+/// are the channel ids of the outputs.
+fn compute(
+    block: &mut Block,
+    model: &Model,
+    method: ForwardDynamicsMethod,
+    channels: [u16; 3],
+    s: &mut Scratch,
+) -> Result<(), String> {
     let (nq, nv) = (model.nq, model.nv);
-    block.out.clear();
-    block.records.clear();
     let tables = block.tables.clone();
     for i in block.lo..block.hi {
         let q = &block.q[i * nq..(i + 1) * nq];
@@ -507,7 +521,20 @@ fn compute(block: &mut Block, model: &Model, method: ForwardDynamicsMethod, s: &
         let (sec, nanosec) = block.stamp[i];
         let frame = tables.frames[block.frame[i] as usize].as_str();
         let log_time = block.log_time[i];
+        let sequence = (block.base + (i - block.lo) as u64) as u32;
         let rate = |x| at_rates(&order.slots, x);
+        // Starts output `k` of this sample: header, names, positions.
+        macro_rules! start {
+            ($k:expr) => {
+                start_message(
+                    s.builder.begin_message(channels[$k], sequence, log_time),
+                    (sec, nanosec),
+                    frame,
+                    order,
+                    q,
+                )
+            };
+        }
 
         // The node's two outputs: both or neither, as the node publishes them.
         let node_outputs = gravity(model, &mut s.ws, q)
@@ -518,15 +545,15 @@ fn compute(block: &mut Block, model: &Model, method: ForwardDynamicsMethod, s: &
             .map(|qdd| s.qdd.copy_from_slice(qdd));
         match node_outputs {
             Ok(()) => {
-                let mut w = start_message(&mut block.out, (sec, nanosec), frame, order, q);
+                let mut w = start!(0);
                 w.f64s(std::iter::empty());
                 w.f64s(rate(&s.g));
-                block.records.push((i as u32, 0, block.out.len() as u32));
-                let mut w = start_message(&mut block.out, (sec, nanosec), frame, order, q);
+                s.builder.end_message();
+                let mut w = start!(1);
                 w.f64s(rate(v));
                 w.f64s(rate(&s.qdd));
                 w.f64s(rate(command));
-                block.records.push((i as u32, 1, block.out.len() as u32));
+                s.builder.end_message();
             }
             Err(e) => {
                 block
@@ -563,11 +590,11 @@ fn compute(block: &mut Block, model: &Model, method: ForwardDynamicsMethod, s: &
         match rnea(model, &mut s.ws, q, v, &s.a) {
             Ok(tau) => {
                 s.tau.copy_from_slice(tau);
-                let mut w = start_message(&mut block.out, (sec, nanosec), frame, order, q);
+                let mut w = start!(2);
                 w.f64s(rate(v));
                 w.f64s(rate(&s.a));
                 w.f64s(rate(&s.tau));
-                block.records.push((i as u32, 2, block.out.len() as u32));
+                s.builder.end_message();
             }
             Err(e) => block.problems.add(
                 "measured_dynamics",
@@ -577,6 +604,7 @@ fn compute(block: &mut Block, model: &Model, method: ForwardDynamicsMethod, s: &
             ),
         }
     }
+    s.builder.finish(&mut block.chunk)
 }
 
 /// Header, names and positions: the start of every output.
@@ -670,7 +698,6 @@ pub fn run(model_args: &ModelArgs, args: &ReplayArgs) -> Result<(), String> {
             OutCompression::Zstd => bag::Compression::Zstd,
             OutCompression::Lz4 => bag::Compression::Lz4,
         },
-        0,
     )?;
     let out_topics: Vec<String> = OUTPUTS.iter().map(|(n, _)| format!("{node}/{n}")).collect();
     let mut channels = [0u16; 3];
@@ -701,6 +728,7 @@ pub fn run(model_args: &ModelArgs, args: &ReplayArgs) -> Result<(), String> {
         prev: None,
         problems: Problems::default(),
         read: [0; 2],
+        committed: 0,
         last_log_time: 0,
         log_time_backwards: 0,
     };
@@ -819,13 +847,17 @@ fn pipeline(
     let (free_tx, free_rx) = channel::<Box<Block>>();
     // Blocks in flight at most: enough to keep every stage busy, few enough to bound memory.
     let max_blocks = 2 * jobs + 3;
+    let builders = (0..jobs)
+        .map(|_| writer.chunk_builder())
+        .collect::<Result<Vec<_>, _>>()?;
 
     std::thread::scope(|scope| {
-        for _ in 0..jobs {
+        for builder in builders {
             let (work_rx, done_tx) = (&work_rx, done_tx.clone());
             scope.spawn(move || {
                 let mut s = Scratch {
                     ws: Workspace::new(model),
+                    builder,
                     g: vec![0.0; nv],
                     qdd: vec![0.0; nv],
                     a: vec![0.0; nv],
@@ -834,7 +866,7 @@ fn pipeline(
                 loop {
                     let next = work_rx.lock().map(|rx| rx.recv());
                     let Ok(Ok(mut block)) = next else { break };
-                    compute(&mut block, model, method, &mut s);
+                    block.error = compute(&mut block, model, method, channels, &mut s).err();
                     if done_tx.send(block).is_err() {
                         break;
                     }
@@ -863,6 +895,7 @@ fn pipeline(
         let mut block = get_block(&free_rx).expect("a first block");
         block.n = 0;
         block.lo = 0;
+        block.base = 0;
         let mut send =
             |block: Box<Block>, hi: usize, tables: &Arc<Tables>, tx: &Sender<Box<Block>>| {
                 let mut block = block;
@@ -898,6 +931,7 @@ fn pipeline(
                 next.copy_sample(1, &block, n - 1, nq, nv);
                 next.n = 2;
                 next.lo = 1;
+                next.base = decoder.committed - 1;
                 let full = std::mem::replace(&mut block, next);
                 if !send(full, n - 1, &decoder.tables, &work_tx) {
                     return Ok(Flow::Stop);
@@ -947,18 +981,12 @@ fn write_blocks(
     for block in done {
         pending.insert(block.seq, block);
         while let Some(mut block) = pending.remove(&next) {
-            let mut start = 0usize;
-            for &(sample, output, end) in &block.records {
-                let end = end as usize;
-                let k = output as usize;
-                writer.write(
-                    channels[k],
-                    written[k] as u32,
-                    block.log_time[sample as usize],
-                    &block.out[start..end],
-                )?;
-                written[k] += 1;
-                start = end;
+            if let Some(e) = block.error.take() {
+                return Err(e);
+            }
+            writer.write_chunk(&block.chunk)?;
+            for (k, &channel) in channels.iter().enumerate() {
+                written[k] += block.chunk.count(channel);
             }
             problems.merge(&mut block.problems);
             next += 1;
