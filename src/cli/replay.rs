@@ -1125,10 +1125,24 @@ fn report(
             "log_time_backwards": outcome.log_time_backwards,
             "seconds": seconds,
             "joint_states_per_second": rate,
+            "cpu_seconds": cpu_seconds(),
+            "joint_states_per_cpu_second": cpu_seconds().map(|c| outcome.read[0] as f64 / c.max(1e-9)),
             "jobs": jobs,
         });
         println!("{summary}");
     }
+}
+
+/// CPU time of the whole process (every thread, user + system), from `/proc/self/stat`
+/// (Linux, 100 ticks a second); `None` elsewhere.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which may hold spaces, inside parentheses): utime and
+    // stime are the 12th and 13th.
+    let rest = &stat[stat.rfind(')')? + 1..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: u64 = fields.get(11)?.parse::<u64>().ok()? + fields.get(12)?.parse::<u64>().ok()?;
+    Some(ticks as f64 / 100.0)
 }
 
 fn print_problems(problems: &Problems, what: &str) {
