@@ -4,6 +4,8 @@ mod bench;
 mod chart;
 mod eval;
 mod model_info;
+#[cfg(feature = "replay")]
+mod replay;
 mod simulate;
 mod source;
 
@@ -55,6 +57,14 @@ enum Command {
         #[command(flatten)]
         sim: simulate::SimulateArgs,
     },
+    /// Run the node's topic computations over a recorded bag (MCAP or sqlite3), offline, into a new MCAP bag.
+    #[cfg(feature = "replay")]
+    Replay {
+        #[command(flatten)]
+        model: ModelArgs,
+        #[command(flatten)]
+        replay: replay::ReplayArgs,
+    },
     /// Run the ROS 2 node: `node [--ros-args -r __node:=NAME -r __ns:=/NS --params-file FILE -p NAME:=VALUE]`.
     #[cfg(feature = "node")]
     Node {
@@ -77,6 +87,8 @@ pub fn run() -> ExitCode {
         } => bench::run(&model, json, &settings),
         Command::Chart(args) => chart::run(&args),
         Command::Simulate { model, sim } => simulate::run(&model, &sim),
+        #[cfg(feature = "replay")]
+        Command::Replay { model, replay } => replay::run(&model, &replay),
         #[cfg(feature = "node")]
         Command::Node { args } => crate::node::run(&args),
     };

@@ -63,6 +63,21 @@ impl ModelArgs {
 
     /// Loads the model; the error names the problem.
     pub fn load(&self) -> Result<Model, String> {
+        let options = self.options()?;
+        let result = match (&self.urdf, &self.builtin) {
+            (Some(path), _) => urdf::model_from_file(path, &options),
+            (None, Some(name)) => urdf::model_from_str(&builtin_urdf(name)?, &options),
+            (None, None) => urdf::model_from_str(examples::DEFAULT_ARM_URDF, &options),
+        };
+        let model = result.map_err(|e| e.to_string())?;
+        for warning in &model.warnings {
+            eprintln!("spatial_dynamics: warning: {warning}");
+        }
+        Ok(model)
+    }
+
+    /// The model options these arguments ask for.
+    pub fn options(&self) -> Result<ModelOptions, String> {
         let mut options = ModelOptions {
             floating_base: self.floating_base,
             ignore_mimic: self.ignore_mimic,
@@ -79,16 +94,7 @@ impl ModelArgs {
                 .locked
                 .push(joint_position(lock).map_err(|e| format!("--lock {e}"))?);
         }
-        let result = match (&self.urdf, &self.builtin) {
-            (Some(path), _) => urdf::model_from_file(path, &options),
-            (None, Some(name)) => urdf::model_from_str(&builtin_urdf(name)?, &options),
-            (None, None) => urdf::model_from_str(examples::DEFAULT_ARM_URDF, &options),
-        };
-        let model = result.map_err(|e| e.to_string())?;
-        for warning in &model.warnings {
-            eprintln!("spatial_dynamics: warning: {warning}");
-        }
-        Ok(model)
+        Ok(options)
     }
 }
 

@@ -43,6 +43,20 @@ pub struct JointMap {
 }
 
 impl JointMap {
+    /// The map of `model` accepting (and ignoring) the names of its locked and fixed joints,
+    /// as the node's topics and services do.
+    pub fn for_model(model: &Model) -> Result<JointMap, String> {
+        let passive: Vec<String> = model
+            .locked_joints
+            .iter()
+            .map(|(n, _)| n.clone())
+            .chain(model.fixed_joints.iter().cloned())
+            .chain(model.reduction.frozen_joint_names())
+            .chain(model.reduction.pruned_joints.iter().cloned())
+            .collect();
+        JointMap::new(model, &passive)
+    }
+
     /// The map of `model`; refuses floating joints anywhere but at the root.
     pub fn new(model: &Model, passive: &[String]) -> Result<JointMap, String> {
         let mut map = JointMap {

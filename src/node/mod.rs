@@ -22,8 +22,8 @@
 
 mod engine;
 mod health;
-mod joint_map;
-mod msgs;
+pub(crate) mod joint_map;
+pub(crate) mod msgs;
 mod params;
 mod ros_args;
 

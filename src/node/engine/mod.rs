@@ -80,15 +80,7 @@ impl Engine {
             )
         };
         let model = model.map_err(|e| e.to_string())?;
-        let passive: Vec<String> = model
-            .locked_joints
-            .iter()
-            .map(|(n, _)| n.clone())
-            .chain(model.fixed_joints.iter().cloned())
-            .chain(model.reduction.frozen_joint_names())
-            .chain(model.reduction.pruned_joints.iter().cloned())
-            .collect();
-        let map = JointMap::new(&model, &passive)?;
+        let map = JointMap::for_model(&model)?;
         let command_slots = if settings.command_joints.is_empty() {
             (0..map.names().len()).collect()
         } else {

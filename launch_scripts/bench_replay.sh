@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# Benchmarks `spatial_dynamics replay`: joint states per second on one core and on all cores,
+# over a synthetic bag of the embedded 7-DOF default arm (benches/make_replay_bag.py: 1 kHz
+# JointState with positions, velocities and efforts, effort commands at 100 Hz, the URDF on
+# /robot_description), writing all three outputs (gravity_effort, acceleration,
+# measured_dynamics) with zstd chunks. Not a test: it prints a markdown table.
+#
+# Usage: launch_scripts/bench_replay.sh
+#   Environment: MESSAGES (1000000) joint states; STORAGE (mcap) or sqlite3; ZSTD_IN (1): the
+#   input MCAP has zstd chunks; COMPRESSION (zstd) of the output; REPEATS (3, the best is kept);
+#   SKIP_BUILD=1 uses target/release/spatial_dynamics as it is; KEEP=1 keeps the bags in
+#   target/bench-replay/. "1 core" pins the whole process (reader, worker, writer threads) to
+#   CPU 0 with taskset and runs --jobs 1; "all cores" runs with the default --jobs (every core).
+set -euo pipefail
+
+repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$repo"
+messages="${MESSAGES:-1000000}"
+storage="${STORAGE:-mcap}"
+zstd_in="${ZSTD_IN:-1}"
+compression="${COMPRESSION:-zstd}"
+repeats="${REPEATS:-3}"
+work="$repo/target/bench-replay"
+bin="$repo/target/release/spatial_dynamics"
+
+log() { printf '== %s\n' "$*" >&2; }
+
+"$repo/launch_scripts/setup_python_env.sh" >/dev/null
+if [[ "${SKIP_BUILD:-0}" != 1 ]]; then
+    log "cargo build --release"
+    cargo build --release --quiet
+fi
+command -v taskset >/dev/null || { echo "bench_replay.sh: taskset (util-linux) is needed" >&2; exit 1; }
+
+mkdir -p "$work"
+bag="$work/bag_${storage}_${messages}$([[ "$storage" == mcap && "$zstd_in" == 1 ]] && echo _zstd)"
+if [[ ! -f "$bag/metadata.yaml" ]]; then
+    log "writing $bag"
+    flags=()
+    [[ "$storage" == mcap && "$zstd_in" == 1 ]] && flags+=(--zstd)
+    "$repo/.venv/bin/python" "$repo/benches/make_replay_bag.py" --out "$bag" --messages "$messages" \
+        --storage "$storage" "${flags[@]}" >&2
+fi
+
+# Best of $repeats runs: joint states per wall-clock second and per CPU second (user + system
+# time of every thread of the process: on a machine shared with other work, the per-core cost).
+run() {
+    local best="0 0" out
+    for _ in $(seq "$repeats"); do
+        out="$("$@" --bag "$bag" --out "$work/out.mcap" --compression "$compression" --json 2>>"$work/replay.log" \
+            | "$repo/.venv/bin/python" -c 'import json,sys; s=json.load(sys.stdin); print(round(s["joint_states_per_second"]), round(s["joint_states_per_cpu_second"]))')"
+        if (( ${out% *} > ${best% *} )); then best="$out"; fi
+    done
+    echo "$best"
+}
+
+cores="$(nproc)"
+log "1 core (taskset -c 0, --jobs 1), best of $repeats"
+read -r one one_cpu <<<"$(run taskset -c 0 "$bin" replay --jobs 1)"
+log "all $cores cores (--jobs $cores), best of $repeats"
+read -r all all_cpu <<<"$(run "$bin" replay --jobs "$cores")"
+size_in="$(du -sh "$bag" | cut -f1)"
+size_out="$(du -sh "$work/out.mcap" | cut -f1)"
+
+echo
+echo "| run | joint states/s (wall clock) | joint states per CPU second |"
+echo "|---|---:|---:|"
+echo "| 1 core, --jobs 1 | $one | $one_cpu |"
+echo "| $cores cores, --jobs $cores | $all | $all_cpu |"
+echo
+echo "input: $messages joint states, $storage$([[ "$storage" == mcap && "$zstd_in" == 1 ]] && echo ' (zstd chunks)'), $size_in; output ($compression): $size_out, 3 messages per joint state"
+echo "load average while measuring: $(cut -d' ' -f1-3 /proc/loadavg) (other work on the machine lowers the wall-clock rates, less the CPU-second ones)"
+if [[ "${KEEP:-0}" != 1 ]]; then rm -f "$work/out.mcap"; fi
