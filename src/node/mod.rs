@@ -37,9 +37,10 @@ use ros2_client::dds::rustdds::{DomainParticipantBuilder, Topic};
 use ros2_client::qos::{Durability, History, WhenFull};
 use ros2_client::{
     Context, Message, MessageTypeName, Name, Node, NodeName, NodeOptions, ParameterValue,
-    QosProfile, ServiceMapping, ServiceTypeName, Subscription,
+    QosProfile, ROSTime, ServiceMapping, ServiceTypeName, Subscription,
 };
 use ros_args::{NameResolver, RosArgs};
+use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime};
 
@@ -145,20 +146,37 @@ struct Endpoints {
 /// The node's clock fed from DDS: `use_sim_time` as ros2-client's parameter store holds it (the
 /// store keeps that parameter to itself, so it is read before each use), and a `/clock`
 /// subscription that exists while simulated time is read from it.
+///
+/// An input is stamped with the latest `/clock` that had *arrived before the input did* (by
+/// DDS receive time), not with whatever has arrived by the time the node gets to it: the stamp
+/// then does not depend on how far behind the node is. `/clock` messages that arrived later
+/// wait in `pending` for the next input.
 struct TimeSource {
     clock: NodeClock,
     topic: Topic,
     name: String,
-    /// The `/clock` subscription and when it was made: RustDDS may hand a new reader samples
-    /// its participant received before (an earlier reader's), which are older than the switch.
-    subscription: Option<(Subscription<Clock>, ros2_client::ROSTime)>,
+    /// The `/clock` subscription and when it was made (RustDDS may hand a new reader samples
+    /// its participant received before, for an earlier reader: those are ignored).
+    subscription: Option<(Subscription<Clock>, ROSTime)>,
+    /// `/clock` messages read but not yet in effect: (received, time).
+    pending: VecDeque<(ROSTime, Time)>,
     shared: Arc<Mutex<Settings>>,
 }
 
+/// `/clock` messages the reader keeps between two reads (more than any input gap at 1 kHz).
+const CLOCK_READER_DEPTH: usize = 100;
+
 impl TimeSource {
-    /// Follows `use_sim_time`, reads any `/clock` that arrived, and returns the node's time (ns;
-    /// `None` while simulated time has not arrived).
-    fn now(&mut self, node: &mut Node, engine: &Engine, health: &mut Health) -> Option<i64> {
+    /// Follows `use_sim_time`, applies the `/clock` messages that arrived before `arrived` (all of
+    /// them if `None`), and returns the node's time (ns; `None` while simulated time has not
+    /// arrived).
+    fn now(
+        &mut self,
+        node: &mut Node,
+        engine: &Engine,
+        health: &mut Health,
+        arrived: Option<ROSTime>,
+    ) -> Option<i64> {
         let wanted = matches!(
             node.get_parameter("use_sim_time"),
             Some(ParameterValue::Boolean(true))
@@ -172,11 +190,13 @@ impl TimeSource {
         }
         if !self.clock.reads_clock(engine.simulated_time().is_some()) {
             self.subscription = None;
+            self.pending.clear();
         } else if self.subscription.is_none() {
-            // rclcpp's ClockQoS: best effort, keep last 1.
+            // rclcpp's ClockQoS is best effort, keep last 1; the reader keeps more (a local
+            // choice, no effect on matching) so that none is lost between two inputs.
             match node.create_subscription::<Clock>(
                 &self.topic,
-                Some(qos(false, Durability::Volatile, 1)),
+                Some(qos(false, Durability::Volatile, CLOCK_READER_DEPTH)),
             ) {
                 Ok(sub) => self.subscription = Some((sub, node.time_now_not_simulated())),
                 Err(e) => health.dropped(&self.name, &format!("cannot subscribe: {e:?}")),
@@ -185,12 +205,11 @@ impl TimeSource {
         if let Some((sub, since)) = &self.subscription {
             loop {
                 match sub.take() {
-                    Ok(Some((_, info)))
-                        if info.received_timestamp().is_some_and(|t| t < *since) => {}
-                    Ok(Some((message, _))) => {
-                        health.received(&self.name);
-                        if let Some(note) = self.clock.clock_received(&message.clock) {
-                            eprintln!("[INFO] [spatial_dynamics]: {note}");
+                    Ok(Some((message, info))) => {
+                        let received = info.received_timestamp().unwrap_or(ROSTime::ZERO);
+                        if received >= *since || received == ROSTime::ZERO {
+                            health.received(&self.name);
+                            self.pending.push_back((received, message.clock));
                         }
                     }
                     Ok(None) => break,
@@ -199,6 +218,15 @@ impl TimeSource {
                         break;
                     }
                 }
+            }
+        }
+        while let Some((received, _)) = self.pending.front() {
+            if arrived.is_some_and(|a| *received > a) {
+                break;
+            }
+            let (_, t) = self.pending.pop_front().expect("front exists");
+            if let Some(note) = self.clock.clock_received(&t) {
+                eprintln!("[INFO] [spatial_dynamics]: {note}");
             }
         }
         self.clock.now(SystemTime::now(), engine.simulated_time())
@@ -457,10 +485,11 @@ async fn serve(
         topic: clock_topic,
         name: clock_name,
         subscription: None,
+        pending: VecDeque::with_capacity(CLOCK_READER_DEPTH),
         shared: shared.clone(),
     };
     // Subscribes to /clock now if simulated time is on, so that discovery starts at once.
-    time.now(&mut node, &engine, &mut health);
+    time.now(&mut node, &engine, &mut health, None);
     let diagnostics_name = format!("{}: dynamics", node.fully_qualified_name());
     eprintln!(
         "[INFO] [spatial_dynamics]: {} serving robot '{}' ({} joints, nv = {}), method {}",
@@ -513,7 +542,8 @@ async fn serve(
             _ = terminate.recv() => break,
             Some(item) = js_stream.next() => {
                 health.received(&js_name);
-                let now = time.now(&mut node, &engine, &mut health);
+                let arrived = item.as_ref().ok().and_then(|(_, info)| info.received_timestamp());
+                let now = time.now(&mut node, &engine, &mut health, arrived);
                 let started = Instant::now();
                 match item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(js, _)| {
                     let stamp = time.clock.admit(&js.header.stamp, now)?;
@@ -543,7 +573,8 @@ async fn serve(
             }
             Some(item) = reference_stream.next() => {
                 health.received(&reference_name);
-                let now = time.now(&mut node, &engine, &mut health);
+                let arrived = item.as_ref().ok().and_then(|(_, info)| info.received_timestamp());
+                let now = time.now(&mut node, &engine, &mut health, arrived);
                 let started = Instant::now();
                 match item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(m, _)| {
                     let stamp = time.clock.output_stamp(&m.header.stamp, now)?;
@@ -664,7 +695,7 @@ async fn serve(
                 eprintln!("[INFO] [spatial_dynamics]: parameter '{name}' now in effect");
             }
             _ = diagnostics.tick() => {
-                let now = time.now(&mut node, &engine, &mut health);
+                let now = time.now(&mut node, &engine, &mut health, None);
                 let stamp = NodeClock::stamp(now);
                 let mut status = health.report(&diagnostics_name, &engine.model.name, true);
                 status.values.push(KeyValue { key: "clock".into(), value: clock::source_name(time.clock.use_sim_time(), engine.simulated_time().is_some()).into() });
