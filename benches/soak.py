@@ -350,6 +350,7 @@ def phase(diag, node_pid, index, rate, duration, args, workdir):
     while feeder.poll() is None:
         diag.spin_for(0.2)
     feeder_report = json.loads(feeder.stdout.read().strip().splitlines()[-1])
+    fed_until = time.monotonic()
     diag.spin_for(1.0)  # let the last outputs arrive
     wall = time.monotonic() - t0
     cpu1, load1 = cpu_seconds(node_pid), loadavg()
@@ -371,7 +372,9 @@ def phase(diag, node_pid, index, rate, duration, args, workdir):
             "compute_median_of_means_us": float(np.median([m for m, _ in diag.compute[computed_from:]])) if diag.compute[computed_from:] else None,
             "compute_max_us": max((x for _, x in diag.compute[computed_from:]), default=None),
         },
-        "rss_kib": {"start": rss0, "end": rss1},
+        "rss_kib": {"start": rss0, "end": rss1,
+                    # growth while the load ran, over its second half (after the buffers filled)
+                    "second_half_trend_kib_per_min": trend(diag.rss, fed_until - (fed_until - t0) / 2, fed_until)},
         "loadavg_1min": {"start": load0, "end": load1},
         "outputs": {}, "services": {},
     }
@@ -400,6 +403,14 @@ def phase(diag, node_pid, index, rate, duration, args, workdir):
     return result
 
 
+def trend(trace, start, end):
+    """Least-squares slope (KiB/min) of the RSS samples taken between start and end."""
+    pts = np.array([(t, k) for t, k in trace if start <= t <= end], dtype=float)
+    if len(pts) < 3:
+        return None
+    return float(np.polyfit(pts[:, 0] - pts[0, 0], pts[:, 1], 1)[0]) * 60
+
+
 def fmt(x, digits=0):
     return "–" if x is None else f"{x:.{digits}f}"
 
@@ -424,14 +435,15 @@ def print_report(results, rss_trace, start_rss, end_rss):
             lat = s["rtt_us"]
             print(f"| {r['rate_hz']:.0f} | `~/{name}` | {s['calls']} ({s['per_second']:.0f}) | {s['timeouts']} | {s['failed']} "
                   f"| {fmt(lat['p50'])} / {fmt(lat['p99'])} / {fmt(lat['max'])} |")
-    print("\n| rate (Hz) | node CPU (% of a core) | compute per message: median of 1-s means / max (µs) | RSS start → end (KiB) | load avg (1 min) start → end |")
-    print("|---|---|---|---|---|")
+    print("\n| rate (Hz) | node CPU (% of a core) | compute per message: median of 1-s means / max (µs) | RSS start → end (KiB) | RSS trend, 2nd half (KiB/min) | load avg (1 min) start → end |")
+    print("|---|---|---|---|---|---|")
     for r in results:
         n = r["node"]
         print(f"| {r['rate_hz']:.0f} | {n['cpu_percent_of_one_core']:.0f} | {fmt(n['compute_median_of_means_us'], 1)} / {fmt(n['compute_max_us'])} "
-              f"| {r['rss_kib']['start']} → {r['rss_kib']['end']} | {r['loadavg_1min']['start']:.2f} → {r['loadavg_1min']['end']:.2f} |")
+              f"| {r['rss_kib']['start']} → {r['rss_kib']['end']} | {fmt(r['rss_kib']['second_half_trend_kib_per_min'], 1)} "
+              f"| {r['loadavg_1min']['start']:.2f} → {r['loadavg_1min']['end']:.2f} |")
         if r["node"]["dropped"]:
-            print(f"|   | node drops by reason: {r['node']['dropped']} | | | |")
+            print(f"|   | node drops by reason: {r['node']['dropped']} | | | | |")
     rss = np.array([k for _, k in rss_trace], dtype=float)
     tt = np.array([t for t, _ in rss_trace], dtype=float)
     slope = float(np.polyfit(tt - tt[0], rss, 1)[0]) * 60 if len(rss) > 2 else float("nan")
