@@ -48,7 +48,7 @@ def parse_args(argv=None):
     p.add_argument("--topics", nargs="+", default=[], metavar="TOPIC", help="play only these topics (default: all)")
     p.add_argument("--start-offset", type=float, default=0.0, metavar="S", help="start S seconds into the bag")
     p.add_argument("--loop", action="store_true", help="play again from the start when the end is reached")
-    p.add_argument("--remap", nargs="+", default=[], metavar="FROM:=TO", help="publish topic FROM as TO")
+    p.add_argument("--remap", nargs="+", default=[], metavar="FROM:=TO", help="publish topic FROM (or /clock) as TO")
     p.add_argument("--delay", type=float, default=0.0, metavar="S", help="wait S seconds before playing")
     p.add_argument("--wait-for-subscribers", type=float, default=0.0, metavar="S",
                    help="before playing, wait up to S seconds until every topic played has a subscriber")
@@ -152,7 +152,8 @@ class Player:
         self.clock_on = {c.id for c in self.connections if args.clock_topics_all or normalise(c.topic) in clock_topics}
         self.clock_pub = None
         if args.clock > 0 or self.clock_on:
-            self.clock_pub = self.node.create_publisher(Clock, "/clock", QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+            self.clock_pub = self.node.create_publisher(Clock, remap.get("/clock", "/clock"),
+                                                        QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
         self.last_clock = None
         self._looped = False
         self.sent = Counter()

@@ -150,7 +150,8 @@ struct Endpoints {
 /// An input is stamped with the latest `/clock` that had *arrived before the input did* (by
 /// DDS receive time), not with whatever has arrived by the time the node gets to it: the stamp
 /// then does not depend on how far behind the node is. `/clock` messages that arrived later
-/// wait in `pending` for the next input.
+/// wait in `pending` for the next input. In simulate mode the same holds for the node's own
+/// simulated time: `ticks` remembers when (wall clock) the simulation reached which time.
 struct TimeSource {
     clock: NodeClock,
     topic: Topic,
@@ -160,6 +161,8 @@ struct TimeSource {
     subscription: Option<(Subscription<Clock>, ROSTime)>,
     /// `/clock` messages read but not yet in effect: (received, time).
     pending: VecDeque<(ROSTime, Time)>,
+    /// Simulate mode: (wall clock, simulated time in s) of the latest steps, oldest first.
+    ticks: VecDeque<(ROSTime, f64)>,
     shared: Arc<Mutex<Settings>>,
 }
 
@@ -167,6 +170,16 @@ struct TimeSource {
 const CLOCK_READER_DEPTH: usize = 100;
 
 impl TimeSource {
+    /// Simulate mode: the simulation has reached `t` (s) at wall time `at`.
+    fn simulated(&mut self, at: ROSTime, t: Option<f64>) {
+        if let Some(t) = t {
+            if self.ticks.len() == CLOCK_READER_DEPTH {
+                self.ticks.pop_front();
+            }
+            self.ticks.push_back((at, t));
+        }
+    }
+
     /// Follows `use_sim_time`, applies the `/clock` messages that arrived before `arrived` (all of
     /// them if `None`), and returns the node's time (ns; `None` while simulated time has not
     /// arrived).
@@ -229,7 +242,13 @@ impl TimeSource {
                 eprintln!("[INFO] [spatial_dynamics]: {note}");
             }
         }
-        self.clock.now(SystemTime::now(), engine.simulated_time())
+        // Simulate mode: the simulated time reached before the input arrived.
+        let simulated = engine.simulated_time().map(|now| {
+            arrived
+                .and_then(|a| self.ticks.iter().rev().find(|(at, _)| *at <= a))
+                .map_or(now, |(_, t)| *t)
+        });
+        self.clock.now(SystemTime::now(), simulated)
     }
 }
 
@@ -486,6 +505,7 @@ async fn serve(
         name: clock_name,
         subscription: None,
         pending: VecDeque::with_capacity(CLOCK_READER_DEPTH),
+        ticks: VecDeque::with_capacity(CLOCK_READER_DEPTH),
         shared: shared.clone(),
     };
     // Subscribes to /clock now if simulated time is on, so that discovery starts at once.
@@ -649,6 +669,7 @@ async fn serve(
             }
             _ = async { sim_timer.as_mut().expect("guarded").tick().await }, if sim_timer.is_some() => {
                 let tick = engine.simulation_tick(Instant::now());
+                time.simulated(node.time_now_not_simulated(), engine.simulated_time());
                 publish_simulated(tick, &sim_js_pub, &clock_pub, publish_clock(&shared), &sim_js_name, &mut health);
             }
             Some(item) = reset_stream.next() => {
@@ -668,6 +689,7 @@ async fn serve(
             Some(item) = step_stream.next() => {
                 if let Ok((id, _)) = item {
                     let stepped = engine.simulation_step(Instant::now());
+                    time.simulated(node.time_now_not_simulated(), engine.simulated_time());
                     let response = match &stepped {
                         Ok((_, stamp)) => TriggerResponse { success: true, message: format!("t = {}.{:09} s", stamp.sec, stamp.nanosec) },
                         Err(message) => TriggerResponse { success: false, message: message.clone() },
@@ -692,6 +714,7 @@ async fn serve(
                     }
                 }
                 sim_timer = simulation_timer(&engine);
+                time.ticks.clear();
                 eprintln!("[INFO] [spatial_dynamics]: parameter '{name}' now in effect");
             }
             _ = diagnostics.tick() => {

@@ -10,7 +10,8 @@
 //! **Output stamps.** Without `use_sim_time` an output carries its input's header stamp
 //! (unchanged behaviour). With `use_sim_time` every output is stamped with the node's clock as it
 //! stood when the input arrived: the latest `/clock` received before the input (by DDS receive
-//! time), so a node running behind still stamps an answer with its input's time. Before the first `/clock` arrives (serve mode) the time is unknown: topic
+//! time), or in simulate mode the simulated time reached before it, so a node running behind
+//! still stamps an answer with its input's time. Before the first `/clock` arrives (serve mode) the time is unknown: topic
 //! inputs are dropped, counted as `waiting for /clock`, rather than answered with stamp 0;
 //! `/diagnostics` still goes out, stamped 0 as rclcpp's clock reads then.
 //!
