@@ -147,11 +147,12 @@ struct Endpoints {
 /// store keeps that parameter to itself, so it is read before each use), and a `/clock`
 /// subscription that exists while simulated time is read from it.
 ///
-/// An input is stamped with the latest `/clock` that had *arrived before the input did* (by
-/// DDS receive time), not with whatever has arrived by the time the node gets to it: the stamp
-/// then does not depend on how far behind the node is. `/clock` messages that arrived later
-/// wait in `pending` for the next input. In simulate mode the same holds for the node's own
-/// simulated time: `ticks` remembers when (wall clock) the simulation reached which time.
+/// The node's time for an input is its clock when the input arrived (DDS receive time), not
+/// when the node gets to it, so stamps and stamp checks do not depend on how far behind the
+/// node is: the wall clock at arrival, or the latest `/clock` received before the input
+/// (`/clock` messages received later wait in `pending` for the next input), or in simulate mode
+/// the simulated time reached before it (`ticks`: when, by the wall clock, the simulation
+/// reached which time).
 struct TimeSource {
     clock: NodeClock,
     topic: Topic,
@@ -248,7 +249,13 @@ impl TimeSource {
                 .and_then(|a| self.ticks.iter().rev().find(|(at, _)| *at <= a))
                 .map_or(now, |(_, t)| *t)
         });
-        self.clock.now(SystemTime::now(), simulated)
+        // Wall clock: the input's DDS receive time.
+        let wall = arrived
+            .and_then(|a| u64::try_from(a.to_nanos()).ok())
+            .map_or_else(SystemTime::now, |n| {
+                SystemTime::UNIX_EPOCH + Duration::from_nanos(n)
+            });
+        self.clock.now(wall, simulated)
     }
 }
 

@@ -15,7 +15,9 @@
 //! inputs are dropped, counted as `waiting for /clock`, rather than answered with stamp 0;
 //! `/diagnostics` still goes out, stamped 0 as rclcpp's clock reads then.
 //!
-//! **Input stamps** (`joint_states`; the request types of the services carry no stamp). With
+//! **Input stamps** (`joint_states`; the request types of the services carry no stamp), against
+//! the node's clock when the message arrived (so a node running behind does not call a message
+//! stale for its own delay). With
 //! `max_stamp_age = A > 0` a message stamped more than `A` seconds before the node's clock is
 //! dropped as `stale stamp`; with `future_stamp_tolerance = F > 0` one stamped more than `F`
 //! seconds after it is dropped as `stamp from the future`. Each 0 switches its check off (the
