@@ -37,9 +37,10 @@ use ros2_client::dds::rustdds::{DomainParticipantBuilder, Topic};
 use ros2_client::qos::{Durability, History, WhenFull};
 use ros2_client::{
     Context, Message, MessageTypeName, Name, Node, NodeName, NodeOptions, ParameterValue,
-    QosProfile, ServiceMapping, ServiceTypeName, Subscription,
+    QosProfile, ROSTime, ServiceMapping, ServiceTypeName, Subscription,
 };
 use ros_args::{NameResolver, RosArgs};
+use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime};
 
@@ -145,20 +146,51 @@ struct Endpoints {
 /// The node's clock fed from DDS: `use_sim_time` as ros2-client's parameter store holds it (the
 /// store keeps that parameter to itself, so it is read before each use), and a `/clock`
 /// subscription that exists while simulated time is read from it.
+///
+/// The node's time for an input is its clock when the input arrived (DDS receive time), not
+/// when the node gets to it, so stamps and stamp checks do not depend on how far behind the
+/// node is: the wall clock at arrival, or the latest `/clock` received before the input
+/// (`/clock` messages received later wait in `pending` for the next input), or in simulate mode
+/// the simulated time reached before it (`ticks`: when, by the wall clock, the simulation
+/// reached which time).
 struct TimeSource {
     clock: NodeClock,
     topic: Topic,
     name: String,
-    /// The `/clock` subscription and when it was made: RustDDS may hand a new reader samples
-    /// its participant received before (an earlier reader's), which are older than the switch.
-    subscription: Option<(Subscription<Clock>, ros2_client::ROSTime)>,
+    /// The `/clock` subscription and when it was made (RustDDS may hand a new reader samples
+    /// its participant received before, for an earlier reader: those are ignored).
+    subscription: Option<(Subscription<Clock>, ROSTime)>,
+    /// `/clock` messages read but not yet in effect: (received, time).
+    pending: VecDeque<(ROSTime, Time)>,
+    /// Simulate mode: (wall clock, simulated time in s) of the latest steps, oldest first.
+    ticks: VecDeque<(ROSTime, f64)>,
     shared: Arc<Mutex<Settings>>,
 }
 
+/// `/clock` messages the reader keeps between two reads (more than any input gap at 1 kHz).
+const CLOCK_READER_DEPTH: usize = 100;
+
 impl TimeSource {
-    /// Follows `use_sim_time`, reads any `/clock` that arrived, and returns the node's time (ns;
-    /// `None` while simulated time has not arrived).
-    fn now(&mut self, node: &mut Node, engine: &Engine, health: &mut Health) -> Option<i64> {
+    /// Simulate mode: the simulation has reached `t` (s) at wall time `at`.
+    fn simulated(&mut self, at: ROSTime, t: Option<f64>) {
+        if let Some(t) = t {
+            if self.ticks.len() == CLOCK_READER_DEPTH {
+                self.ticks.pop_front();
+            }
+            self.ticks.push_back((at, t));
+        }
+    }
+
+    /// Follows `use_sim_time`, applies the `/clock` messages that arrived before `arrived` (all of
+    /// them if `None`), and returns the node's time (ns; `None` while simulated time has not
+    /// arrived).
+    fn now(
+        &mut self,
+        node: &mut Node,
+        engine: &Engine,
+        health: &mut Health,
+        arrived: Option<ROSTime>,
+    ) -> Option<i64> {
         let wanted = matches!(
             node.get_parameter("use_sim_time"),
             Some(ParameterValue::Boolean(true))
@@ -172,11 +204,13 @@ impl TimeSource {
         }
         if !self.clock.reads_clock(engine.simulated_time().is_some()) {
             self.subscription = None;
+            self.pending.clear();
         } else if self.subscription.is_none() {
-            // rclcpp's ClockQoS: best effort, keep last 1.
+            // rclcpp's ClockQoS is best effort, keep last 1; the reader keeps more (a local
+            // choice, no effect on matching) so that none is lost between two inputs.
             match node.create_subscription::<Clock>(
                 &self.topic,
-                Some(qos(false, Durability::Volatile, 1)),
+                Some(qos(false, Durability::Volatile, CLOCK_READER_DEPTH)),
             ) {
                 Ok(sub) => self.subscription = Some((sub, node.time_now_not_simulated())),
                 Err(e) => health.dropped(&self.name, &format!("cannot subscribe: {e:?}")),
@@ -185,12 +219,11 @@ impl TimeSource {
         if let Some((sub, since)) = &self.subscription {
             loop {
                 match sub.take() {
-                    Ok(Some((_, info)))
-                        if info.received_timestamp().is_some_and(|t| t < *since) => {}
-                    Ok(Some((message, _))) => {
-                        health.received(&self.name);
-                        if let Some(note) = self.clock.clock_received(&message.clock) {
-                            eprintln!("[INFO] [spatial_dynamics]: {note}");
+                    Ok(Some((message, info))) => {
+                        let received = info.received_timestamp().unwrap_or(ROSTime::ZERO);
+                        if received >= *since || received == ROSTime::ZERO {
+                            health.received(&self.name);
+                            self.pending.push_back((received, message.clock));
                         }
                     }
                     Ok(None) => break,
@@ -201,7 +234,28 @@ impl TimeSource {
                 }
             }
         }
-        self.clock.now(SystemTime::now(), engine.simulated_time())
+        while let Some((received, _)) = self.pending.front() {
+            if arrived.is_some_and(|a| *received > a) {
+                break;
+            }
+            let (_, t) = self.pending.pop_front().expect("front exists");
+            if let Some(note) = self.clock.clock_received(&t) {
+                eprintln!("[INFO] [spatial_dynamics]: {note}");
+            }
+        }
+        // Simulate mode: the simulated time reached before the input arrived.
+        let simulated = engine.simulated_time().map(|now| {
+            arrived
+                .and_then(|a| self.ticks.iter().rev().find(|(at, _)| *at <= a))
+                .map_or(now, |(_, t)| *t)
+        });
+        // Wall clock: the input's DDS receive time.
+        let wall = arrived
+            .and_then(|a| u64::try_from(a.to_nanos()).ok())
+            .map_or_else(SystemTime::now, |n| {
+                SystemTime::UNIX_EPOCH + Duration::from_nanos(n)
+            });
+        self.clock.now(wall, simulated)
     }
 }
 
@@ -457,10 +511,12 @@ async fn serve(
         topic: clock_topic,
         name: clock_name,
         subscription: None,
+        pending: VecDeque::with_capacity(CLOCK_READER_DEPTH),
+        ticks: VecDeque::with_capacity(CLOCK_READER_DEPTH),
         shared: shared.clone(),
     };
     // Subscribes to /clock now if simulated time is on, so that discovery starts at once.
-    time.now(&mut node, &engine, &mut health);
+    time.now(&mut node, &engine, &mut health, None);
     let diagnostics_name = format!("{}: dynamics", node.fully_qualified_name());
     eprintln!(
         "[INFO] [spatial_dynamics]: {} serving robot '{}' ({} joints, nv = {}), method {}{}",
@@ -517,7 +573,8 @@ async fn serve(
             _ = terminate.recv() => break,
             Some(item) = js_stream.next() => {
                 health.received(&js_name);
-                let now = time.now(&mut node, &engine, &mut health);
+                let arrived = item.as_ref().ok().and_then(|(_, info)| info.received_timestamp());
+                let now = time.now(&mut node, &engine, &mut health, arrived);
                 let started = Instant::now();
                 match item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(js, _)| {
                     let stamp = time.clock.admit(&js.header.stamp, now)?;
@@ -547,7 +604,8 @@ async fn serve(
             }
             Some(item) = reference_stream.next() => {
                 health.received(&reference_name);
-                let now = time.now(&mut node, &engine, &mut health);
+                let arrived = item.as_ref().ok().and_then(|(_, info)| info.received_timestamp());
+                let now = time.now(&mut node, &engine, &mut health, arrived);
                 let started = Instant::now();
                 match item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(m, _)| {
                     let stamp = time.clock.output_stamp(&m.header.stamp, now)?;
@@ -622,6 +680,7 @@ async fn serve(
             }
             _ = async { sim_timer.as_mut().expect("guarded").tick().await }, if sim_timer.is_some() => {
                 let tick = engine.simulation_tick(Instant::now());
+                time.simulated(node.time_now_not_simulated(), engine.simulated_time());
                 publish_simulated(tick, &sim_js_pub, &clock_pub, publish_clock(&shared), &sim_js_name, &mut health);
             }
             Some(item) = reset_stream.next() => {
@@ -641,6 +700,7 @@ async fn serve(
             Some(item) = step_stream.next() => {
                 if let Ok((id, _)) = item {
                     let stepped = engine.simulation_step(Instant::now());
+                    time.simulated(node.time_now_not_simulated(), engine.simulated_time());
                     let response = match &stepped {
                         Ok((_, stamp)) => TriggerResponse { success: true, message: format!("t = {}.{:09} s", stamp.sec, stamp.nanosec) },
                         Err(message) => TriggerResponse { success: false, message: message.clone() },
@@ -665,10 +725,11 @@ async fn serve(
                     }
                 }
                 sim_timer = simulation_timer(&engine);
+                time.ticks.clear();
                 eprintln!("[INFO] [spatial_dynamics]: parameter '{name}' now in effect");
             }
             _ = diagnostics.tick() => {
-                let now = time.now(&mut node, &engine, &mut health);
+                let now = time.now(&mut node, &engine, &mut health, None);
                 let stamp = NodeClock::stamp(now);
                 let mut status = health.report(&diagnostics_name, &engine.model.name, true);
                 status.values.push(KeyValue { key: "clock".into(), value: clock::source_name(time.clock.use_sim_time(), engine.simulated_time().is_some()).into() });

@@ -8,12 +8,16 @@
 //! node is the clock, and publishes it with `publish_clock`).
 //!
 //! **Output stamps.** Without `use_sim_time` an output carries its input's header stamp
-//! (unchanged behaviour). With `use_sim_time` every output is stamped with the node's clock when
-//! it is computed. Before the first `/clock` arrives (serve mode) the time is unknown: topic
+//! (unchanged behaviour). With `use_sim_time` every output is stamped with the node's clock as it
+//! stood when the input arrived: the latest `/clock` received before the input (by DDS receive
+//! time), or in simulate mode the simulated time reached before it, so a node running behind
+//! still stamps an answer with its input's time. Before the first `/clock` arrives (serve mode) the time is unknown: topic
 //! inputs are dropped, counted as `waiting for /clock`, rather than answered with stamp 0;
 //! `/diagnostics` still goes out, stamped 0 as rclcpp's clock reads then.
 //!
-//! **Input stamps** (`joint_states`; the request types of the services carry no stamp). With
+//! **Input stamps** (`joint_states`; the request types of the services carry no stamp), against
+//! the node's clock when the message arrived (so a node running behind does not call a message
+//! stale for its own delay). With
 //! `max_stamp_age = A > 0` a message stamped more than `A` seconds before the node's clock is
 //! dropped as `stale stamp`; with `future_stamp_tolerance = F > 0` one stamped more than `F`
 //! seconds after it is dropped as `stamp from the future`. Each 0 switches its check off (the
