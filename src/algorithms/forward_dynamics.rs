@@ -97,7 +97,13 @@ fn crba_solve<'w>(
     ws.qdd -= &ws.tau;
     match &model.dof_parent {
         Some(lambda) => {
-            ltl_factor(model, lambda, &ws.mass_matrix, &mut ws.factor)?;
+            ltl_factor(
+                model,
+                lambda,
+                &ws.mass_matrix,
+                &mut ws.factor,
+                &mut ws.dof_chain,
+            )?;
             ltl_solve(lambda, &ws.factor, &mut ws.qdd);
         }
         None => {

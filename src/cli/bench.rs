@@ -8,7 +8,7 @@
 use super::ModelArgs;
 use clap::Args;
 use serde_json::{json, Map, Value};
-use spatial_dynamics::algorithms::{crba, forward_dynamics, gravity, rnea};
+use spatial_dynamics::algorithms::{crba, flops, forward_dynamics, gravity, rnea};
 use spatial_dynamics::model::JointKind;
 use spatial_dynamics::{DynamicsError, Externals, ForwardDynamicsMethod, Model, Workspace};
 use std::hint::black_box;
@@ -75,21 +75,55 @@ pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), S
             .iter()
             .map(|(name, ns)| (name.to_string(), json!(ns)))
             .collect();
-        println!("{}", json!({"nv": model.nv, "ns_per_call": per_call}));
+        let (flops, gflops) = flops_per_call(&model, &results);
+        println!(
+            "{}",
+            json!({"nv": model.nv, "ns_per_call": per_call, "flops_per_call": flops, "gflops": gflops})
+        );
         return Ok(());
     }
+    let (flops, gflops) = flops_per_call(&model, &results);
     println!(
         "robot '{}': nq = {}, nv = {}; {} random states, median of {} repeats of at least {:.2} s",
         model.name, model.nq, model.nv, settings.states, settings.repeats, settings.min_time
     );
-    println!("{:<16} {:>12}", "kernel", "ns/call");
+    println!(
+        "{:<16} {:>12} {:>12} {:>8}",
+        "kernel", "ns/call", "FLOPs/call", "GFLOP/s"
+    );
     for (name, ns) in results {
         match ns {
-            Some(ns) => println!("{name:<16} {ns:>12.1}"),
+            Some(ns) => println!(
+                "{name:<16} {ns:>12.1} {:>12} {:>8.2}",
+                flops[name],
+                gflops[name].as_f64().unwrap_or(f64::NAN)
+            ),
             None => println!("{name:<16} {:>12}", "n/a (mimic)"),
         }
     }
     Ok(())
+}
+
+/// Per kernel, the floating-point operations of one call as implemented
+/// ([`flops::kernel_flops`]) and the rate achieved, GFLOP/s (FLOPs per nanosecond).
+fn flops_per_call(
+    model: &Model,
+    results: &[(&str, Option<f64>)],
+) -> (Map<String, Value>, Map<String, Value>) {
+    let mut flops_map = Map::new();
+    let mut gflops_map = Map::new();
+    for (name, ns) in results {
+        let count = flops::kernel_flops(model, name).map(|f| f.total());
+        flops_map.insert(name.to_string(), json!(count));
+        let rate = match (count, ns) {
+            (Some(count), Some(ns)) if *ns > 0.0 => {
+                Some((count as f64 / ns * 100.0).round() / 100.0)
+            }
+            _ => None,
+        };
+        gflops_map.insert(name.to_string(), json!(rate));
+    }
+    (flops_map, gflops_map)
 }
 
 /// Median nanoseconds per call of kernel `name`, or `None` when the method refuses the model
