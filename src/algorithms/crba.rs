@@ -12,7 +12,10 @@
 //!           ⁰I^c_λ(i) += ⁰I^c_i
 //! ```
 //!
-//! which is RBDA Table 6.2 with `ʲX_iᵀ` replaced by the identity (all in one frame).
+//! which is RBDA Table 6.2 with `ʲX_iᵀ` replaced by the identity (all in one frame). When every
+//! subtree's coordinates are contiguous (the usual depth-first order) the inward pass fills `H`
+//! by row blocks, Pinocchio's way: the `F` of each coordinate is kept, and body `i` fills its
+//! rows from its own columns to the end of its subtree, `H_ij = S_iᵀ F_j` (see `row_blocks`).
 //!
 //! With mimic joints, body `i` contributes to the column of its leader scaled by `μ_i`:
 //! `H[c_j, c_i] += μ_j μ_i S_jᵀ F` (and its mirror), which is `Jᵀ H_full J` for the coordinate
