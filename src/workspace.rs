@@ -1,6 +1,7 @@
 //! Scratch buffers for the algorithms (Pinocchio's `Data`): sized once from a model, reused by
 //! every call so that no call allocates.
 
+use crate::algorithms::ltl::Ancestors;
 use crate::model::{Model, MotionSubspace};
 use crate::spatial::{Force, Inertia, Matrix6, Motion, Transform};
 use nalgebra::{DMatrix, DVector};
@@ -60,8 +61,9 @@ pub struct Workspace {
     pub(crate) mass_matrix: DMatrix<f64>,
     /// Factor of `H` (LTL or Cholesky), kept apart so `mass_matrix` stays readable.
     pub(crate) factor: DMatrix<f64>,
-    /// Scratch for the sparse factorisation: the ancestors of one coordinate.
-    pub(crate) dof_chain: Vec<usize>,
+    /// The ancestors of each coordinate, for the sparse factorisation; `None` when mimic joints
+    /// break the tree pattern ([`Model::dof_parent`](crate::Model)).
+    pub(crate) dof_ancestors: Option<Ancestors>,
     /// `C(q, q̇)` for forward dynamics.
     pub(crate) bias: DVector<f64>,
     /// Unit acceleration `e_k` (n+1 RNEA method).
@@ -97,7 +99,7 @@ impl Workspace {
             subtree_end: contiguous_subtrees(model),
             mass_matrix: DMatrix::zeros(nv, nv),
             factor: DMatrix::zeros(nv, nv),
-            dof_chain: vec![0; nv],
+            dof_ancestors: model.dof_parent.as_deref().map(Ancestors::new),
             bias: DVector::zeros(nv),
             unit: DVector::zeros(nv),
         }

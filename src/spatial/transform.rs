@@ -114,17 +114,20 @@ impl Transform {
         let r = &self.trans;
         let h_a = h_rot + r * inertia.mass;
         let diag = r.dot(&(h_rot + h_a));
-        let mut i_bar = rotate_symmetric(&self.rot, &inertia.i_bar);
-        for j in 0..3 {
-            for k in j..3 {
-                let mut x = i_bar[(j, k)] - h_a[j] * r[k] - r[j] * h_rot[k];
-                if j == k {
-                    x += diag;
-                }
-                i_bar[(j, k)] = x;
-                i_bar[(k, j)] = x;
-            }
-        }
+        let i_rot = rotate_symmetric(&self.rot, &inertia.i_bar);
+        let entry = |j: usize, k: usize| i_rot[(j, k)] - h_a[j] * r[k] - r[j] * h_rot[k];
+        let (xy, xz, yz) = (entry(0, 1), entry(0, 2), entry(1, 2));
+        let i_bar = Matrix3::new(
+            entry(0, 0) + diag,
+            xy,
+            xz,
+            xy,
+            entry(1, 1) + diag,
+            yz,
+            xz,
+            yz,
+            entry(2, 2) + diag,
+        );
         Inertia {
             mass: inertia.mass,
             h: h_a,
@@ -169,18 +172,13 @@ impl Transform {
     }
 }
 
-/// `Eᵀ S E` for a symmetric `S`: `S E`, then the six distinct entries of `Eᵀ (S E)`.
+/// `Eᵀ S E` for a symmetric `S`: `t_k = S e_k` for each column `e_k` of `E`, then the six
+/// distinct entries `(Eᵀ S E)_jk = e_j · t_k`.
 fn rotate_symmetric(e: &Matrix3, s: &Matrix3) -> Matrix3 {
-    let se = s * e;
-    let mut out = Matrix3::zeros();
-    for j in 0..3 {
-        for k in j..3 {
-            let x = e.column(j).dot(&se.column(k));
-            out[(j, k)] = x;
-            out[(k, j)] = x;
-        }
-    }
-    out
+    let t = [s * e.column(0), s * e.column(1), s * e.column(2)];
+    let d = |j: usize, k: usize| e.column(j).dot(&t[k]);
+    let (xx, xy, xz, yy, yz, zz) = (d(0, 0), d(0, 1), d(0, 2), d(1, 1), d(1, 2), d(2, 2));
+    Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz)
 }
 
 /// `r× M`: the cross product of `r` with each column of `M`.
