@@ -1,6 +1,7 @@
 //! Scratch buffers for the algorithms (Pinocchio's `Data`): sized once from a model, reused by
 //! every call so that no call allocates.
 
+use crate::algorithms::ltl::Ancestors;
 use crate::model::{Model, MotionSubspace};
 use crate::spatial::{Force, Inertia, Matrix6, Motion, Transform};
 use nalgebra::{DMatrix, DVector};
@@ -17,19 +18,25 @@ pub struct Workspace {
     pub(crate) x_world: Vec<Transform>,
     /// Motion subspace `S_i` of each body's joint.
     pub(crate) s: Vec<MotionSubspace>,
+    /// Motion subspace `⁰X_i S_i` of each body's joint in world (root) coordinates (CRBA).
+    pub(crate) s_world: Vec<MotionSubspace>,
     /// Body spatial velocities `v_i`.
     pub(crate) v: Vec<Motion>,
     /// Body spatial accelerations `a_i` (including the fictitious −g of the base).
     pub(crate) a: Vec<Motion>,
+    /// Body spatial velocities in world (root) coordinates (ABA).
+    pub(crate) v_world: Vec<Motion>,
+    /// Body spatial accelerations in world coordinates, including the fictitious −g (ABA).
+    pub(crate) a_world: Vec<Motion>,
     /// Net spatial forces `f_i` transmitted by each body's joint.
     pub(crate) f: Vec<Force>,
-    /// Composite rigid-body inertias `I^c_i` (CRBA).
+    /// Composite rigid-body inertias `I^c_i` (CRBA), in world (root) coordinates.
     pub(crate) ic: Vec<Inertia>,
-    /// Articulated-body inertias `I^A_i` (ABA).
+    /// Articulated-body inertias `I^A_i` (ABA), in world coordinates.
     pub(crate) ia: Vec<Matrix6>,
-    /// Articulated bias forces `p^A_i` (ABA).
+    /// Articulated bias forces `p^A_i` (ABA), in world coordinates.
     pub(crate) pa: Vec<Force>,
-    /// Velocity-product accelerations `c_i = c_J + v_i ×̂ v_J` (ABA).
+    /// Velocity-product accelerations `c_i = c_J + v_i ×̂ v_J` (ABA), in world coordinates.
     pub(crate) c: Vec<Motion>,
     /// `U_i = I^A_i S_i`, column by column (ABA).
     pub(crate) u: Vec<[Force; 6]>,
@@ -41,10 +48,22 @@ pub struct Workspace {
     pub(crate) tau: DVector<f64>,
     /// Generalized accelerations: output of forward dynamics.
     pub(crate) qdd: DVector<f64>,
-    /// Joint-space inertia matrix `H` (full, symmetric).
+    /// `F_c = ⁰I^c S_c` for each velocity coordinate `c`, in world coordinates (CRBA; Pinocchio's
+    /// `Ag`).
+    pub(crate) f_cols: Vec<Force>,
+    /// For each body, one past the last velocity coordinate of its subtree, when every subtree's
+    /// coordinates are contiguous (bodies depth-first, coordinates in body order, no mimic
+    /// joints): body `i`'s subtree then owns `v_index_i .. subtree_end[i]`. `None` otherwise.
+    pub(crate) subtree_end: Option<Vec<usize>>,
+    /// Joint-space inertia matrix `H` (full, symmetric). Entries outside the tree's sparsity
+    /// pattern (coordinate pairs neither of which is an ancestor of the other) are zero from
+    /// construction on; every writer keeps them zero.
     pub(crate) mass_matrix: DMatrix<f64>,
     /// Factor of `H` (LTL or Cholesky), kept apart so `mass_matrix` stays readable.
     pub(crate) factor: DMatrix<f64>,
+    /// The ancestors of each coordinate, for the sparse factorisation; `None` when mimic joints
+    /// break the tree pattern ([`Model::dof_parent`](crate::Model)).
+    pub(crate) dof_ancestors: Option<Ancestors>,
     /// `C(q, q̇)` for forward dynamics.
     pub(crate) bias: DVector<f64>,
     /// Unit acceleration `e_k` (n+1 RNEA method).
@@ -61,8 +80,11 @@ impl Workspace {
             x_up: vec![Transform::identity(); n],
             x_world: vec![Transform::identity(); n],
             s: vec![MotionSubspace::default(); n],
+            s_world: vec![MotionSubspace::default(); n],
             v: vec![Motion::zero(); n],
             a: vec![Motion::zero(); n],
+            v_world: vec![Motion::zero(); n],
+            a_world: vec![Motion::zero(); n],
             f: vec![Force::zero(); n],
             ic: vec![Inertia::zero(); n],
             ia: vec![Matrix6::zeros(); n],
@@ -73,8 +95,11 @@ impl Workspace {
             u_bias: vec![[0.0; 6]; n],
             tau: DVector::zeros(nv),
             qdd: DVector::zeros(nv),
+            f_cols: vec![Force::zero(); nv],
+            subtree_end: contiguous_subtrees(model),
             mass_matrix: DMatrix::zeros(nv, nv),
             factor: DMatrix::zeros(nv, nv),
+            dof_ancestors: model.dof_parent.as_deref().map(Ancestors::new),
             bias: DVector::zeros(nv),
             unit: DVector::zeros(nv),
         }
@@ -115,4 +140,33 @@ impl Workspace {
     pub fn parent_to_body(&self, i: usize) -> Transform {
         self.x_up[i]
     }
+}
+
+/// `subtree_end` (see [`Workspace`]) when each subtree's coordinates are contiguous.
+fn contiguous_subtrees(model: &Model) -> Option<Vec<usize>> {
+    model.dof_parent.as_ref()?;
+    let n = model.nbodies();
+    let mut end = vec![0; n];
+    let mut count = vec![0; n];
+    let mut next_v = 0;
+    for (i, body) in model.bodies.iter().enumerate() {
+        let c = body.joint.coords;
+        if c.v_index != next_v || c.scale != 1.0 {
+            return None;
+        }
+        next_v += body.joint.kind.nv();
+        end[i] = next_v;
+        count[i] = body.joint.kind.nv();
+    }
+    for (i, body) in model.bodies.iter().enumerate().rev() {
+        let c = body.joint.coords;
+        if count[i] != end[i] - c.v_index {
+            return None;
+        }
+        if let Some(p) = body.parent {
+            end[p] = end[p].max(end[i]);
+            count[p] += count[i];
+        }
+    }
+    Some(end)
 }

@@ -1,24 +1,30 @@
-//! Forward dynamics in O(n) by the articulated-body algorithm (Featherstone, RBDA Table 7.1).
+//! Forward dynamics in O(n) by the articulated-body algorithm (Featherstone, RBDA Table 7.1),
+//! with every spatial quantity in world (root) coordinates, as Pinocchio's `aba` in its WORLD
+//! convention does: the recursion holds in any one frame, and in the world frame an
+//! articulated inertia needs no 6×6 transform on its way to the parent. Each body's inertia and
+//! joint axes are carried to the world once, by its placement `⁰X_i`.
 //!
-//! Pass 1, outward (body `i` coordinates):
+//! Pass 1, outward (world coordinates; `ⁱX_0 = ⁱX_λ ᵏX_0`, `S_i ← ⁰X_i S_i`, `I_i ← ⁰X_i⁻ᵀ I_i ⁱX_0`):
 //! ```text
-//! v_i = ⁱX_λ v_λ + S_i q̇_i,   c_i = c_J + v_i ×̂ S_i q̇_i
-//! I^A_i = I_i,                 p^A_i = v_i ×* I_i v_i − f^x_i
+//! v_i = v_λ + S_i q̇_i,         c_i = ⁰X_i c_J + v_i ×̂ S_i q̇_i
+//! I^A_i = I_i,                 p^A_i = v_i ×* I_i v_i − ⁰X_i⁻ᵀ f^x_i
 //! ```
 //! Pass 2, inward:
 //! ```text
 //! U_i = I^A_i S_i,   D_i = S_iᵀ U_i,   u_i = τ_i − S_iᵀ p^A_i
 //! I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,   p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i
-//! I^A_λ += ⁱX_λᵀ I^a ⁱX_λ,        p^A_λ += ⁱX_λᵀ p^a
+//! I^A_λ += I^a,                   p^A_λ += p^a
 //! ```
 //! Pass 3, outward, from `a_0 = a_base − g`:
 //! ```text
-//! a' = ⁱX_λ a_λ + c_i,   q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),   a_i = a' + S_i q̈_i
+//! a' = a_λ + c_i,   q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),   a_i = a' + S_i q̈_i
 //! ```
-//! Mimic joints tie coordinates across bodies, which the recursion cannot express: models with
-//! them are refused (use the `crba` or `rnea_columns` method).
+//! (`c_i` in the world frame: the world-frame `S` moves with the body, `d(⁰X_i S_i)/dt =
+//! v_i ×̂ ⁰X_i S_i + ⁰X_i S̊_i`.) Mimic joints tie coordinates across bodies, which the
+//! recursion cannot express: models with them are refused (use the `crba` or `rnea_columns`
+//! method).
 
-use super::kinematics::update_joints;
+use super::kinematics::{update_joints, update_placements};
 use super::validate::{check_forward_inputs, check_result};
 use super::{pivot_is_sound, Externals};
 use crate::error::DynamicsError;
@@ -53,25 +59,33 @@ pub fn aba<'w>(
     Ok(ws.qdd.as_slice())
 }
 
-/// Pass 1: velocities, velocity-product accelerations, initial articulated quantities.
+/// Pass 1: placements, world-frame axes, velocities, velocity-product accelerations, initial
+/// articulated quantities.
 fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
+    update_placements(model, ws);
     for (i, body) in model.bodies.iter().enumerate() {
+        let x = &ws.x_world[i];
+        let (s, s_world) = (&ws.s[i], &mut ws.s_world[i]);
+        s_world.nv = s.nv;
+        for k in 0..s.nv {
+            s_world.cols[k] = x.inverse_apply_motion(&s.cols[k]);
+        }
         let c = body.joint.coords;
-        let nv = ws.s[i].nv;
-        let rates = &v[c.v_index..c.v_index + nv];
-        let v_joint = ws.s[i].apply(rates, 1.0);
-        let v_parent = body.parent.map_or(ext.root_velocity, |p| ws.v[p]);
-        let v_i = ws.x_up[i].apply_motion(&v_parent) + v_joint;
+        let rates = &v[c.v_index..c.v_index + s.nv];
+        let v_joint = s_world.apply(rates, 1.0);
+        let v_parent = body.parent.map_or(ext.root_velocity, |p| ws.v_world[p]);
+        let v_i = v_parent + v_joint;
         let c_joint = body
             .joint
             .kind
             .bias(&ws.q_joint[i][..body.joint.kind.nq()], rates);
-        ws.v[i] = v_i;
-        ws.c[i] = c_joint + v_i.cross_motion(&v_joint);
-        ws.ia[i] = body.inertia.to_matrix();
-        ws.pa[i] = v_i.cross_force(&body.inertia.apply(&v_i));
+        let inertia = x.transpose_apply_inertia(&body.inertia);
+        ws.v_world[i] = v_i;
+        ws.c[i] = x.inverse_apply_motion(&c_joint) + v_i.cross_motion(&v_joint);
+        ws.ia[i] = inertia.to_matrix();
+        ws.pa[i] = v_i.cross_force(&inertia.apply(&v_i));
         if let Some(w) = ext.wrenches {
-            ws.pa[i] -= w[i];
+            ws.pa[i] -= x.transpose_apply_force(&w[i]);
         }
     }
 }
@@ -80,7 +94,7 @@ fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'
 fn articulated_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) -> Result<(), DynamicsError> {
     for (i, body) in model.bodies.iter().enumerate().rev() {
         // Work on body i's slots in place (each is a 6×6 or six 6-vectors: no copies).
-        let s = &ws.s[i];
+        let s = &ws.s_world[i];
         let nv = s.nv;
         let c = body.joint.coords;
         let (u_cols, d_inv, u) = (&mut ws.u[i], &mut ws.d_inv[i], &mut ws.u_bias[i]);
@@ -119,9 +133,9 @@ fn articulated_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) -> Result<()
             ws.pa[i] += bias;
             // The parent comes before the child: split so both can be borrowed.
             let (before, from_i) = ws.ia.split_at_mut(i);
-            before[p] += ws.x_up[i].transpose_apply_matrix6(&from_i[0]);
-            let pa_parent = ws.x_up[i].transpose_apply_force(&ws.pa[i]);
-            ws.pa[p] += pa_parent;
+            before[p] += from_i[0];
+            let pa_i = ws.pa[i];
+            ws.pa[p] += pa_i;
         }
     }
     Ok(())
@@ -131,10 +145,10 @@ fn articulated_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) -> Result<()
 fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
     let a_root = ext.root_acceleration - Motion::new(nalgebra::Vector3::zeros(), model.gravity);
     for (i, body) in model.bodies.iter().enumerate() {
-        let nv = ws.s[i].nv;
+        let nv = ws.s_world[i].nv;
         let c = body.joint.coords;
-        let a_parent = body.parent.map_or(a_root, |p| ws.a[p]);
-        let a_prime = ws.x_up[i].apply_motion(&a_parent) + ws.c[i];
+        let a_parent = body.parent.map_or(a_root, |p| ws.a_world[p]);
+        let a_prime = a_parent + ws.c[i];
         let mut rhs = [0.0; 6];
         for k in 0..nv {
             rhs[k] = ws.u_bias[i][k] - a_prime.dot(&ws.u[i][k]);
@@ -143,9 +157,9 @@ fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
         for k in 0..nv {
             let qdd: f64 = (0..nv).map(|k2| ws.d_inv[i][(k, k2)] * rhs[k2]).sum();
             ws.qdd[c.v_index + k] = qdd;
-            a_i += ws.s[i].cols[k] * qdd;
+            a_i += ws.s_world[i].cols[k] * qdd;
         }
-        ws.a[i] = a_i;
+        ws.a_world[i] = a_i;
     }
 }
 
@@ -154,8 +168,9 @@ fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
 /// scale of the articulated inertia `ia`.
 fn invert_spd(d: &Matrix6, nv: usize, ia: &Matrix6) -> Option<Matrix6> {
     // D's scale is that of the articulated inertia; a pivot within a few ulps of it is zero,
-    // and a subnormal one has no finite inverse (D⁻¹ would overflow).
-    let reference = 64.0 * ia.amax();
+    // and a subnormal one has no finite inverse (D⁻¹ would overflow). For a positive
+    // semi-definite `ia` the largest entry is on the diagonal (|a_jk| ≤ √(a_jj a_kk)).
+    let reference = 64.0 * ia.diagonal().amax();
     let sound = |pivot: f64| pivot_is_sound(pivot, reference) && pivot >= f64::MIN_POSITIVE;
     if nv == 1 {
         let pivot = d[(0, 0)];

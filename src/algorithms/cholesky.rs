@@ -13,7 +13,7 @@ pub fn cholesky_factor(
     h: &DMatrix<f64>,
     factor: &mut DMatrix<f64>,
 ) -> Result<(), DynamicsError> {
-    factor.copy_from(h);
+    factor.as_mut_slice().copy_from_slice(h.as_slice());
     let n = h.nrows();
     for j in 0..n {
         let mut pivot = factor[(j, j)];

@@ -1,16 +1,27 @@
 //! The joint-space inertia matrix `H(q)` by the composite rigid-body algorithm (Featherstone,
-//! RBDA Table 6.2).
+//! RBDA Table 6.2), with every spatial quantity in world (root) coordinates, as Pinocchio's
+//! `crba` in its WORLD convention does (RBDA §6.2 notes the algorithm works in any frame).
 //!
-//! Composite inertias, inward: `I^c_i = I_i + Σ_{children j} ʲX_iᵀ I^c_j ʲX_i`.
-//! Then for each body `i` and each column `S_ik` of its joint, `F = I^c_i S_ik` (in body `i`
-//! coordinates) gives the diagonal block `H_ii = S_iᵀ F`; carrying `F` towards the root,
-//! `F ← ʲX_λ(j)ᵀ F`, gives the off-diagonal blocks `H_ji = S_jᵀ F = H_ijᵀ` for every ancestor `j`.
+//! In world coordinates a composite inertia needs no transform on its way to the parent and a
+//! column force `F` none on its way to the root; only each body's inertia and joint axes are
+//! carried to the world once, by its placement `⁰X_i`:
+//!
+//! ```text
+//! outward:  ⁱX_0 = ⁱX_λ ᵏX_0,   ⁰S_i = ⁰X_i S_i,   ⁰I^c_i = ⁱX_0ᵀ I_i ⁱX_0
+//! inward:   F = ⁰I^c_i ⁰S_i,   H_ii = ⁰S_iᵀ F,   H_ji = ⁰S_jᵀ F = H_ijᵀ  (j ancestor of i)
+//!           ⁰I^c_λ(i) += ⁰I^c_i
+//! ```
+//!
+//! which is RBDA Table 6.2 with `ʲX_iᵀ` replaced by the identity (all in one frame). When every
+//! subtree's coordinates are contiguous (the usual depth-first order) the inward pass fills `H`
+//! by row blocks, Pinocchio's way: the `F` of each coordinate is kept, and body `i` fills its
+//! rows from its own columns to the end of its subtree, `H_ij = S_iᵀ F_j` (see `row_blocks`).
 //!
 //! With mimic joints, body `i` contributes to the column of its leader scaled by `μ_i`:
 //! `H[c_j, c_i] += μ_j μ_i S_jᵀ F` (and its mirror), which is `Jᵀ H_full J` for the coordinate
 //! map `J`.
 
-use super::kinematics::update_joints;
+use super::kinematics::{update_joints, update_placements};
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::Model;
@@ -29,24 +40,69 @@ pub fn crba<'w>(
     Ok(&ws.mass_matrix)
 }
 
-/// The two passes, on joints already updated for `q`. Writes `ws.ic` and `ws.mass_matrix`.
+/// The two passes, on joints already updated for `q`. Writes `ws.x_world`, `ws.s_world`,
+/// `ws.ic` (world coordinates) and `ws.mass_matrix`.
 pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) {
+    update_placements(model, ws);
     for (i, body) in model.bodies.iter().enumerate() {
-        ws.ic[i] = body.inertia;
-    }
-    for (i, body) in model.bodies.iter().enumerate().rev() {
-        if let Some(p) = body.parent {
-            let ic_parent = ws.x_up[i].transpose_apply_inertia(&ws.ic[i]);
-            ws.ic[p] += ic_parent;
+        let x = &ws.x_world[i];
+        ws.ic[i] = x.transpose_apply_inertia(&body.inertia);
+        let (s, s_world) = (&ws.s[i], &mut ws.s_world[i]);
+        s_world.nv = s.nv;
+        for k in 0..s.nv {
+            s_world.cols[k] = x.inverse_apply_motion(&s.cols[k]);
         }
     }
-    let h = &mut ws.mass_matrix;
-    h.fill(0.0);
-    for (i, body) in model.bodies.iter().enumerate() {
-        let ci = body.joint.coords;
-        let s_i = &ws.s[i];
+    match ws.subtree_end.take() {
+        Some(subtree_end) => {
+            row_blocks(model, ws, &subtree_end);
+            ws.subtree_end = Some(subtree_end);
+        }
+        None => along_paths(model, ws),
+    }
+}
+
+/// Inward pass when every subtree's coordinates are contiguous (Pinocchio's layout): for body
+/// `i` with coordinates `v_i .. v_i + n_i` and subtree coordinates `v_i .. e_i`,
+/// `F_c = ⁰I^c_i ⁰S_c` for its own columns, then the row block
+/// `H[v_i + k, c] = ⁰S_ikᵀ F_c` for `c` from `v_i + k` to `e_i` (upper triangle, mirrored):
+/// each descendant's `F_c` was stored when that descendant was visited.
+/// Entries outside the pattern are never written (they stay zero).
+fn row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) {
+    let n = model.nv;
+    let h = ws.mass_matrix.as_mut_slice();
+    for (i, body) in model.bodies.iter().enumerate().rev() {
+        let v0 = body.joint.coords.v_index;
+        let s_i = &ws.s_world[i];
         for k in 0..s_i.nv {
-            let mut f = ws.ic[i].apply(&s_i.cols[k]);
+            ws.f_cols[v0 + k] = ws.ic[i].apply(&s_i.cols[k]);
+        }
+        for k in 0..s_i.nv {
+            let row = v0 + k;
+            for (c, f) in (row..subtree_end[i]).zip(&ws.f_cols[row..subtree_end[i]]) {
+                let h_rc = s_i.cols[k].dot(f);
+                h[row + c * n] = h_rc;
+                h[c + row * n] = h_rc;
+            }
+        }
+        if let Some(p) = body.parent {
+            let ic_i = ws.ic[i];
+            ws.ic[p] += ic_i;
+        }
+    }
+}
+
+/// Inward pass in general (mimic joints, coordinates out of body order): each column force `F`
+/// is projected on the joint axes of every ancestor on the way to the root, and accumulated
+/// (coordinates may be shared).
+fn along_paths(model: &Model, ws: &mut Workspace) {
+    let h = &mut ws.mass_matrix;
+    h.as_mut_slice().fill(0.0);
+    for (i, body) in model.bodies.iter().enumerate().rev() {
+        let ci = body.joint.coords;
+        let s_i = &ws.s_world[i];
+        for k in 0..s_i.nv {
+            let f = ws.ic[i].apply(&s_i.cols[k]);
             for k2 in 0..=k {
                 let h_kk2 = ci.scale * ci.scale * s_i.project(k2, &f);
                 h[(ci.v_index + k2, ci.v_index + k)] += h_kk2;
@@ -56,15 +112,19 @@ pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) {
             }
             let mut j = i;
             while let Some(p) = model.bodies[j].parent {
-                f = ws.x_up[j].transpose_apply_force(&f);
                 j = p;
                 let cj = model.bodies[j].joint.coords;
-                for k2 in 0..ws.s[j].nv {
-                    let h_ji = ci.scale * cj.scale * ws.s[j].project(k2, &f);
+                let s_j = &ws.s_world[j];
+                for k2 in 0..s_j.nv {
+                    let h_ji = ci.scale * cj.scale * s_j.project(k2, &f);
                     h[(cj.v_index + k2, ci.v_index + k)] += h_ji;
                     h[(ci.v_index + k, cj.v_index + k2)] += h_ji;
                 }
             }
+        }
+        if let Some(p) = body.parent {
+            let ic_i = ws.ic[i];
+            ws.ic[p] += ic_i;
         }
     }
 }

@@ -95,10 +95,10 @@ fn crba_solve<'w>(
     crba_passes(model, ws);
     ws.qdd.copy_from_slice(tau);
     ws.qdd -= &ws.tau;
-    match &model.dof_parent {
-        Some(lambda) => {
-            ltl_factor(model, lambda, &ws.mass_matrix, &mut ws.factor)?;
-            ltl_solve(lambda, &ws.factor, &mut ws.qdd);
+    match &ws.dof_ancestors {
+        Some(ancestors) => {
+            ltl_factor(model, ancestors, &ws.mass_matrix, &mut ws.factor)?;
+            ltl_solve(ancestors, &ws.factor, &mut ws.qdd);
         }
         None => {
             cholesky_factor(model, &ws.mass_matrix, &mut ws.factor)?;

@@ -12,6 +12,7 @@
 //! | [`method_choice`] | the fastest forward-dynamics method accurate enough for a model, measured |
 //! | [`energy`] | kinetic and potential energy |
 //! | [`ltl`], [`cholesky`] | the factorisations that solve `H q̈ = τ − C` |
+//! | [`flops`] | how many floating-point operations each of them performs on a model |
 
 // The algorithms index per-coordinate arrays the way the equations do.
 #![allow(clippy::needless_range_loop)]
@@ -21,6 +22,7 @@ pub mod bias;
 pub mod cholesky;
 pub mod crba;
 pub mod energy;
+pub mod flops;
 pub mod forward_dynamics;
 pub mod gravity;
 pub mod kinematics;

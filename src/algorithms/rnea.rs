@@ -100,7 +100,13 @@ pub(crate) fn rnea_passes(
         ws.a[i] = a_i;
         ws.f[i] = f_i;
     }
-    ws.tau.fill(0.0);
+    inward_pass(model, ws);
+}
+
+/// The inward pass on the body forces `ws.f` (eqs. 15–16): `τ_i = S_iᵀ f_i`,
+/// `f_λ += ⁱX_λᵀ f_i`. Writes `ws.tau`; leaves in `ws.f` each joint's transmitted force.
+pub(crate) fn inward_pass(model: &Model, ws: &mut Workspace) {
+    ws.tau.as_mut_slice().fill(0.0);
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let c = body.joint.coords;
         for k in 0..ws.s[i].nv {

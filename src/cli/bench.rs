@@ -9,7 +9,7 @@ use super::ModelArgs;
 use clap::Args;
 use serde_json::{json, Map, Value};
 use spatial_dynamics::algorithms::method_choice::AUTO_TOLERANCE;
-use spatial_dynamics::algorithms::{choose_method, crba, forward_dynamics, gravity, rnea};
+use spatial_dynamics::algorithms::{choose_method, crba, flops, forward_dynamics, gravity, rnea};
 use spatial_dynamics::model::JointKind;
 use spatial_dynamics::{DynamicsError, Externals, ForwardDynamicsMethod, Model, Workspace};
 use std::hint::black_box;
@@ -79,6 +79,8 @@ pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), S
         (Some((_, f)), Some(ours)) => f[k].map(|f| f / ours),
         _ => None,
     };
+    let results: Vec<(&str, Option<f64>)> = KERNELS.into_iter().zip(times.clone()).collect();
+    let (flops, gflops) = flops_per_call(&model, &results);
     if as_json {
         let per_call = |t: &[Option<f64>]| -> Map<String, Value> {
             KERNELS
@@ -87,7 +89,8 @@ pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), S
                 .map(|(k, ns)| (k.to_string(), json!(ns)))
                 .collect()
         };
-        let mut out = json!({"nv": model.nv, "ns_per_call": per_call(&times), "auto_method": auto.method.name()});
+        let mut out = json!({"nv": model.nv, "ns_per_call": per_call(&times), "flops_per_call": flops,
+                             "gflops": gflops, "auto_method": auto.method.name()});
         if let Some((full, full_times)) = &full {
             out["full"] = json!({"nv": full.nv, "ns_per_call": per_call(full_times)});
             out["speedup"] = KERNELS
@@ -129,14 +132,46 @@ pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), S
             }
         }
         None => {
-            println!("{:<16} {:>12}", "kernel", "ns/call");
-            for (name, ns) in KERNELS.iter().zip(&times) {
-                println!("{name:<16} {:>12}", cell(*ns));
+            println!(
+                "{:<16} {:>12} {:>12} {:>8}",
+                "kernel", "ns/call", "FLOPs/call", "GFLOP/s"
+            );
+            for (name, ns) in &results {
+                let rate = gflops[*name]
+                    .as_f64()
+                    .map_or(String::new(), |x| format!("{x:.2}"));
+                println!(
+                    "{name:<16} {:>12} {:>12} {rate:>8}",
+                    cell(*ns),
+                    flops[*name]
+                );
             }
         }
     }
     println!("method auto would choose: {}", auto.summary());
     Ok(())
+}
+
+/// Per kernel, the floating-point operations of one call as implemented
+/// ([`flops::kernel_flops`]) and the rate achieved, GFLOP/s (FLOPs per nanosecond).
+fn flops_per_call(
+    model: &Model,
+    results: &[(&str, Option<f64>)],
+) -> (Map<String, Value>, Map<String, Value>) {
+    let mut flops_map = Map::new();
+    let mut gflops_map = Map::new();
+    for (name, ns) in results {
+        let count = flops::kernel_flops(model, name).map(|f| f.total());
+        flops_map.insert(name.to_string(), json!(count));
+        let rate = match (count, ns) {
+            (Some(count), Some(ns)) if *ns > 0.0 => {
+                Some((count as f64 / ns * 100.0).round() / 100.0)
+            }
+            _ => None,
+        };
+        gflops_map.insert(name.to_string(), json!(rate));
+    }
+    (flops_map, gflops_map)
 }
 
 /// Median nanoseconds per call (to a tenth) of each of `kernels` (names from [`KERNELS`]) on

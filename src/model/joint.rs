@@ -143,6 +143,45 @@ impl JointKind {
         }
     }
 
+    /// `ⁱX_λ = X_J(q) X_tree`: `jcalc` composed with the joint placement `x_tree` (parent body
+    /// frame → joint frame), writing `S(q)` into `s` as [`jcalc`](Self::jcalc) does.
+    ///
+    /// Fast paths, same result as `jcalc(q, s).compose(x_tree)`: a revolute joint about a
+    /// coordinate axis `±e_k` has `E_J = rot_k(±q)ᵀ`, which mixes only the two rows `i, j` of
+    /// `E_tree` other than `k` (`(i, j, k)` cyclic): `row_i ← c row_i + s row_j`,
+    /// `row_j ← c row_j − s row_i`; it does not move the origin. A prismatic joint keeps
+    /// `E_tree` and moves the origin by `E_treeᵀ (axis q)`.
+    pub fn jcalc_up(&self, q: &[f64], x_tree: &Transform, s: &mut MotionSubspace) -> Transform {
+        match *self {
+            JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
+                if let Some((k, sign)) = coordinate_axis(&axis) {
+                    s.nv = 1;
+                    s.cols[0] = Motion::new(axis, Vector3::zeros());
+                    let (sin, cos) = (sign * q[0]).sin_cos();
+                    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+                    let mut rot = x_tree.rot;
+                    let (row_i, row_j) = (x_tree.rot.row(i), x_tree.rot.row(j));
+                    rot.set_row(i, &(row_i * cos + row_j * sin));
+                    rot.set_row(j, &(row_j * cos - row_i * sin));
+                    return Transform {
+                        rot,
+                        trans: x_tree.trans,
+                    };
+                }
+            }
+            JointKind::Prismatic { axis } => {
+                s.nv = 1;
+                s.cols[0] = Motion::new(Vector3::zeros(), axis);
+                return Transform {
+                    rot: x_tree.rot,
+                    trans: x_tree.trans + x_tree.rot.tr_mul(&(axis * q[0])),
+                };
+            }
+            _ => {}
+        }
+        self.jcalc(q, s).compose(x_tree)
+    }
+
     /// The velocity-product term `c_J = S̊(q) q̇` (the apparent derivative of `S` in the child
     /// frame times `q̇`), zero for every kind whose `S` is constant in the child frame.
     /// `qd` holds the joint's velocity coordinates, already scaled.
@@ -200,6 +239,16 @@ impl JointKind {
     }
 }
 
+/// `Some((k, ±1))` when the unit `axis` is `±e_k`, a coordinate axis.
+fn coordinate_axis(axis: &Vector3) -> Option<(usize, f64)> {
+    match (axis.x, axis.y, axis.z) {
+        (x, 0.0, 0.0) if x.abs() == 1.0 => Some((0, x)),
+        (0.0, y, 0.0) if y.abs() == 1.0 => Some((1, y)),
+        (0.0, 0.0, z) if z.abs() == 1.0 => Some((2, z)),
+        _ => None,
+    }
+}
+
 /// Rotation matrix of angle `angle` about the unit vector `axis`.
 pub fn axis_rotation(axis: &Vector3, angle: f64) -> Matrix3 {
     Rotation3::from_axis_angle(&Unit::new_unchecked(*axis), angle).into_inner()
@@ -214,6 +263,38 @@ pub fn quaternion_rotation(q: &[f64]) -> Matrix3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The fast paths of `jcalc_up` give what the general `jcalc` composed with `X_tree` gives.
+    #[test]
+    fn jcalc_up_matches_jcalc_then_compose() {
+        let x_tree = Transform::from_pose(
+            Rotation3::from_euler_angles(0.4, -1.1, 2.0).matrix(),
+            &Vector3::new(0.3, -0.2, 0.7),
+        );
+        let mut kinds = vec![JointKind::Prismatic {
+            axis: Vector3::new(0.0, 0.6, 0.8),
+        }];
+        for k in 0..3 {
+            for sign in [1.0, -1.0] {
+                kinds.push(JointKind::Revolute {
+                    axis: Vector3::ith(k, sign),
+                });
+                kinds.push(JointKind::Prismatic {
+                    axis: Vector3::ith(k, sign),
+                });
+            }
+        }
+        for kind in kinds {
+            let q = [0.83];
+            let (mut s_fast, mut s_ref) = (MotionSubspace::default(), MotionSubspace::default());
+            let fast = kind.jcalc_up(&q, &x_tree, &mut s_fast);
+            let reference = kind.jcalc(&q, &mut s_ref).compose(&x_tree);
+            assert!((fast.rot - reference.rot).norm() < 1e-15, "{kind:?}");
+            assert!((fast.trans - reference.trans).norm() < 1e-15, "{kind:?}");
+            assert_eq!(s_fast.nv, s_ref.nv);
+            assert_eq!(s_fast.cols[0], s_ref.cols[0]);
+        }
+    }
 
     /// `S` must be the derivative of the joint placement: the child's velocity obtained by
     /// differentiating `X_J(q)` numerically equals `S q̇` — checks each kind's `jcalc`.

@@ -104,32 +104,54 @@ impl Transform {
     }
 
     /// `Xᵀ I X`: a rigid-body inertia given in B coordinates, expressed in A coordinates.
+    ///
+    /// Rotate into A's axes (still about B's origin), `h' = Eᵀ h`, `Ī' = Eᵀ Ī E`, then move the
+    /// origin by `r`: `h_A = h' + m r` and
+    /// `Ī_A = Ī' − r× h'× − h'× r× − m r× r× = Ī' − h_A rᵀ − r h'ᵀ + (r·(h' + h_A)) 1`
+    /// (by `a× b× = b aᵀ − (a·b) 1`), a symmetric update of six entries.
     pub fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia {
-        // Rotate into A's axes (still about B's origin), then move the origin by r:
-        // h_A = h' + m r,  Ī_A = Ī' − r× h'× − h'× r× − m r× r×.
         let h_rot = self.rot.tr_mul(&inertia.h);
-        let i_rot = self.rot.transpose() * inertia.i_bar * self.rot;
-        let rx = skew(&self.trans);
-        let hx = skew(&h_rot);
+        let r = &self.trans;
+        let h_a = h_rot + r * inertia.mass;
+        let diag = r.dot(&(h_rot + h_a));
+        let i_rot = rotate_symmetric(&self.rot, &inertia.i_bar);
+        let entry = |j: usize, k: usize| i_rot[(j, k)] - h_a[j] * r[k] - r[j] * h_rot[k];
+        let (xy, xz, yz) = (entry(0, 1), entry(0, 2), entry(1, 2));
+        let i_bar = Matrix3::new(
+            entry(0, 0) + diag,
+            xy,
+            xz,
+            xy,
+            entry(1, 1) + diag,
+            yz,
+            xz,
+            yz,
+            entry(2, 2) + diag,
+        );
         Inertia {
             mass: inertia.mass,
-            h: h_rot + self.trans * inertia.mass,
-            i_bar: i_rot - rx * hx - hx * rx - rx * rx * inertia.mass,
+            h: h_a,
+            i_bar,
         }
     }
 
     /// `Xᵀ M X` for a dense symmetric 6×6 inertia `M = [A B; Bᵀ C]` given in B coordinates
     /// (an articulated-body inertia), expressed in A coordinates; computed by blocks.
+    ///
+    /// After the rotation (`a = Eᵀ A E`, `b = Eᵀ B E`, `c = Eᵀ C E`),
+    /// `xlt(r)ᵀ [a b; bᵀ c] xlt(r)` with `xlt(r) = [1 0; −r× 1]` is
+    /// `[a − b r× + r× bᵀ − r× c r×,  b + r× c;  (b + r× c)ᵀ,  c]`; with `b' = b + r× c` the
+    /// top-left block is `a + (r× bᵀ)ᵀ + r× b'ᵀ` (as `c` is symmetric), three columnwise cross
+    /// products in all.
     pub fn transpose_apply_matrix6(&self, m: &Matrix6) -> Matrix6 {
         let e = &self.rot;
-        let a = e.transpose() * m.fixed_view::<3, 3>(0, 0) * e;
-        let b = e.transpose() * m.fixed_view::<3, 3>(0, 3) * e;
-        let c = e.transpose() * m.fixed_view::<3, 3>(3, 3) * e;
-        // xlt(r)ᵀ [A B; Bᵀ C] xlt(r) with xlt(r) = [1 0; −r× 1]:
-        // [A − B r× + r× Bᵀ − r× C r×,  B + r× C;  (B + r× C)ᵀ,  C].
-        let rx = skew(&self.trans);
-        let b_new = b + rx * c;
-        let a_new = a - b * rx + rx * b.transpose() - rx * c * rx;
+        let a = rotate_symmetric(e, &m.fixed_view::<3, 3>(0, 0).into_owned());
+        let b = e.tr_mul(&(m.fixed_view::<3, 3>(0, 3) * e));
+        let c = rotate_symmetric(e, &m.fixed_view::<3, 3>(3, 3).into_owned());
+        let r = &self.trans;
+        let b_new = b + cross_columns(r, &c);
+        let a_new =
+            a + cross_columns(r, &b.transpose()).transpose() + cross_columns(r, &b_new.transpose());
         let mut out = Matrix6::zeros();
         out.fixed_view_mut::<3, 3>(0, 0).copy_from(&a_new);
         out.fixed_view_mut::<3, 3>(0, 3).copy_from(&b_new);
@@ -148,6 +170,24 @@ impl Transform {
             .copy_from(&(-self.rot * skew(&self.trans)));
         x
     }
+}
+
+/// `Eᵀ S E` for a symmetric `S`: `t_k = S e_k` for each column `e_k` of `E`, then the six
+/// distinct entries `(Eᵀ S E)_jk = e_j · t_k`.
+fn rotate_symmetric(e: &Matrix3, s: &Matrix3) -> Matrix3 {
+    let t = [s * e.column(0), s * e.column(1), s * e.column(2)];
+    let d = |j: usize, k: usize| e.column(j).dot(&t[k]);
+    let (xx, xy, xz, yy, yz, zz) = (d(0, 0), d(0, 1), d(0, 2), d(1, 1), d(1, 2), d(2, 2));
+    Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz)
+}
+
+/// `r× M`: the cross product of `r` with each column of `M`.
+fn cross_columns(r: &Vector3, m: &Matrix3) -> Matrix3 {
+    let mut out = Matrix3::zeros();
+    for j in 0..3 {
+        out.set_column(j, &r.cross(&m.column(j).into_owned()));
+    }
+    out
 }
 
 #[cfg(test)]
@@ -202,6 +242,11 @@ mod tests {
         let dense = xm.transpose() * inertia.to_matrix() * xm;
         assert!((x.transpose_apply_inertia(&inertia).to_matrix() - dense).norm() < 1e-13);
         assert!((x.transpose_apply_matrix6(&inertia.to_matrix()) - dense).norm() < 1e-13);
+        // An articulated inertia: any symmetric 6×6, its lower-right block not a multiple of 1.
+        let g = Matrix6::from_fn(|r, c| ((r * 7 + c * 3) % 11) as f64 * 0.1 - 0.4);
+        let articulated = g.transpose() * g + Matrix6::identity();
+        let dense = xm.transpose() * articulated * xm;
+        assert!((x.transpose_apply_matrix6(&articulated) - dense).norm() < 1e-12);
         // Power is frame-invariant: (X m)·(X* f) = m·f.
         assert!((x.apply_motion(&m).dot(&x.apply_force(&f)) - m.dot(&f)).abs() < 1e-13);
         let _ = Vector6::<f64>::zeros();

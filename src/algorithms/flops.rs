@@ -1,0 +1,484 @@
+//! Floating-point operation counts of the algorithms *as implemented here*, for a given model:
+//! each spatial operation's cost read off its code, summed over the tree (and, for `crba` and
+//! the `LᵀL` factorisation, over the mass matrix's sparsity pattern). Validation and bookkeeping
+//! (index arithmetic, comparisons, copies, negations) are not counted.
+//!
+//! A FLOP is one scalar multiplication, addition or subtraction, division or square root
+//! ([`Flops::total`]); a joint angle's `sin_cos` is a library call, counted apart
+//! ([`Flops::sincos`]). No fused multiply-add: Rust does not contract `a * b + c`.
+//!
+//! Costs of the building blocks (multiplications m, additions a):
+//!
+//! | operation | code | m | a |
+//! |---|---|---:|---:|
+//! | 3-vector cross product | `Vector3::cross` | 6 | 3 |
+//! | 3×3 matrix × 3-vector (or `Eᵀ v`) | `Matrix3 * Vector3`, `tr_mul` | 9 | 6 |
+//! | 3×3 × 3×3 | `Matrix3 * Matrix3` | 27 | 18 |
+//! | `X m`, `X* f`, `X⁻¹ m`, `Xᵀ f` | `Transform::apply_*` | 24 | 18 |
+//! | `X₁ X₂` | `Transform::compose` | 36 | 27 |
+//! | `Xᵀ I X` (rigid inertia) | `Transform::transpose_apply_inertia` | 72 | 59 |
+//! | `I v` | `Inertia::apply` | 24 | 18 |
+//! | `v ×̂ m`, `v ×* f` | `Motion::cross_*` | 18 | 12 |
+//! | `mᵀ f` | `Motion::dot` | 6 | 5 |
+//! | 6-vector sum | `+` on `Motion`, `Force` | 0 | 6 |
+//! | `I₁ + I₂` (rigid inertias) | `Inertia + Inertia` | 0 | 13 |
+//! | 6×6 × 6-vector | `Matrix6 * Vector6` | 36 | 30 |
+//! | `S q̇` (per column) | `MotionSubspace::apply` | 7 | 6 |
+//!
+//! and `jcalc_up` (`JointKind::jcalc_up`) per joint kind: revolute about a coordinate axis
+//! 13 m + 6 a and one `sin_cos`; prismatic 12 m + 9 a; revolute about another axis (nalgebra's
+//! `from_axis_angle`, 24 m + 13 a) then `compose`; floating (quaternion normalised, 4 m + 3 a,
+//! one square root, 4 divisions; then to a rotation matrix, 16 m + 15 a) then `compose`;
+//! planar (rotation about the normal, then `E u`, `E w`, `u x + w y`: 18 m + 12 a more) then
+//! `compose`.
+//!
+//! Dense factorisations count exactly their loops; nalgebra's 6×6 Cholesky and inverse, used
+//! by ABA for a joint with several degrees of freedom, are counted as `n³/3` and `n³` (n = 6).
+
+use crate::model::{JointKind, Model};
+use std::ops::{Add, AddAssign, Mul};
+
+/// Operation counts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Flops {
+    /// Multiplications.
+    pub mul: u64,
+    /// Additions and subtractions.
+    pub add: u64,
+    /// Divisions.
+    pub div: u64,
+    /// Square roots.
+    pub sqrt: u64,
+    /// Calls to `sin_cos` (not in [`total`](Self::total)).
+    pub sincos: u64,
+}
+
+impl Flops {
+    /// `mul` multiplications and `add` additions.
+    pub const fn new(mul: u64, add: u64) -> Self {
+        Flops {
+            mul,
+            add,
+            div: 0,
+            sqrt: 0,
+            sincos: 0,
+        }
+    }
+
+    /// Multiplications, additions, divisions and square roots.
+    pub fn total(&self) -> u64 {
+        self.mul + self.add + self.div + self.sqrt
+    }
+}
+
+impl Add for Flops {
+    type Output = Flops;
+    fn add(self, o: Flops) -> Flops {
+        Flops {
+            mul: self.mul + o.mul,
+            add: self.add + o.add,
+            div: self.div + o.div,
+            sqrt: self.sqrt + o.sqrt,
+            sincos: self.sincos + o.sincos,
+        }
+    }
+}
+
+impl AddAssign for Flops {
+    fn add_assign(&mut self, o: Flops) {
+        *self = *self + o;
+    }
+}
+
+impl Mul<u64> for Flops {
+    type Output = Flops;
+    fn mul(self, k: u64) -> Flops {
+        Flops {
+            mul: self.mul * k,
+            add: self.add * k,
+            div: self.div * k,
+            sqrt: self.sqrt * k,
+            sincos: self.sincos * k,
+        }
+    }
+}
+
+/// `Vector3::cross`.
+pub const CROSS3: Flops = Flops::new(6, 3);
+/// 3×3 matrix times 3-vector.
+pub const MAT3_VEC3: Flops = Flops::new(9, 6);
+/// Motion or force transform (any of the four `apply` forms).
+pub const TRANSFORM_VECTOR: Flops = Flops::new(24, 18);
+/// `Transform::compose`.
+pub const COMPOSE: Flops = Flops::new(36, 27);
+/// `Transform::transpose_apply_inertia`.
+pub const TRANSFORM_INERTIA: Flops = Flops::new(72, 59);
+/// `Inertia::apply`.
+pub const INERTIA_APPLY: Flops = Flops::new(24, 18);
+/// Spatial cross product, motion or force.
+pub const CROSS6: Flops = Flops::new(18, 12);
+/// `Motion::dot`.
+pub const DOT6: Flops = Flops::new(6, 5);
+/// Sum of two 6-vectors.
+pub const ADD6: Flops = Flops::new(0, 6);
+/// Sum of two rigid-body inertias.
+pub const INERTIA_ADD: Flops = Flops::new(0, 13);
+/// 6×6 matrix times 6-vector.
+pub const MAT6_VEC6: Flops = Flops::new(36, 30);
+/// One column of `S q̇` with the coordinate scale.
+pub const SUBSPACE_COLUMN: Flops = Flops::new(7, 6);
+
+/// The count of kernel `name` (as `spatial_dynamics bench` names them: `rnea`, `crba`,
+/// `fd_aba`, `fd_crba`, `fd_rnea_columns`, `gravity`) on `model`; `None` for another name, or
+/// for `fd_aba` on a model with mimic joints (ABA refuses them).
+pub fn kernel_flops(model: &Model, name: &str) -> Option<Flops> {
+    let n = model.nv as u64;
+    Some(match name {
+        "rnea" => joints(model) + rnea_passes(model, true, true),
+        "crba" => joints(model) + crba_passes(model),
+        "gravity" => joints(model) + gravity_passes(model),
+        "fd_aba" => {
+            if model.bodies.iter().any(|b| b.joint.is_mimic()) {
+                return None;
+            }
+            joints(model) + aba_passes(model)
+        }
+        "fd_crba" => {
+            let solve = match &model.dof_parent {
+                Some(lambda) => ltl(lambda),
+                None => dense_cholesky(n),
+            };
+            joints(model) + rnea_passes(model, true, false) + crba_passes(model) + solve
+                // τ − C
+                + Flops::new(0, n)
+        }
+        "fd_rnea_columns" => {
+            (joints(model) + rnea_passes(model, true, false))
+                + (joints(model) + rnea_passes(model, true, true)) * n
+                // H_k = τ − C for each column, τ − C once
+                + Flops::new(0, n * n + n)
+                + dense_cholesky(n)
+        }
+        _ => return None,
+    })
+}
+
+/// `update_joints`: `jcalc_up` for every body.
+fn joints(model: &Model) -> Flops {
+    let mut total = Flops::default();
+    for body in &model.bodies {
+        total += match body.joint.kind {
+            JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
+                if is_coordinate_axis(&axis) {
+                    Flops {
+                        sincos: 1,
+                        ..Flops::new(13, 6)
+                    }
+                } else {
+                    Flops {
+                        sincos: 1,
+                        ..Flops::new(24, 13)
+                    } + COMPOSE
+                }
+            }
+            JointKind::Prismatic { .. } => Flops::new(12, 9),
+            JointKind::Floating => {
+                Flops {
+                    sqrt: 1,
+                    div: 4,
+                    ..Flops::new(4 + 16, 3 + 15)
+                } + COMPOSE
+            }
+            JointKind::Planar { .. } => {
+                Flops {
+                    sincos: 1,
+                    ..Flops::new(24 + 18, 13 + 12)
+                } + COMPOSE
+            }
+        };
+        // A mimic follower's position, scale · q + offset.
+        if body.joint.is_mimic() {
+            total += Flops::new(1, 1);
+        }
+    }
+    total
+}
+
+fn is_coordinate_axis(axis: &crate::spatial::Vector3) -> bool {
+    let zeros = axis.iter().filter(|x| **x == 0.0).count();
+    zeros == 2 && axis.iter().any(|x| x.abs() == 1.0)
+}
+
+/// `c_J` of a planar joint: rotation, `E (u ẋ + w ẏ)`, cross product and scale.
+fn joint_bias(kind: &JointKind) -> Flops {
+    match kind {
+        JointKind::Planar { .. } => {
+            Flops {
+                sincos: 1,
+                ..Flops::new(24, 13)
+            } + Flops::new(6, 3)
+                + MAT3_VEC3
+                + CROSS3
+                + Flops::new(3, 0)
+        }
+        _ => Flops::default(),
+    }
+}
+
+/// `rnea_passes` with velocities (`with_v`) and accelerations (`with_a`) given.
+fn rnea_passes(model: &Model, with_v: bool, with_a: bool) -> Flops {
+    let mut total = Flops::default();
+    for body in &model.bodies {
+        let nv = body.joint.kind.nv() as u64;
+        if with_v {
+            total += SUBSPACE_COLUMN * nv + joint_bias(&body.joint.kind);
+        }
+        // v_i = X v_λ + v_J;  a_i = X a_λ + c_J + v_i ×̂ v_J
+        total += TRANSFORM_VECTOR + ADD6;
+        total += TRANSFORM_VECTOR + ADD6 + CROSS6 + ADD6;
+        if with_a {
+            total += SUBSPACE_COLUMN * nv + ADD6;
+        }
+        // f_i = I a_i + v_i ×* I v_i
+        total += INERTIA_APPLY * 2 + CROSS6 + ADD6;
+    }
+    total + inward_pass(model)
+}
+
+/// `inward_pass`: `τ_i = S_iᵀ f_i` (scaled, accumulated), `f_λ += Xᵀ f_i`.
+fn inward_pass(model: &Model) -> Flops {
+    let mut total = Flops::default();
+    for body in &model.bodies {
+        total += (DOT6 + Flops::new(1, 1)) * body.joint.kind.nv() as u64;
+        if body.parent.is_some() {
+            total += TRANSFORM_VECTOR + ADD6;
+        }
+    }
+    total
+}
+
+/// `gravity_passes`: `a_i = E a_λ`, `f_i = [h × a; m a]`, then the inward pass.
+fn gravity_passes(model: &Model) -> Flops {
+    (MAT3_VEC3 + CROSS3 + Flops::new(3, 0)) * model.nbodies() as u64 + inward_pass(model)
+}
+
+/// `update_placements`: one `compose` per body below the root.
+fn placements(model: &Model) -> Flops {
+    COMPOSE * model.bodies.iter().filter(|b| b.parent.is_some()).count() as u64
+}
+
+/// `crba_passes`: world placements, inertias and axes; `F = I^c S` per coordinate; one
+/// `S_jᵀ F` per entry of `H`'s upper triangle in the tree pattern (counted along each
+/// coordinate's ancestors); composite inertias added into the parents.
+fn crba_passes(model: &Model) -> Flops {
+    let mut total = placements(model);
+    for (i, body) in model.bodies.iter().enumerate() {
+        let nv = body.joint.kind.nv() as u64;
+        total += TRANSFORM_INERTIA + TRANSFORM_VECTOR * nv + INERTIA_APPLY * nv;
+        // Own block (upper triangle with the diagonal) and one block per ancestor.
+        total += DOT6 * (nv * (nv + 1) / 2);
+        let mut j = i;
+        while let Some(p) = model.bodies[j].parent {
+            total += DOT6 * (nv * model.bodies[p].joint.kind.nv() as u64);
+            j = p;
+        }
+        if body.parent.is_some() {
+            total += INERTIA_ADD;
+        }
+    }
+    if model.dof_parent.is_none() {
+        // The general path scales every entry by μ_i μ_j (two multiplications) and adds it.
+        total += Flops::new(2, 1) * pattern_entries(model);
+    }
+    total
+}
+
+/// Entries of `H`'s upper triangle (with the diagonal) that the tree's sparsity allows.
+fn pattern_entries(model: &Model) -> u64 {
+    let mut count = 0;
+    for (i, body) in model.bodies.iter().enumerate() {
+        let nv = body.joint.kind.nv() as u64;
+        count += nv * (nv + 1) / 2;
+        let mut j = i;
+        while let Some(p) = model.bodies[j].parent {
+            count += nv * model.bodies[p].joint.kind.nv() as u64;
+            j = p;
+        }
+    }
+    count
+}
+
+/// The three ABA passes (world frame).
+fn aba_passes(model: &Model) -> Flops {
+    let mut total = placements(model);
+    for body in &model.bodies {
+        let nv = body.joint.kind.nv() as u64;
+        // Pass 1: ⁰S, v_J, v_i, c_i, ⁰I, p^A.
+        total += TRANSFORM_VECTOR * nv + SUBSPACE_COLUMN * nv + ADD6;
+        total += joint_bias(&body.joint.kind) + TRANSFORM_VECTOR + CROSS6 + ADD6;
+        total += TRANSFORM_INERTIA + INERTIA_APPLY + CROSS6;
+        // Pass 2: U, D, u, D⁻¹.
+        total += MAT6_VEC6 * nv + DOT6 * (nv * nv) + (DOT6 + Flops::new(0, 1)) * nv;
+        total += if nv == 1 {
+            Flops {
+                div: 1,
+                ..Flops::default()
+            }
+        } else {
+            // nalgebra's Cholesky (6 square roots) and inverse of the padded 6×6.
+            Flops {
+                sqrt: 6,
+                ..Flops::new(36, 36)
+            } + Flops::new(108, 108)
+        };
+        if body.parent.is_some() {
+            // D⁻¹ u and the rows of D⁻¹ Uᵀ, the rank-nv update, p^a, I^a c, the parent sums.
+            total += (Flops::new(nv, nv) + Flops::new(6, 6) * nv) * nv;
+            total += (Flops::new(36, 36) + Flops::new(6, 6)) * nv;
+            total += MAT6_VEC6 + ADD6 + Flops::new(0, 36) + ADD6;
+        }
+        // Pass 3: a' = a_λ + c_i, the right-hand side, q̈ = D⁻¹ rhs, a_i += S q̈.
+        total += ADD6 + (DOT6 + Flops::new(0, 1)) * nv;
+        total += Flops::new(nv, nv) * nv + Flops::new(6, 6) * nv;
+    }
+    total
+}
+
+/// `ltl_factor` and `ltl_solve` along the tree (`λ` over coordinates): for coordinate `k` with
+/// `d_k` ancestors, one square root, `d_k` divisions and `d_k (d_k + 1) / 2` multiply-subtracts;
+/// the two triangular solves, `2 d_k` multiply-subtracts and two divisions.
+fn ltl(lambda: &[Option<usize>]) -> Flops {
+    let mut total = Flops::default();
+    for k in 0..lambda.len() {
+        let d = std::iter::successors(lambda[k], |&i| lambda[i]).count() as u64;
+        total += Flops {
+            sqrt: 1,
+            div: d + 2,
+            ..Flops::new(d * (d + 1) / 2 + 2 * d, d * (d + 1) / 2 + 2 * d)
+        };
+    }
+    total
+}
+
+/// `cholesky_factor` and `cholesky_solve` on a dense `n × n` matrix.
+fn dense_cholesky(n: u64) -> Flops {
+    let mut total = Flops::default();
+    for j in 0..n {
+        // Pivot, then the column below it.
+        total += Flops {
+            sqrt: 1,
+            ..Flops::new(j, j)
+        };
+        total += Flops {
+            div: n - j - 1,
+            ..Flops::new(j * (n - j - 1), j * (n - j - 1))
+        };
+    }
+    // Forward and back substitution.
+    total
+        + Flops {
+            div: 2 * n,
+            ..Flops::new(n * (n - 1), n * (n - 1))
+        }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::algorithms::crba;
+    use crate::model::examples;
+    use crate::urdf::model_from_str;
+    use crate::{ModelOptions, Workspace};
+
+    fn chain(n: usize) -> Model {
+        model_from_str(
+            &examples::pendulum_urdf(n, 1.0, 1.0),
+            &ModelOptions::default(),
+        )
+        .unwrap()
+    }
+
+    /// For an unbranched chain `H` is dense and the sparse `LᵀL` is a dense Cholesky. Featherstone
+    /// (RBDA §6.5) gives `n³/6 + n²/2 − 2n/3` multiplications for the factorisation, counting
+    /// the `n(n−1)/2` scalings by `1/L_kk` as multiplications (we divide), and `n` square roots;
+    /// the two substitutions add `n² − n` multiply-adds and `2n` divisions.
+    #[test]
+    fn ltl_on_a_chain_matches_the_dense_cholesky_count() {
+        for n in [1usize, 2, 7, 30] {
+            let model = chain(n);
+            let lambda = model.dof_parent.as_ref().unwrap();
+            let n = n as u64;
+            let count = ltl(lambda);
+            let (solve_mul, solve_div) = (n * n - n, 2 * n);
+            assert_eq!(
+                (count.mul - solve_mul) + (count.div - solve_div),
+                (n * n * n + 3 * n * n - 4 * n) / 6,
+                "n = {n}"
+            );
+            assert_eq!(count.div - solve_div, n * (n - 1) / 2, "n = {n}");
+            assert_eq!((count.add, count.sqrt), (count.mul, n), "n = {n}");
+            assert_eq!(dense_cholesky(n), count, "n = {n}");
+        }
+    }
+
+    /// The number of `S_jᵀ F` products CRBA is charged for (walking bodies to the root) is the
+    /// number of coordinate pairs `(j, k)` with `j = k` or `j` an ancestor of `k` (walking `λ`
+    /// over coordinates), and no entry of a computed `H` outside those pairs is non-zero (CRBA
+    /// writes only the pattern, so this also checks that the other writer of `H` leaves zeros).
+    #[test]
+    fn crba_dot_products_match_the_pattern_of_h() {
+        let text = examples::DEFAULT_ARM_URDF;
+        for floating in [false, true] {
+            let options = ModelOptions {
+                floating_base: floating,
+                ..ModelOptions::default()
+            };
+            for model in [model_from_str(text, &options).unwrap(), chain(5)] {
+                let lambda = model.dof_parent.as_ref().unwrap();
+                let ancestors = |k: usize| std::iter::successors(lambda[k], |&i| lambda[i]);
+                let pairs: u64 = (0..model.nv).map(|k| 1 + ancestors(k).count() as u64).sum();
+                assert_eq!(pattern_entries(&model), pairs);
+                let mut ws = Workspace::new(&model);
+                let mut q: Vec<f64> = (0..model.nq).map(|i| 0.3 + 0.1 * i as f64).collect();
+                for j in model.coordinate_joints() {
+                    if *j.kind == JointKind::Floating {
+                        q[j.q_index + 3..j.q_index + 7].copy_from_slice(&[0.1, 0.2, 0.3, 0.9]);
+                    }
+                }
+                // The n+1-RNEA method writes all of H into the same workspace first.
+                let v = vec![0.5; model.nv];
+                let ext = crate::Externals::none();
+                let method = crate::ForwardDynamicsMethod::RneaColumns;
+                crate::algorithms::forward_dynamics(&model, &mut ws, &q, &v, &v, method, &ext)
+                    .unwrap();
+                let h = crba(&model, &mut ws, &q).unwrap();
+                for c in 0..model.nv {
+                    for r in 0..c {
+                        if !ancestors(c).any(|a| a == r) {
+                            assert_eq!(h[(r, c)], 0.0, "H[{r}, {c}] outside the pattern");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Per body of a revolute chain, RNEA costs what its passes do: jcalc (13 m + 6 a),
+    /// `S q̇`, `S q̈` (7 m + 6 a each), two transforms, a spatial cross product and four
+    /// 6-vector sums outward, two inertia products, a cross product and a sum for `f`, and
+    /// inward a projection (scaled, accumulated) and, below the root, a transform and a sum.
+    #[test]
+    fn rnea_per_body_on_a_chain() {
+        let per_body = Flops::new(
+            13 + 7 + 7 + 48 + 18 + 48 + 18 + 7,
+            6 + 6 + 6 + 36 + 12 + 24 + 36 + 12 + 6 + 6,
+        );
+        let below_root = Flops::new(24, 24);
+        for n in [1usize, 4, 9] {
+            let model = chain(n);
+            let mut expected = per_body * n as u64 + below_root * (n as u64 - 1);
+            expected.sincos = n as u64;
+            assert_eq!(kernel_flops(&model, "rnea"), Some(expected), "n = {n}");
+        }
+    }
+}
