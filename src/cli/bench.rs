@@ -95,7 +95,7 @@ pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), S
         match ns {
             Some(ns) => println!(
                 "{name:<16} {ns:>12.1} {:>12} {:>8.2}",
-                flops[name],
+                flops[name].to_string(),
                 gflops[name].as_f64().unwrap_or(f64::NAN)
             ),
             None => println!("{name:<16} {:>12}", "n/a (mimic)"),
