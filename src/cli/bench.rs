@@ -143,7 +143,7 @@ pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), S
                 println!(
                     "{name:<16} {:>12} {:>12} {rate:>8}",
                     cell(*ns),
-                    flops[*name]
+                    flops[*name].to_string()
                 );
             }
         }
