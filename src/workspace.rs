@@ -73,8 +73,10 @@ impl Workspace {
             u_bias: vec![[0.0; 6]; n],
             tau: DVector::zeros(nv),
             qdd: DVector::zeros(nv),
-            mass_matrix: DMatrix::zeros(nv, nv),
-            factor: DMatrix::zeros(nv, nv),
+            // From zeroed allocations (calloc): pages are only touched when used, so a model
+            // with thousands of coordinates does not spend seconds writing zeros here.
+            mass_matrix: DMatrix::from_vec(nv, nv, vec![0.0; nv * nv]),
+            factor: DMatrix::from_vec(nv, nv, vec![0.0; nv * nv]),
             bias: DVector::zeros(nv),
             unit: DVector::zeros(nv),
         }
