@@ -77,6 +77,15 @@ impl fmt::Display for DynamicsError {
             DynamicsError::NonFiniteWrench { body } => {
                 write!(f, "the external wrench on '{body}' is not finite")
             }
+            // A pivot that overflowed is not a singularity of the model but of the numbers.
+            DynamicsError::SingularMassMatrix { coordinate, pivot } if !pivot.is_finite() => write!(
+                f,
+                "the mass matrix at coordinate '{coordinate}' overflowed to a non-finite value (pivot {pivot}): the state is too extreme to compute with"
+            ),
+            DynamicsError::SingularArticulatedInertia { joint, pivot } if !pivot.is_finite() => write!(
+                f,
+                "the articulated inertia at joint '{joint}' overflowed to a non-finite value (pivot {pivot}): the state is too extreme to compute with"
+            ),
             DynamicsError::SingularMassMatrix { coordinate, pivot } => write!(
                 f,
                 "the mass matrix is singular or not positive definite at coordinate '{coordinate}' (pivot {pivot:e}): a massless body or one that cannot move along this joint"

@@ -32,7 +32,15 @@ pub fn model_from_str(text: &str, options: &ModelOptions) -> Result<Model, Model
     for joint in &robot.joints {
         builder.joint(joint_spec(joint)?);
     }
-    builder.build(options)
+    let model = builder.build(options)?;
+    if model.nv > MAX_COORDINATES {
+        return Err(ModelError::Invalid(format!(
+            "the model has {} coordinates, more than {MAX_COORDINATES}: its mass matrix alone would take {:.1} GB",
+            model.nv,
+            (model.nv * model.nv * 8) as f64 / 1e9
+        )));
+    }
+    Ok(model)
 }
 
 /// Builds a model from a URDF file.
@@ -42,11 +50,65 @@ pub fn model_from_file(path: &Path, options: &ModelOptions) -> Result<Model, Mod
     model_from_str(&text, options)
 }
 
-/// Parses the text with the elements dynamics does not need removed.
+/// Limits no real robot description comes near (TALOS, a full humanoid, has about 2 000 XML
+/// elements nested 6 deep), so that a huge or hostile text is refused with a reason instead of
+/// exhausting the stack (the XML tree is walked recursively) or memory (a model with `n`
+/// coordinates needs two `n × n` matrices: 6.4 GB at the limit).
+pub const MAX_DEPTH: usize = 100;
+/// See [`MAX_DEPTH`]: XML elements in the whole description.
+pub const MAX_ELEMENTS: usize = 1_000_000;
+/// See [`MAX_DEPTH`]: `<link>` elements, and `<joint>` elements, each.
+pub const MAX_LINKS: usize = 20_000;
+/// See [`MAX_DEPTH`]: coordinates (`nv`) of the model built.
+pub const MAX_COORDINATES: usize = 20_000;
+
+/// Parses the text with the elements dynamics does not need removed. The XML is read as a
+/// stream first, so that nesting, element and link counts are checked before any of it is
+/// walked recursively.
 fn parse(text: &str) -> Result<urdf_rs::Robot, ModelError> {
-    let mut root: xml::Element = text
-        .parse()
-        .map_err(|e| ModelError::Parse(format!("{e}")))?;
+    let too_big = |what: String| {
+        Err(ModelError::Parse(format!(
+            "{what}: not a robot description this library can use"
+        )))
+    };
+    let mut parser = xml::Parser::new();
+    parser.feed_str(text);
+    let mut builder = xml::ElementBuilder::new();
+    let (mut depth, mut elements, mut links, mut joints) = (0usize, 0usize, 0usize, 0usize);
+    let mut root = None;
+    for event in parser {
+        match &event {
+            Ok(xml::Event::ElementStart(tag)) => {
+                depth += 1;
+                elements += 1;
+                if depth > MAX_DEPTH {
+                    return too_big(format!(
+                        "elements are nested more than {MAX_DEPTH} deep (at <{}>)",
+                        tag.name
+                    ));
+                }
+                if elements > MAX_ELEMENTS {
+                    return too_big(format!("more than {MAX_ELEMENTS} XML elements"));
+                }
+                match (depth, tag.name.as_str()) {
+                    (2, "link") => links += 1,
+                    (2, "joint") => joints += 1,
+                    _ => {}
+                }
+                if links.max(joints) > MAX_LINKS {
+                    return too_big(format!("more than {MAX_LINKS} links or joints"));
+                }
+            }
+            Ok(xml::Event::ElementEnd(_)) => depth = depth.saturating_sub(1),
+            _ => {}
+        }
+        if let Some(element) = builder.handle_event(event) {
+            root = Some(element.map_err(|e| ModelError::Parse(format!("{e}")))?);
+            break;
+        }
+    }
+    let mut root =
+        root.ok_or_else(|| ModelError::Parse(format!("{}", xml::BuilderError::NoElement)))?;
     if root.name != "robot" {
         return Err(ModelError::Parse(format!(
             "the root element is <{}>, not <robot>",

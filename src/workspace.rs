@@ -97,8 +97,10 @@ impl Workspace {
             qdd: DVector::zeros(nv),
             f_cols: vec![Force::zero(); nv],
             subtree_end: contiguous_subtrees(model),
-            mass_matrix: DMatrix::zeros(nv, nv),
-            factor: DMatrix::zeros(nv, nv),
+            // From zeroed allocations (calloc): pages are only touched when used, so a model
+            // with thousands of coordinates does not spend seconds writing zeros here.
+            mass_matrix: DMatrix::from_vec(nv, nv, vec![0.0; nv * nv]),
+            factor: DMatrix::from_vec(nv, nv, vec![0.0; nv * nv]),
             dof_ancestors: model.dof_parent.as_deref().map(Ancestors::new),
             bias: DVector::zeros(nv),
             unit: DVector::zeros(nv),

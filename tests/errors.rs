@@ -182,3 +182,131 @@ fn a_subnormal_tip_mass_is_refused_by_aba_with_its_pivot() {
         "{message}"
     );
 }
+
+#[test]
+fn deep_nesting_is_refused_without_overflowing_the_stack() {
+    // Found while testing big inputs: 1 000 000 nested elements kept the loader busy for more
+    // than 15 minutes of CPU (building the XML tree costs more per level the deeper it is) and
+    // the tree was then walked recursively (stripped, printed, dropped). Now refused from the
+    // token stream before any tree is built; on a 256 KiB stack to show that no recursion over
+    // the depth is left.
+    let depth = 1_000_000;
+    let text = format!(
+        r#"<robot name="x"><link name="a"/>{}{}</robot>"#,
+        "<g>".repeat(depth),
+        "</g>".repeat(depth)
+    );
+    let err = std::thread::Builder::new()
+        .stack_size(256 << 10)
+        .spawn(move || model(&text).unwrap_err().to_string())
+        .unwrap()
+        .join()
+        .expect("no stack overflow");
+    assert!(err.contains("nested more than 100 deep (at <g>)"), "{err}");
+    // 100 levels are still fine (drawing elements of real URDFs nest about 6 deep).
+    let text = format!(
+        r#"<robot name="x"><link name="a"><visual>{}{}</visual></link></robot>"#,
+        "<g>".repeat(97),
+        "</g>".repeat(97)
+    );
+    assert!(model(&text).is_ok());
+}
+
+#[test]
+fn eval_requests_that_are_not_json_or_not_utf8_are_answered_with_an_error() {
+    use spatial_dynamics::requests::answer_line;
+    let m = model(&ARM2.replace("LEAF", r#"<link name="l2"><inertial><mass value="0.5"/><inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001"/></inertial></link>"#)).unwrap();
+    let mut ws = Workspace::new(&m);
+    let cases: [(&[u8], &str); 7] = [
+        (b"\xff\xfe{", "bad request"),
+        (b"{\"op\":\"gravity\",\"q\":[\"\xff\"]}", "bad request"),
+        (format!("{{\"op\":\"gravity\",\"q\":{}0{}}}", "[".repeat(200), "]".repeat(200)).into_bytes().leak(), "recursion limit"),
+        (b"{\"op\":\"gravity\",\"q\":[1e999, 0]}", "bad request"),
+        (b"{\"op\":\"gravity\",\"q\":[0]}", "q has 1 values, the model needs 2"),
+        (b"{\"op\":\"forward_dynamics\",\"q\":[0,0],\"v\":[0,0],\"tau\":[0,0],\"method\":\"magic\"}", "magic"),
+        (b"{\"op\":\"inverse_dynamics\",\"q\":[0,0],\"v\":[1e200,1e200],\"a\":[0,0]}", "overflowed to a non-finite value"),
+    ];
+    for (line, expected) in cases {
+        let answer = answer_line(&m, &mut ws, line);
+        let error = answer["error"]
+            .as_str()
+            .unwrap_or_else(|| panic!("{answer}"));
+        assert!(
+            error.contains(expected),
+            "{}: {error}",
+            String::from_utf8_lossy(line)
+        );
+    }
+}
+
+/// A revolute joint carrying a prismatic one: `H` holds `m x²` for the slide's coordinate `x`.
+const TURN_SLIDE: &str = include_str!("models/turn_slide.urdf");
+
+#[test]
+fn finite_inputs_that_overflow_are_errors_not_infinities() {
+    // Found by fuzzing `eval`: {"op":"mass_matrix","q":[0,1e200]} answered {"M":[[null,0.0],..]}
+    // (CRBA had no check of its result), and forward dynamics at that state called the
+    // articulated inertia "singular: nothing with mass moves" when it had overflowed.
+    use spatial_dynamics::algorithms::energy;
+    use spatial_dynamics::algorithms::kinematics::{body_motion, body_placements};
+    use spatial_dynamics::requests::answer_line;
+    let m = model(TURN_SLIDE).unwrap();
+    let mut ws = Workspace::new(&m);
+    let answer = answer_line(&m, &mut ws, br#"{"op":"mass_matrix","q":[0,1e200]}"#);
+    assert_eq!(
+        answer["error"].as_str(),
+        Some("mass matrix at 'turn' overflowed to a non-finite value"),
+        "{answer}"
+    );
+    let err = crba(&m, &mut ws, &[0.0, 1e200]).unwrap_err();
+    assert!(
+        matches!(err, DynamicsError::NonFiniteResult { .. }),
+        "{err}"
+    );
+    for method in ForwardDynamicsMethod::ALL {
+        let err = forward_dynamics(
+            &m,
+            &mut ws,
+            &[0.0, 1e200],
+            &[0.0; 2],
+            &[0.0; 2],
+            method,
+            &Externals::none(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            (err.contains("'turn'") || err.contains("'slide'")) && err.contains("overflowed"),
+            "{method}: {err}"
+        );
+        assert!(!err.contains("nothing with mass"), "{method}: {err}");
+    }
+    // Kinetic energy ½ m v² at v = 1e200, and body velocities and placements that overflow.
+    let err = energy(&m, &mut ws, &[0.0; 2], &[0.0, 1e200]).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "kinetic energy at 'slide' overflowed to a non-finite value"
+    );
+    let err = body_motion(&m, &mut ws, &[0.0, 1e200], &[1e200, 0.0]).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "velocity at 'slide' overflowed to a non-finite value"
+    );
+    let far = model(&TURN_SLIDE.replace(
+        r#"<child link="b"/>"#,
+        r#"<child link="b"/><origin xyz="1e308 0 0"/>"#,
+    ))
+    .unwrap();
+    let mut ws = Workspace::new(&far);
+    let err = body_placements(&far, &mut ws, &[0.0, 1e308]).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "placement at 'slide' overflowed to a non-finite value"
+    );
+    // Sane states still answer.
+    assert!(crba(&m, &mut ws_for(&m), &[0.3, 2.0]).is_ok());
+}
+
+fn ws_for(m: &spatial_dynamics::Model) -> Workspace {
+    Workspace::new(m)
+}

@@ -37,6 +37,14 @@ pub fn crba<'w>(
     check_q(model, q)?;
     update_joints(model, ws, q);
     crba_passes(model, ws);
+    // Finite inputs can still overflow (a prismatic coordinate of 1e200 under a revolute joint
+    // puts m·x² on the diagonal). Column-major: entry i is in row i mod nv.
+    if let Some(i) = ws.mass_matrix.iter().position(|x| !x.is_finite()) {
+        return Err(DynamicsError::NonFiniteResult {
+            quantity: "mass matrix",
+            coordinate: model.v_name(i % model.nv),
+        });
+    }
     Ok(&ws.mass_matrix)
 }
 

@@ -26,6 +26,15 @@ pub fn energy(
         let x = &ws.x_world[i];
         let com_world = x.trans + x.rot.tr_mul(&body.inertia.com());
         potential -= body.inertia.mass * model.gravity.dot(&com_world);
+        // Finite inputs can still overflow (½ m v² at v = 1e200).
+        for (quantity, value) in [("kinetic energy", kinetic), ("potential energy", potential)] {
+            if !value.is_finite() {
+                return Err(DynamicsError::NonFiniteResult {
+                    quantity,
+                    coordinate: body.joint.name.clone(),
+                });
+            }
+        }
     }
     Ok((kinetic, potential))
 }

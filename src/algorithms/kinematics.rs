@@ -39,7 +39,27 @@ pub fn body_placements<'w>(
     check_q(model, q)?;
     update_joints(model, ws, q);
     update_placements(model, ws);
+    check_bodies(model, "placement", |i| {
+        let x = &ws.x_world[i];
+        x.rot.iter().chain(x.trans.iter()).all(|e| e.is_finite())
+    })?;
     Ok(&ws.x_world)
+}
+
+/// An error naming the joint of the first body for which `finite` is false: finite inputs can
+/// still overflow (origins of 1e308 added up, velocities of 1e200 multiplied).
+fn check_bodies(
+    model: &Model,
+    quantity: &'static str,
+    finite: impl Fn(usize) -> bool,
+) -> Result<(), DynamicsError> {
+    match (0..model.nbodies()).find(|&i| !finite(i)) {
+        Some(i) => Err(DynamicsError::NonFiniteResult {
+            quantity,
+            coordinate: model.bodies[i].joint.name.clone(),
+        }),
+        None => Ok(()),
+    }
 }
 
 /// `ws.x_world` from `ws.x_up` (joints already updated).
@@ -76,5 +96,15 @@ pub fn body_motion(
     update_joints(model, ws, q);
     update_placements(model, ws);
     update_velocities(model, ws, v);
-    Ok(())
+    check_bodies(model, "placement", |i| {
+        let x = &ws.x_world[i];
+        x.rot.iter().chain(x.trans.iter()).all(|e| e.is_finite())
+    })?;
+    check_bodies(model, "velocity", |i| {
+        ws.v[i]
+            .ang
+            .iter()
+            .chain(ws.v[i].lin.iter())
+            .all(|e| e.is_finite())
+    })
 }

@@ -3,7 +3,10 @@
 answered correctly; a bad command leaves the previous good command in effect).
 """
 
+import os
+import time
 
+import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
@@ -25,6 +28,7 @@ BASE = "/spatial_dynamics/base_state"
 DESCRIPTION = "/robot_description"
 Q = [0.4, -0.6, 0.3, 1.2, -0.5, 0.8, -2.5]
 NAN, INF = float("nan"), float("inf")
+MILLION = 1_000_000
 GOOD_COMMAND = dict(zip(ARM_JOINTS, [1.5, -2.0, 0.5, 3.0, -0.25, 0.75, 0.1]))
 
 
@@ -160,6 +164,10 @@ BAD_JOINT_STATES = {
     "velocity_wrong_length": (lambda: js(ARM_JOINTS, Q, [0.0] * 3), "velocity"),
     "nan_position": (lambda: js(ARM_JOINTS, Q[:2] + [NAN] + Q[3:]), "position"),
     "inf_velocity": (lambda: js(ARM_JOINTS, Q, [0.0] * 6 + [INF]), "velocity"),
+    "empty_message": (lambda: js([], [], []), "position"),
+    "million_unknown_names": (lambda: js([f"j{i}" for i in range(MILLION)], [0.0] * MILLION), "unknown joint"),
+    "million_positions": (lambda: js(ARM_JOINTS, [0.0] * MILLION), "position"),
+    "million_duplicates": (lambda: js(ARM_JOINTS + ["joint1"] * MILLION, [0.0] * (MILLION + 7)), "joint"),
 }
 
 
@@ -193,6 +201,10 @@ BAD_COMMANDS = {
     "commands_wrong_length": (COMMANDS, lambda: Float64MultiArray(data=[9.0] * 6), "commands"),
     "commands_too_long": (COMMANDS, lambda: Float64MultiArray(data=[9.0] * 8), "commands"),
     "commands_inf": (COMMANDS, lambda: Float64MultiArray(data=[9.0] * 6 + [-INF]), "commands"),
+    "effort_empty_message": (EFFORT, lambda: JointState(), "effort"),
+    "commands_empty_message": (COMMANDS, lambda: Float64MultiArray(), "commands"),
+    "effort_million_values": (EFFORT, lambda: JointState(name=ARM_JOINTS, effort=[9.0] * MILLION), "effort"),
+    "commands_million_values": (COMMANDS, lambda: Float64MultiArray(data=[9.0] * MILLION), "commands"),
 }
 
 
@@ -211,6 +223,8 @@ BAD_REFERENCES = {
     "omitted_joint": (lambda: traj(ARM_JOINTS[1:], [JointTrajectoryPoint(positions=Q[1:])]), "lacks"),
     "positions_wrong_length": (lambda: traj(points=[JointTrajectoryPoint(positions=Q[:4])]), "position"),
     "nan_acceleration": (lambda: traj(points=[JointTrajectoryPoint(positions=Q, accelerations=[0.0] * 6 + [NAN])]), "points"),
+    "empty_message": (lambda: traj([], []), "no points"),
+    "million_names": (lambda: traj([f"j{i}" for i in range(MILLION)], [JointTrajectoryPoint(positions=[0.0] * MILLION)]), "unknown joint"),
 }
 
 
@@ -257,3 +271,52 @@ def test_services_still_answer_after_all_bad_inputs(ros, io, ref):
     assert resp.success, resp.message
     zero = ref.v([], [])
     assert_close(resp.effort, ref.pick(ref.rnea(ref.q(ARM_JOINTS, Q), zero, zero), ARM_JOINTS), "ID")
+
+
+# ---- a flood of bad input ---------------------------------------------------------------------
+
+
+def test_a_flood_of_bad_joint_states_is_counted_warned_about_once_a_second_and_others_are_served(ros, io, ref, module_nodes):
+    """One publisher floods /joint_states with bad messages for 3 s; meanwhile another client (its
+    own rclpy context: another DDS participant) gets right gravity answers to its good joint
+    states and right service answers. Every bad message that arrives is counted; the log warns
+    at most once a second, saying how many more were dropped in between."""
+    node = module_nodes.started[0]
+    other = sd.RosSession(int(os.environ["ROS_DOMAIN_ID"]), "dds_test_other_client")
+    try:
+        other_js = other.publisher(JointState, JS, sd.qos_reliable(10))
+        other_gravity = other.collector(JointState, "/spatial_dynamics/gravity_effort")
+        other_gravity.wait_publisher()
+        before = latest_report(ros, io)
+        warned_before = node.log().count("dropped a message on /joint_states")
+        bad = js(ARM_JOINTS + ["elbow"], Q + [0.0])
+        rng = np.random.default_rng(17)
+        start, sent, served = time.monotonic(), 0, 0
+        while time.monotonic() - start < 3.0:
+            for _ in range(50):
+                io[JS].publish(bad)
+                sent += 1
+            q = [float(x) for x in rng.uniform(-1, 1, 7)]
+            good = js(ARM_JOINTS, q)
+            got = other.exchange(lambda: other_js.publish(good), other_gravity, lambda m: sd.stamp_eq(m.header.stamp, good.header.stamp))
+            assert_close(got.effort, ref.pick(ref.gravity(ref.q(ARM_JOINTS, q)), ARM_JOINTS), "gravity for the other client")
+            resp = other.call(InverseDynamics, "/spatial_dynamics/inverse_dynamics", InverseDynamics.Request(name=ARM_JOINTS, position=q))
+            assert resp.success, resp.message
+            served += 1
+        elapsed = time.monotonic() - start
+        assert served >= 3, f"the other client was served {served} times in {elapsed:.1f} s"
+        # One more bad message after a quiet second: its warning reports the suppressed ones.
+        ros.spin_for(1.2)
+        expect_dropped(ros, io, JS, "unknown joint", lambda: io[JS].publish(js(ARM_JOINTS + ["elbow"], Q + [0.0])), resend=True)
+        after = latest_report(ros, io)
+        counted = sd.dropped_count(after, JS) - sd.dropped_count(before, JS)
+        warnings = node.log().count("dropped a message on /joint_states") - warned_before
+        print(f"sent {sent} bad joint states in {elapsed:.1f} s: {counted} counted, {warnings} warnings, other client served {served} times")
+        # Best effort in: not every message need arrive, but most do on loopback.
+        assert counted >= sent // 4, f"only {counted} of {sent} bad messages counted"
+        assert 1 <= warnings <= elapsed + 1.2 + 2, f"{warnings} warnings in {elapsed:.1f} s"
+        assert "more dropped since the last warning" in node.log(), node.log()[-2000:]
+        leaked = [m for m in io["gravity"].messages if sd.stamp_eq(m.header.stamp, bad.header.stamp)]
+        assert not leaked, "a bad joint state was answered"
+    finally:
+        other.close()

@@ -1,0 +1,447 @@
+//! The node's request → answer path, without DDS: the engine behind its services and topics
+//! (`src/node/engine/`, compiled here from the node's own source files) driven by a sequence of
+//! structured messages built from the fuzz input: joint names from the model's vocabulary and
+//! outside it, arrays of right and wrong lengths, numbers from ordinary to NaN, ±inf and 1e300.
+//!
+//! Checked after each message: a service answers `success = true` with finite numbers, or
+//! `success = false` with a reason and empty result arrays; a topic handler gives finite outputs
+//! or a reason. Never a panic.
+#![no_main]
+
+use arbitrary::{Result, Unstructured};
+use libfuzzer_sys::fuzz_target;
+use spatial_dynamics::model::examples::{
+    DEFAULT_ARM_URDF, LAMP_URDF, MIMIC_GRIPPER_URDF, PARTICLE_URDF,
+};
+use std::time::Instant;
+
+// The node's engine and the modules it uses, from the node's sources (the DDS serving loop in
+// `src/node/mod.rs` is left out). `params` and `msgs` name ros2-client's `ParameterValue` and
+// `Message`; nothing else of ROS is compiled. The engine's sources refer to `crate::node::…`.
+#[allow(dead_code, unused_imports)]
+#[path = "../../../src/node/engine/mod.rs"]
+mod engine;
+#[allow(dead_code)]
+#[path = "../../../src/node/joint_map.rs"]
+mod joint_map;
+#[allow(dead_code)]
+#[path = "../../../src/node/msgs.rs"]
+mod msgs;
+#[allow(dead_code)]
+#[path = "../../../src/node/params.rs"]
+mod params;
+mod node {
+    pub(crate) use super::{engine, joint_map, msgs, params};
+}
+
+use node::engine::Engine;
+use node::msgs::*;
+use node::params::Settings;
+
+const SPECIAL: [f64; 10] = [
+    0.0,
+    -0.0,
+    1.0,
+    -1.5,
+    1e300,
+    -1e300,
+    1e-310,
+    f64::NAN,
+    f64::INFINITY,
+    f64::NEG_INFINITY,
+];
+
+/// A number: mostly moderate, sometimes extreme or non-finite.
+fn number(u: &mut Unstructured) -> Result<f64> {
+    Ok(match u.int_in_range(0u8..=9)? {
+        0..=5 => (u.int_in_range(-3000i32..=3000)? as f64) / 1000.0,
+        6 | 7 => *u.choose(&SPECIAL)?,
+        _ => f64::from_bits(u.arbitrary()?),
+    })
+}
+
+fn numbers(u: &mut Unstructured, names: usize) -> Result<Vec<f64>> {
+    let len = match u.int_in_range(0u8..=5)? {
+        0 => 0,
+        1 => names.saturating_sub(1),
+        2 => names + 1,
+        3 => u.int_in_range(0usize..=40)?,
+        _ => names,
+    };
+    (0..len).map(|_| number(u)).collect()
+}
+
+fn vector(u: &mut Unstructured) -> Result<Vector3> {
+    Ok(Vector3 {
+        x: number(u)?,
+        y: number(u)?,
+        z: number(u)?,
+    })
+}
+
+fn pose(u: &mut Unstructured) -> Result<Pose> {
+    let p = vector(u)?;
+    let q = if u.arbitrary()? {
+        Quaternion {
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+            w: 1.0,
+        }
+    } else {
+        Quaternion {
+            x: number(u)?,
+            y: number(u)?,
+            z: number(u)?,
+            w: number(u)?,
+        }
+    };
+    Ok(Pose {
+        position: Point {
+            x: p.x,
+            y: p.y,
+            z: p.z,
+        },
+        orientation: q,
+    })
+}
+
+fn twist(u: &mut Unstructured) -> Result<Twist> {
+    Ok(Twist {
+        linear: vector(u)?,
+        angular: vector(u)?,
+    })
+}
+
+/// Names to build messages from: the model's coordinates (usually all of them, shuffled), joints
+/// without coordinates, links, and names the model does not have.
+struct Vocabulary {
+    coordinates: Vec<String>,
+    others: Vec<String>,
+}
+
+impl Vocabulary {
+    fn new(engine: &Engine) -> Self {
+        let model = &engine.model;
+        let mut others: Vec<String> = model.links.iter().map(|l| l.name.clone()).collect();
+        others.extend(model.bodies.iter().map(|b| b.joint.name.clone()));
+        others.extend(model.fixed_joints.iter().cloned());
+        others
+            .extend(["", "unknown", "root_joint", "world", "base/x", "joint1 "].map(String::from));
+        Vocabulary {
+            coordinates: engine.names().to_vec(),
+            others,
+        }
+    }
+
+    fn names(&self, u: &mut Unstructured) -> Result<Vec<String>> {
+        let mut names = match u.int_in_range(0u8..=7)? {
+            0 => Vec::new(),
+            _ => self.coordinates.clone(),
+        };
+        // Shuffle, then maybe spoil: drop one, add one (a duplicate, a passive or an unknown name).
+        for i in (1..names.len()).rev() {
+            let j = u.int_in_range(0..=i)?;
+            names.swap(i, j);
+        }
+        if u.ratio(1u8, 4)? && !names.is_empty() {
+            let i = u.choose_index(names.len())?;
+            names.remove(i);
+        }
+        if u.ratio(1u8, 3)? {
+            let extra = match u.int_in_range(0u8..=2)? {
+                0 if !self.coordinates.is_empty() => u.choose(&self.coordinates)?.clone(),
+                1 => u.choose(&self.others)?.clone(),
+                _ => u.arbitrary::<String>()?,
+            };
+            let at = u.int_in_range(0..=names.len())?;
+            names.insert(at, extra);
+        }
+        Ok(names)
+    }
+
+    fn link(&self, u: &mut Unstructured) -> Result<String> {
+        if u.ratio(1u8, 8)? {
+            u.arbitrary()
+        } else {
+            Ok(u.choose(&self.others)?.clone())
+        }
+    }
+}
+
+fn wrenches(u: &mut Unstructured, vocabulary: &Vocabulary) -> Result<Vec<LinkWrench>> {
+    let n = u.int_in_range(0usize..=3)?;
+    (0..n)
+        .map(|_| {
+            let link = vocabulary.link(u)?;
+            let frame = match u.int_in_range(0u8..=3)? {
+                0 => String::new(),
+                1 => "world".to_string(),
+                2 => link.clone(),
+                _ => vocabulary.link(u)?,
+            };
+            Ok(LinkWrench {
+                link,
+                frame,
+                wrench: Wrench {
+                    force: vector(u)?,
+                    torque: vector(u)?,
+                },
+            })
+        })
+        .collect()
+}
+
+fn finite(x: &[f64]) -> bool {
+    x.iter().all(|v| v.is_finite())
+}
+
+fn finite3(v: &Vector3) -> bool {
+    v.x.is_finite() && v.y.is_finite() && v.z.is_finite()
+}
+
+fn service(what: &str, success: bool, message: &str, results: &[&[f64]], names: &[String]) {
+    if success {
+        assert!(
+            results.iter().all(|r| finite(r)),
+            "{what}: success with a non-finite number: {results:?}"
+        );
+    } else {
+        assert!(!message.is_empty(), "{what}: failure without a reason");
+        assert!(
+            results.iter().all(|r| r.is_empty()) && names.is_empty(),
+            "{what}: failure with results"
+        );
+    }
+}
+
+fn topic<T>(what: &str, result: std::result::Result<T, String>, outputs: impl Fn(&T) -> bool) {
+    match result {
+        Ok(out) => assert!(outputs(&out), "{what}: a non-finite output"),
+        Err(reason) => assert!(!reason.is_empty(), "{what}: dropped without a reason"),
+    }
+}
+
+fn js_finite(m: &JointState) -> bool {
+    finite(&m.position) && finite(&m.velocity) && finite(&m.effort)
+}
+
+fn settings(u: &mut Unstructured) -> Result<Settings> {
+    let mut s = Settings::default();
+    s.robot_description = u
+        .choose(&[
+            DEFAULT_ARM_URDF,
+            LAMP_URDF,
+            MIMIC_GRIPPER_URDF,
+            PARTICLE_URDF,
+        ])?
+        .to_string();
+    let args: [&[&str]; 8] = [
+        &["floating_base", "true"],
+        &["ignore_mimic", "true"],
+        &["method", "crba"],
+        &["method", "rnea_columns"],
+        &["command_joints", "[joint3, joint1]"],
+        &["locked_joints", "[joint2=0.5]"],
+        &["mode", "simulate"],
+        &["gravity", "[0.0, 1e300, -9.81]"],
+    ];
+    for arg in args {
+        if u.ratio(1u8, 5)? {
+            // Some combinations are refused (a joint this model lacks): that is an answer too.
+            let _ = s.apply_arg(arg[0], arg[1]);
+        }
+    }
+    Ok(s)
+}
+
+fn run(u: &mut Unstructured) -> Result<()> {
+    let settings = settings(u)?;
+    let mut engine = match Engine::from_settings(&settings, None) {
+        Ok(engine) => engine,
+        Err(reason) => {
+            assert!(!reason.is_empty());
+            return Ok(());
+        }
+    };
+    let vocabulary = Vocabulary::new(&engine);
+    for _ in 0..u.int_in_range(1u8..=12)? {
+        match u.int_in_range(0u8..=12)? {
+            0 => {
+                let names = vocabulary.names(u)?;
+                let js = JointState {
+                    position: numbers(u, names.len())?,
+                    velocity: numbers(u, names.len())?,
+                    name: names,
+                    ..Default::default()
+                };
+                topic("joint_states", engine.joint_states(&js), |(g, a)| {
+                    js_finite(g)
+                        && finite(&a.position)
+                        && finite(&a.velocity)
+                        && finite(&a.acceleration)
+                        && finite(&a.effort)
+                });
+            }
+            1 => {
+                let names = vocabulary.names(u)?;
+                let js = JointState {
+                    effort: numbers(u, names.len())?,
+                    name: names,
+                    ..Default::default()
+                };
+                topic("effort_command", engine.set_effort_command(&js), |_| true);
+            }
+            2 => {
+                let cmd = Float64MultiArray {
+                    data: numbers(u, engine.command_names().len())?,
+                    ..Default::default()
+                };
+                topic("commands", engine.set_commands(&cmd), |_| true);
+            }
+            3 => {
+                let names = vocabulary.names(u)?;
+                let points = (0..u.int_in_range(0u8..=2)?)
+                    .map(|_| {
+                        Ok(JointTrajectoryPoint {
+                            positions: numbers(u, names.len())?,
+                            velocities: numbers(u, names.len())?,
+                            accelerations: numbers(u, names.len())?,
+                            ..Default::default()
+                        })
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                let traj = JointTrajectory {
+                    joint_names: names,
+                    points,
+                    ..Default::default()
+                };
+                topic("reference", engine.reference(&traj), |(e, c)| {
+                    js_finite(e) && finite(&c.data)
+                });
+            }
+            4 => {
+                let mut odom = Odometry::default();
+                odom.pose.pose = pose(u)?;
+                odom.twist.twist = twist(u)?;
+                topic("base_state", engine.set_base_state(&odom), |_| true);
+            }
+            5 => {
+                let names = vocabulary.names(u)?;
+                let req = InverseDynamicsRequest {
+                    position: numbers(u, names.len())?,
+                    velocity: numbers(u, names.len())?,
+                    acceleration: numbers(u, names.len())?,
+                    name: names,
+                    external_wrenches: wrenches(u, &vocabulary)?,
+                    base_pose: pose(u)?,
+                    base_twist: twist(u)?,
+                    base_accel: Accel {
+                        linear: vector(u)?,
+                        angular: vector(u)?,
+                    },
+                };
+                let r = engine.inverse_dynamics(&req);
+                let w = &r.base_wrench;
+                assert!(
+                    !r.success || (finite3(&w.force) && finite3(&w.torque)),
+                    "base wrench {w:?}"
+                );
+                service(
+                    "inverse_dynamics",
+                    r.success,
+                    &r.message,
+                    &[&r.effort],
+                    &r.name,
+                );
+            }
+            6 => {
+                let names = vocabulary.names(u)?;
+                let req = ForwardDynamicsRequest {
+                    position: numbers(u, names.len())?,
+                    velocity: numbers(u, names.len())?,
+                    effort: numbers(u, names.len())?,
+                    name: names,
+                    external_wrenches: wrenches(u, &vocabulary)?,
+                    method: u
+                        .choose(&["", "aba", "crba", "rnea_columns", "ABA", "magic"])?
+                        .to_string(),
+                    base_pose: pose(u)?,
+                    base_twist: twist(u)?,
+                    base_wrench: Wrench {
+                        force: vector(u)?,
+                        torque: vector(u)?,
+                    },
+                };
+                let r = engine.forward_dynamics(&req);
+                let b = &r.base_accel;
+                assert!(
+                    !r.success || (finite3(&b.linear) && finite3(&b.angular)),
+                    "base accel {b:?}"
+                );
+                service(
+                    "forward_dynamics",
+                    r.success,
+                    &r.message,
+                    &[&r.acceleration],
+                    &r.name,
+                );
+            }
+            7 => {
+                let names = vocabulary.names(u)?;
+                let req = MassMatrixRequest {
+                    position: numbers(u, names.len())?,
+                    name: names,
+                    base_pose: pose(u)?,
+                };
+                let r = engine.mass_matrix(&req);
+                service("mass_matrix", r.success, &r.message, &[&r.matrix], &r.name);
+                if r.success {
+                    let n = r.matrix.len();
+                    assert!(
+                        (r.name.len()..=r.name.len() + 6).any(|k| k * k == n),
+                        "matrix size {n}"
+                    );
+                }
+            }
+            8 => {
+                let r = engine.describe();
+                assert!(r.success && r.joint_names.len() == r.joint_types.len());
+            }
+            9 => {
+                if let Some(Ok((js, _))) = engine.simulation_tick(Instant::now()) {
+                    assert!(js_finite(&js), "simulated joint_states not finite: {js:?}");
+                }
+            }
+            10 => {
+                let _ = engine.simulation_pause(u.arbitrary()?);
+                match engine.simulation_step(Instant::now()) {
+                    Ok((js, _)) => {
+                        assert!(js_finite(&js), "stepped joint_states not finite: {js:?}")
+                    }
+                    Err(reason) => assert!(!reason.is_empty()),
+                }
+            }
+            11 => {
+                let names = vocabulary.names(u)?;
+                let req = ResetRequest {
+                    position: numbers(u, names.len())?,
+                    velocity: numbers(u, names.len())?,
+                    name: names,
+                    base_pose: pose(u)?,
+                    base_twist: twist(u)?,
+                };
+                let r = engine.simulation_reset(&req);
+                assert!(r.success || !r.message.is_empty());
+            }
+            _ => {
+                let _ = engine.simulation_status();
+            }
+        }
+    }
+    Ok(())
+}
+
+fuzz_target!(|data: &[u8]| {
+    let _ = run(&mut Unstructured::new(data));
+});
