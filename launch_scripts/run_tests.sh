@@ -16,8 +16,8 @@ cargo build --release --locked
 cargo test --release --locked
 
 echo "== Fuzz: each target ${SD_FUZZ_SECONDS:-60} s (cargo-fuzz on stable Rust, no sanitizer) =="
-# SD_FUZZ_SECONDS=0 skips this step. cargo-fuzz passes libFuzzer's flags to rustc; on stable
-# that needs RUSTC_BOOTSTRAP=1 (it is not a nightly toolchain: the same stable compiler).
+# SD_FUZZ_SECONDS=0 skips this step. With `-s none` (no sanitizer) cargo-fuzz passes only stable
+# rustc flags (SanitizerCoverage through -Cpasses/-Cllvm-args): no nightly toolchain needed.
 if [[ "${SD_FUZZ_SECONDS:-60}" != "0" ]]; then
     if ! cargo fuzz --version >/dev/null 2>&1; then
         cargo install cargo-fuzz --locked
@@ -29,7 +29,6 @@ if [[ "${SD_FUZZ_SECONDS:-60}" != "0" ]]; then
         cp tests/fuzz/corpus/"$target"/* "$fuzz_corpus/$target/"
     done
     cp config/models/*.urdf tests/models/*.urdf "$fuzz_corpus/urdf_model/"
-    export RUSTC_BOOTSTRAP=1
     cargo fuzz build --fuzz-dir tests/fuzz -s none
     for target in urdf_model eval_request node_engine; do
         if ! cargo fuzz run --fuzz-dir tests/fuzz -s none "$target" "$fuzz_corpus/$target" -- \
@@ -37,12 +36,11 @@ if [[ "${SD_FUZZ_SECONDS:-60}" != "0" ]]; then
             >"$fuzz_corpus/$target.log" 2>&1; then
             tail -n 60 "$fuzz_corpus/$target.log" >&2
             echo "fuzz target $target failed; the input is in tests/fuzz/artifacts/$target/ (replay:" \
-                "RUSTC_BOOTSTRAP=1 cargo fuzz run --fuzz-dir tests/fuzz -s none $target FILE)" >&2
+                "cargo fuzz run --fuzz-dir tests/fuzz -s none $target FILE)" >&2
             exit 1
         fi
         grep -E "^Done [0-9]+ runs" "$fuzz_corpus/$target.log" | sed "s/^/$target: /"
     done
-    unset RUSTC_BOOTSTRAP
 fi
 
 echo "== Python: reference tests (Pinocchio) =="

@@ -1,8 +1,9 @@
 """Big robot descriptions reaching the node: a 10 000-link chain on the latched robot_description
-topic and a 10 000-link tree as the robot_description parameter are loaded and served (answers
-checked against Pinocchio on the same text); 50 MB descriptions (a huge comment: loads; 170 000
+topic and a 10 000-link tree as the robot_description parameter are loaded and served; 50 MB descriptions (a huge comment: loads; 170 000
 links: refused, naming the limit) on the topic and as a parameter leave the node alive and
 serving, the old model kept when the new one is refused. Times are printed (pytest -s).
+The 10 000-link answers are checked against the statics of the robot written out here (checked in
+turn against Pinocchio on 12-link versions).
 """
 
 import time
@@ -11,7 +12,8 @@ import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from spatial_dynamics_msgs.srv import DescribeModel, InverseDynamics
-from std_msgs.msg import String
+from std_msgs.msg import Float64MultiArray, String
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 import sd_dds_support as sd
 from sd_dds_support import ARM_JOINTS, assert_close
@@ -60,30 +62,79 @@ def many_links(size):
 
 
 def served(ros, n, timeout):
-    """Polls ~/inverse_dynamics (empty names: model order, zero state) until the node answers for
-    a model of `n` coordinates; returns the response and the seconds it took."""
+    """Polls ~/inverse_dynamics with a one-value request until the node refuses it for a model of
+    `n` names (a short answer: replies of hundreds of kB from the node to rclpy are slow or lost
+    with Fast DDS's default socket buffers, see ROS_WHEELS.md); returns the seconds it took."""
     start = time.monotonic()
     last = None
     while time.monotonic() - start < timeout:
-        last = ros.call(InverseDynamics, ID, InverseDynamics.Request(position=[0.0] * n), timeout=30.0)
-        if last.success and len(last.name) == n:
-            return last, time.monotonic() - start
+        last = ros.call(InverseDynamics, ID, InverseDynamics.Request(name=[], position=[0.0]))
+        if f"position has 1 values for {n} names" in last.message:
+            return time.monotonic() - start
         ros.spin_for(0.5)
     raise AssertionError(f"not serving a {n}-coordinate model within {timeout} s; last answer: {str(last)[:300]}")
 
 
-def check_against_pinocchio(ros, text, label):
-    ref = sd.PinRef(urdf_text=text)
-    rng = np.random.default_rng(1)
-    names = ref.names
-    q = [float(x) for x in rng.uniform(-0.5, 0.5, len(names))]
-    v = [float(x) for x in rng.uniform(-0.01, 0.01, len(names))]
+def rodrigues(axis, angle):
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]], float)
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def gravity_torques(n, parent, q):
+    """g(q) of robot(n, parent) by statics, written out here: link i's joint frame is its parent's
+    turned by Rx(0.1) and moved 0.1 m down, then turned about the joint axis by q_i; each link is
+    1 kg with its centre 0.05 m below its joint; the torque holding joint k is minus the moment,
+    about its axis, of the weight of everything it carries (Pinocchio cannot build a 10 000-link
+    model here: its reader overflows the stack on the chain and its data runs out of memory; this
+    is checked against it on small robots below)."""
+    g = np.array([0.0, 0.0, -9.81])
+    rx = rodrigues([1.0, 0.0, 0.0], 0.1)
+    rot, pos = {0: np.eye(3)}, {0: np.zeros(3)}
+    axis_w, com = {}, {}
+    for i in range(1, n + 1):
+        p = parent(i)
+        axis = np.eye(3)[i % 3]
+        pos[i] = pos[p] + rot[p] @ np.array([0.0, 0.0, -0.1])
+        rot[i] = rot[p] @ rx @ rodrigues(axis, q[i - 1])
+        axis_w[i] = rot[i] @ axis
+        com[i] = pos[i] + rot[i] @ np.array([0.0, 0.0, -0.05])
+    mass_sum = {i: 1.0 for i in range(1, n + 1)}
+    com_sum = {i: com[i].copy() for i in range(1, n + 1)}
+    for i in range(n, 1, -1):  # children come after their parents: subtree sums
+        p = parent(i)
+        if p:
+            mass_sum[p] += mass_sum[i]
+            com_sum[p] += com_sum[i]
+    return np.array([-axis_w[k] @ np.cross(com_sum[k] - mass_sum[k] * pos[k], g) for k in range(1, n + 1)])
+
+
+@pytest.mark.parametrize("shape", ["chain", "tree"])
+def test_the_statics_reference_equals_pinocchio_on_small_robots(shape):
+    parent = (lambda i: i - 1) if shape == "chain" else (lambda i: i // 2)
+    n = 12
+    ref = sd.PinRef(urdf_text=robot(n, parent))
+    names = [f"j{i}" for i in range(1, n + 1)]
+    q = [float(x) for x in np.random.default_rng(2).uniform(-1.5, 1.5, n)]
+    assert_close(gravity_torques(n, parent, q), ref.pick(ref.gravity(ref.q(names, q)), names), f"{shape} statics")
+
+
+def check_gravity(ros, n, parent, label):
+    """A reference naming every joint goes in (hundreds of kB); ~/feedforward_commands comes out
+    for three command_joints (first, middle, last) and equals the statics reference there."""
+    names = [f"j{i}" for i in range(1, n + 1)]
+    picked = [1, n // 2, n]
+    result = ros.set_parameter("command_joints", [f"j{i}" for i in picked])
+    assert result.successful, result.reason
+    out = ros.collector(Float64MultiArray, "/spatial_dynamics/feedforward_commands")
+    out.wait_publisher()
+    pub = ros.publisher(JointTrajectory, "/spatial_dynamics/reference", sd.qos_reliable(10))
+    q = [float(x) for x in np.random.default_rng(1).uniform(-1.5, 1.5, n)]
+    msg = JointTrajectory(joint_names=names, points=[JointTrajectoryPoint(positions=q)])
     start = time.monotonic()
-    resp = ros.call(InverseDynamics, ID, InverseDynamics.Request(name=names, position=q, velocity=v), timeout=30.0)
-    print(f"{label}: ID with {len(names)} named joints answered in {time.monotonic() - start:.2f} s")
-    assert resp.success, resp.message
-    want = ref.rnea(ref.q(names, q), ref.v(names, v), np.zeros(len(names)))
-    assert_close(resp.effort, ref.pick(want, names), f"{label}: ID")
+    got = ros.exchange(lambda: pub.publish(msg), out, lambda m: len(m.data) == 3, timeout=60.0, period=2.0)
+    print(f"{label}: reference with {n} joints answered in {time.monotonic() - start:.2f} s")
+    want = gravity_torques(n, parent, q)
+    assert_close(got.data, [want[i - 1] for i in picked], f"{label}: gravity at joints {picked}", tol=1e-8)
 
 
 def arm_still_served(ros):
@@ -111,9 +162,9 @@ def test_ten_thousand_link_chain_on_the_topic_is_served(nodes, ros, latched):
     text = robot(LINKS, lambda i: i - 1)
     start = time.monotonic()
     latched().publish(String(data=text))
-    _, took = served(ros, LINKS, 90.0)
+    served(ros, LINKS, 90.0)
     print(f"chain ({len(text) / 1e6:.1f} MB) on the topic: served after {time.monotonic() - start:.1f} s")
-    check_against_pinocchio(ros, text, "chain")
+    check_gravity(ros, LINKS, lambda i: i - 1, "chain")
 
 
 def test_ten_thousand_link_tree_as_the_parameter_is_served(nodes, ros):
@@ -125,7 +176,7 @@ def test_ten_thousand_link_tree_as_the_parameter_is_served(nodes, ros):
     assert result.successful, result.reason
     served(ros, LINKS, 90.0)
     print(f"tree: served {time.monotonic() - start:.1f} s after the set")
-    check_against_pinocchio(ros, text, "tree")
+    check_gravity(ros, LINKS, lambda i: i // 2, "tree")
 
 
 def test_fifty_megabyte_descriptions_on_the_topic(nodes, ros, latched):
