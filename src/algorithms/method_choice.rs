@@ -9,11 +9,13 @@
 //! there is no reference and the fastest method that runs is taken.
 //!
 //! Speed: each method runs over the same sampled states; the median of several timed passes is
-//! its time per call. The sampled states are `q = q₀ ⊕ δ` (neutral configuration moved along a
+//! its time per call. A method whose predicted cost — its FLOP count ([`flops`](super::flops))
+//! at the rate measured for one `aba` call — would exceed the budget over the samples is not run
+//! at all (on a 10 000-link chain one CRBA solve costs minutes): it is reported as skipped. The sampled states are `q = q₀ ⊕ δ` (neutral configuration moved along a
 //! random velocity for one second, so every joint kind stays on its manifold), random `q̇` and
 //! random `τ`, drawn from a fixed seed.
 
-use super::{forward_dynamics, ForwardDynamicsMethod};
+use super::{flops, forward_dynamics, ForwardDynamicsMethod};
 use crate::{DynamicsError, Externals, Model, Workspace};
 use std::time::{Duration, Instant};
 
@@ -29,6 +31,8 @@ pub struct MethodChoice {
     /// Each method that ran: its median time per call (ns) and its largest relative difference
     /// from `aba` over the samples (`None` when `aba` cannot run on this model).
     pub measured: Vec<(ForwardDynamicsMethod, f64, Option<f64>)>,
+    /// Methods not run because their predicted time per call (ns) exceeds the budget.
+    pub skipped: Vec<(ForwardDynamicsMethod, f64)>,
 }
 
 impl MethodChoice {
@@ -42,7 +46,17 @@ impl MethodChoice {
                 None => format!("{m} {:.2} µs", ns / 1e3),
             })
             .collect();
-        format!("{} (measured: {})", self.method, parts.join(", "))
+        let skipped: Vec<String> = self
+            .skipped
+            .iter()
+            .map(|(m, ns)| format!(", {m} not run (predicted {:.1} ms per call)", ns / 1e6))
+            .collect();
+        format!(
+            "{} (measured: {}{})",
+            self.method,
+            parts.join(", "),
+            skipped.concat()
+        )
     }
 }
 
@@ -61,10 +75,41 @@ pub fn choose_method(
     let mut ws = Workspace::new(model);
     let states = sample_states(model);
     let ext = Externals::none();
+    // The machine's rate, from one aba call (1 GFLOP/s if aba cannot run), predicts each
+    // method's time per call from its FLOP count.
+    let (q0, v0, tau0) = &states[0];
+    let start = Instant::now();
+    let aba_runs = forward_dynamics(
+        model,
+        &mut ws,
+        q0,
+        v0,
+        tau0,
+        ForwardDynamicsMethod::Aba,
+        &ext,
+    )
+    .is_ok();
+    let aba_ns = start.elapsed().as_nanos() as f64;
+    let flops_of = |m: ForwardDynamicsMethod| {
+        flops::kernel_flops(model, &format!("fd_{}", m.name())).map_or(1.0, |f| f.total() as f64)
+    };
+    let ns_per_flop = if aba_runs {
+        aba_ns / flops_of(ForwardDynamicsMethod::Aba)
+    } else {
+        1.0
+    };
+    let mut skipped = Vec::new();
     // Answers of each method on every state; a method that refuses the model is left out.
     let mut answers: Vec<(ForwardDynamicsMethod, Vec<Vec<f64>>)> = Vec::new();
     let mut first_error = None;
     for method in ForwardDynamicsMethod::ALL {
+        let predicted = flops_of(method) * ns_per_flop;
+        if method != ForwardDynamicsMethod::Aba
+            && predicted * states.len() as f64 > budget.as_nanos() as f64
+        {
+            skipped.push((method, predicted));
+            continue;
+        }
         let run: Result<Vec<Vec<f64>>, DynamicsError> = states
             .iter()
             .map(|(q, v, tau)| {
@@ -79,7 +124,14 @@ pub fn choose_method(
         }
     }
     if answers.is_empty() {
-        return Err(first_error.expect("a method failed"));
+        return match first_error {
+            Some(e) => Err(e),
+            None => Ok(MethodChoice {
+                method: ForwardDynamicsMethod::Aba,
+                measured: Vec::new(),
+                skipped,
+            }),
+        };
     }
     let reference = answers
         .iter()
@@ -96,7 +148,11 @@ pub fn choose_method(
         .filter(|(_, _, diff)| diff.is_none_or(|d| d <= tolerance))
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .map_or(ForwardDynamicsMethod::Aba, |(m, _, _)| *m);
-    Ok(MethodChoice { method, measured })
+    Ok(MethodChoice {
+        method,
+        measured,
+        skipped,
+    })
 }
 
 /// `max over samples of ‖a − b‖∞ / (1 + ‖b‖∞)`.
@@ -178,7 +234,8 @@ mod tests {
         // study measured 5e-8 and worse at n = 500); with a tolerance below what they reach,
         // only aba qualifies, whatever the timings.
         let model = load(&pendulum_urdf(200, 1.0, 1.0));
-        let choice = choose_method(&model, 1e-13, Duration::from_millis(20)).unwrap();
+        // (A generous budget, so that no method is skipped for cost on a slow machine.)
+        let choice = choose_method(&model, 1e-13, Duration::from_secs(2)).unwrap();
         let diff = |m| {
             choice
                 .measured
@@ -205,6 +262,27 @@ mod tests {
             .unwrap();
         assert_eq!(choice.method, fastest.0, "{choice:?}");
         assert!(choice.measured.iter().all(|m| m.2.unwrap() < 1e-9));
+    }
+
+    #[test]
+    fn methods_too_slow_for_the_budget_are_not_run() {
+        // 2000 links: one CRBA solve is ~n³/6 ≈ 1.3e9 FLOPs, far beyond a 5 ms budget; aba runs.
+        let model = load(&pendulum_urdf(2000, 1.0, 1.0));
+        let start = Instant::now();
+        let choice = choose_method(&model, 1e-10, Duration::from_millis(5)).unwrap();
+        assert!(
+            start.elapsed() < Duration::from_secs(5),
+            "{:?}",
+            start.elapsed()
+        );
+        assert_eq!(choice.method, ForwardDynamicsMethod::Aba);
+        let skipped: Vec<_> = choice.skipped.iter().map(|s| s.0).collect();
+        assert!(skipped.contains(&ForwardDynamicsMethod::Crba), "{choice:?}");
+        assert!(
+            choice.summary().contains("crba not run"),
+            "{}",
+            choice.summary()
+        );
     }
 
     #[test]
