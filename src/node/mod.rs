@@ -299,6 +299,9 @@ async fn serve(
                 .lock()
                 .map_err(|e| e.to_string())?
                 .clone();
+            // Choosing a method never fails (auto falls back to aba), so the candidate skips
+            // auto's measurements: the set action that follows measures once, for real.
+            candidate.method = Some(spatial_dynamics::ForwardDynamicsMethod::Aba);
             Engine::from_settings(&candidate, description.as_deref())?;
         }
         Ok(())

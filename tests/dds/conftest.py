@@ -7,7 +7,9 @@
 * The binary: $SPATIAL_DYNAMICS_BIN or <repo>/target/release/spatial_dynamics; missing = failure.
 * Fixtures: ``ros`` (one rclpy context + node per module), ``module_nodes`` / ``nodes`` (start
   the node as a subprocess for the module / the test; stopped with SIGINT, then SIGKILL),
-  ``workdir`` (a temporary directory per module for parameter files). The log of every node
+  ``workdir`` (a temporary directory per module for parameter files), ``arm`` (a node on the
+  default arm for the module), ``ref`` (Pinocchio on the default arm), ``latched`` (publishers
+  on /robot_description). The log of every node
   still running when a test fails is attached to the failure report, and a test after which a
   node has died unexpectedly fails.
 """
@@ -18,6 +20,8 @@ import os
 import socket
 
 import pytest
+from spatial_dynamics_msgs.srv import DescribeModel
+from std_msgs.msg import String
 
 import sd_dds_support as sd
 
@@ -135,3 +139,35 @@ def _nodes_survive():
     dead = [n for n in sd.LIVE_NODES if not n.expect_exit and n.poll() is not None]
     if dead:
         pytest.fail("node(s) died during this test:\n" + "\n".join(n.describe() for n in dead))
+
+
+@pytest.fixture(scope="module")
+def arm(module_nodes, ros):
+    """A node on the embedded default arm, for the module, with its services up."""
+    node = module_nodes.start(label="arm")
+    ros.wait_for_service(DescribeModel, f"{sd.NODE}/describe_model")
+    return node
+
+
+@pytest.fixture(scope="module")
+def ref():
+    """Pinocchio on the embedded default arm (a module may override it for another robot)."""
+    return sd.PinRef(sd.DEFAULT_ARM_URDF)
+
+
+@pytest.fixture
+def latched(ros):
+    """Makes transient-local publishers on /robot_description (``make(subscribed=True)`` also
+    waits until the node subscribes); destroyed after the test."""
+    pubs = []
+
+    def make(subscribed=False):
+        pub = ros.node.create_publisher(String, "/robot_description", sd.QOS_LATCHED)
+        pubs.append(pub)
+        if subscribed:
+            assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0), "robot_description not subscribed"
+        return pub
+
+    yield make
+    for pub in pubs:
+        ros.node.destroy_publisher(pub)

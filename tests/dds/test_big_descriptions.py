@@ -142,26 +142,11 @@ def arm_still_served(ros):
     assert resp.success and list(resp.name) == ARM_JOINTS, resp.message
 
 
-@pytest.fixture
-def latched(ros):
-    pubs = []
-
-    def make():
-        pub = ros.node.create_publisher(String, "/robot_description", sd.QOS_LATCHED)
-        pubs.append(pub)
-        assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0), "robot_description not subscribed"
-        return pub
-
-    yield make
-    for pub in pubs:
-        ros.node.destroy_publisher(pub)
-
-
 def test_ten_thousand_link_chain_on_the_topic_is_served(nodes, ros, latched):
     nodes.start(label="arm")
     text = robot(LINKS, lambda i: i - 1)
     start = time.monotonic()
-    latched().publish(String(data=text))
+    latched(subscribed=True).publish(String(data=text))
     served(ros, LINKS, 90.0)
     print(f"chain ({len(text) / 1e6:.1f} MB) on the topic: served after {time.monotonic() - start:.1f} s")
     check_gravity(ros, LINKS, lambda i: i - 1, "chain")
@@ -183,7 +168,7 @@ def test_fifty_megabyte_descriptions_on_the_topic(nodes, ros, latched):
     """A 50 MB comment in a one-link robot loads; then 50 MB of links is refused with the reason
     counted on /diagnostics, and the one-link robot stays."""
     node = nodes.start(label="arm")
-    pub = latched()
+    pub = latched(subscribed=True)
     comment = f'<robot name="commented">{link("only")}<!--{"x" * BIG}--></robot>'
     start = time.monotonic()
     pub.publish(String(data=comment))

@@ -36,21 +36,6 @@ def wait_model(ros, predicate, timeout=8.0):
     return last[0]
 
 
-@pytest.fixture
-def latched(ros):
-    """A transient-local publisher on /robot_description, destroyed after the test."""
-    pubs = []
-
-    def make():
-        pub = ros.node.create_publisher(String, "/robot_description", sd.QOS_LATCHED)
-        pubs.append(pub)
-        return pub
-
-    yield make
-    for pub in pubs:
-        ros.node.destroy_publisher(pub)
-
-
 def write_params(path, text):
     path.write_text(text)
     return path

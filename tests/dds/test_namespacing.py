@@ -11,14 +11,9 @@ from spatial_dynamics_msgs.srv import DescribeModel, InverseDynamics
 from std_msgs.msg import String
 
 import sd_dds_support as sd
-from sd_dds_support import ARM_JOINTS, DEFAULT_ARM_URDF, assert_close
+from sd_dds_support import ARM_JOINTS, assert_close
 
 Q = [0.2, -0.4, 0.6, -0.8, 1.0, -1.2, 1.4]
-
-
-@pytest.fixture(scope="module")
-def ref():
-    return sd.PinRef(DEFAULT_ARM_URDF)
 
 
 @pytest.fixture(scope="module")

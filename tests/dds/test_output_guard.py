@@ -21,7 +21,7 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 import sd_dds_support as sd
-from sd_dds_support import ARM_JOINTS, DEFAULT_ARM_URDF, assert_close
+from sd_dds_support import ARM_JOINTS, assert_close
 
 NODE = "/spatial_dynamics"
 STATUS = "/spatial_dynamics: dynamics"
@@ -40,11 +40,6 @@ OUTPUTS = {
     "ff": (JointState, f"{NODE}/feedforward_effort", ("position", "velocity", "effort")),
     "ffc": (Float64MultiArray, f"{NODE}/feedforward_commands", ("data",)),
 }
-
-
-@pytest.fixture(scope="module")
-def ref():
-    return sd.PinRef(DEFAULT_ARM_URDF)
 
 
 @pytest.fixture(scope="module")

@@ -53,18 +53,6 @@ Q = [0.3, -0.7, 0.5, 1.1, -0.4, 0.9, 0.2]
 FD_METHODS = ("aba", "crba", "rnea_columns")
 
 
-@pytest.fixture(scope="module")
-def arm(module_nodes, ros):
-    node = module_nodes.start(label="arm")
-    ros.wait_for_service(DescribeModel, DM)
-    return node
-
-
-@pytest.fixture(scope="module")
-def ref():
-    return sd.PinRef(DEFAULT_ARM_URDF)
-
-
 @pytest.fixture
 def restore(arm, ros):
     """Sets every parameter back to its default after the test (and checks that it worked)."""

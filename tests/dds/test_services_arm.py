@@ -21,18 +21,6 @@ MM = "/spatial_dynamics/mass_matrix"
 DM = "/spatial_dynamics/describe_model"
 
 
-@pytest.fixture(scope="module")
-def arm(module_nodes, ros):
-    node = module_nodes.start(label="arm")
-    ros.wait_for_service(DescribeModel, DM)
-    return node
-
-
-@pytest.fixture(scope="module")
-def ref():
-    return sd.PinRef(DEFAULT_ARM_URDF)
-
-
 def shuffled(rng):
     names = list(ARM_JOINTS)
     rng.shuffle(names)

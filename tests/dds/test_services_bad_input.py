@@ -14,7 +14,6 @@ import pytest
 from spatial_dynamics_msgs.srv import DescribeModel, ForwardDynamics, InverseDynamics, MassMatrix
 
 import sd_dds_support as sd
-from test_services_arm import arm, ref  # noqa: F401  (the same fixtures: the arm node, Pinocchio)
 from sd_dds_support import ARM_JOINTS, assert_close
 
 ID = "/spatial_dynamics/inverse_dynamics"

@@ -16,16 +16,11 @@ from spatial_dynamics_msgs.msg import JointDynamics
 from spatial_dynamics_msgs.srv import DescribeModel
 
 import sd_dds_support as sd
-from sd_dds_support import ARM_JOINTS, DEFAULT_ARM_URDF, assert_close
+from sd_dds_support import ARM_JOINTS, assert_close
 
 STATUS = "/spatial_dynamics: dynamics"
 JS = "/joint_states"
 DROPPED = "/joint_states"  # the counter's topic name
-
-
-@pytest.fixture(scope="module")
-def ref():
-    return sd.PinRef(DEFAULT_ARM_URDF)
 
 
 @pytest.fixture(scope="module")

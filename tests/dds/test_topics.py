@@ -13,7 +13,6 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import JointState
 from spatial_dynamics_msgs.msg import JointDynamics
-from spatial_dynamics_msgs.srv import DescribeModel
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -24,18 +23,6 @@ GRAVITY = "/spatial_dynamics/gravity_effort"
 ACCEL = "/spatial_dynamics/acceleration"
 FF = "/spatial_dynamics/feedforward_effort"
 FFC = "/spatial_dynamics/feedforward_commands"
-
-
-@pytest.fixture(scope="module")
-def arm(module_nodes, ros):
-    node = module_nodes.start(label="arm")
-    ros.wait_for_service(DescribeModel, "/spatial_dynamics/describe_model")
-    return node
-
-
-@pytest.fixture(scope="module")
-def ref():
-    return sd.PinRef(DEFAULT_ARM_URDF)
 
 
 @pytest.fixture(scope="module")

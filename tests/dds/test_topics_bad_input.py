@@ -17,7 +17,7 @@ from std_msgs.msg import Float64MultiArray, String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 import sd_dds_support as sd
-from sd_dds_support import ARM_JOINTS, DEFAULT_ARM_URDF, assert_close
+from sd_dds_support import ARM_JOINTS, assert_close
 
 STATUS = "/spatial_dynamics: dynamics"
 JS = "/joint_states"
@@ -30,11 +30,6 @@ Q = [0.4, -0.6, 0.3, 1.2, -0.5, 0.8, -2.5]
 NAN, INF = float("nan"), float("inf")
 MILLION = 1_000_000
 GOOD_COMMAND = dict(zip(ARM_JOINTS, [1.5, -2.0, 0.5, 3.0, -0.25, 0.75, 0.1]))
-
-
-@pytest.fixture(scope="module")
-def ref():
-    return sd.PinRef(DEFAULT_ARM_URDF)
 
 
 @pytest.fixture(scope="module")
@@ -116,7 +111,7 @@ def good_reference_answered(ros, c, ref):
 
 
 def latest_report(ros, c, timeout=5.0):
-    got = c["diag"].wait(1, timeout, lambda m: sd.status_values(m, STATUS) is not None)
+    c["diag"].wait(1, timeout, lambda m: sd.status_values(m, STATUS) is not None)
     return sd.status_values(c["diag"].matching(lambda m: sd.status_values(m, STATUS) is not None)[-1], STATUS)
 
 
