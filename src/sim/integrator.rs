@@ -73,20 +73,24 @@ pub(super) fn advance(
     match integrator {
         Integrator::ExplicitEuler => {
             eval.acceleration(model, &state.q, &state.v, tau, &mut s.k_a[0])?;
-            model.integrate(&state.q, &state.v, h, &mut s.q_stage);
-            state.q.copy_from_slice(&s.q_stage);
+            move_q(model, &mut state.q, &state.v, h, &mut s.q_stage);
             axpy(&mut state.v, h, &s.k_a[0]);
         }
         Integrator::SemiImplicitEuler => {
             eval.acceleration(model, &state.q, &state.v, tau, &mut s.k_a[0])?;
             axpy(&mut state.v, h, &s.k_a[0]);
-            model.integrate(&state.q, &state.v, h, &mut s.q_stage);
-            state.q.copy_from_slice(&s.q_stage);
+            move_q(model, &mut state.q, &state.v, h, &mut s.q_stage);
         }
         Integrator::Rk4 => rk4(eval, s, model, state, tau, h)?,
         Integrator::ImplicitEuler => implicit_euler(eval, s, model, state, tau, h)?,
     }
     Ok(())
+}
+
+/// `q ← q ⊕ h v` on the configuration manifold (`scratch` holds the new `q` on the way).
+fn move_q(model: &Model, q: &mut [f64], v: &[f64], h: f64, scratch: &mut [f64]) {
+    model.integrate(q, v, h, scratch);
+    q.copy_from_slice(scratch);
 }
 
 fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
@@ -124,8 +128,7 @@ fn rk4(
         s.v_stage[i] = (k_v[0][i] + 2.0 * k_v[1][i] + 2.0 * k_v[2][i] + k_v[3][i]) / 6.0;
         state.v[i] += h / 6.0 * (k_a[0][i] + 2.0 * k_a[1][i] + 2.0 * k_a[2][i] + k_a[3][i]);
     }
-    model.integrate(&state.q, &s.v_stage, h, &mut s.q_stage);
-    state.q.copy_from_slice(&s.q_stage);
+    move_q(model, &mut state.q, &s.v_stage, h, &mut s.q_stage);
     Ok(())
 }
 
@@ -172,8 +175,7 @@ fn implicit_euler(
         }
     }
     state.v.copy_from_slice(v_new);
-    model.integrate(&state.q, &state.v, h, &mut s.q_stage);
-    state.q.copy_from_slice(&s.q_stage);
+    move_q(model, &mut state.q, &state.v, h, &mut s.q_stage);
     Ok(())
 }
 /// Solves `A x = b` in place by Gaussian elimination with partial pivoting (`b` becomes `x`).

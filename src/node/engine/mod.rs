@@ -165,18 +165,14 @@ impl Engine {
                 Some(&req.base_twist),
             )
             .and_then(|_| {
-                self.map.scatter(
-                    "acceleration",
-                    &req.acceleration,
-                    Target::Rate,
-                    true,
+                scatter_rates(
+                    &self.map,
+                    ("acceleration", &req.acceleration),
+                    (
+                        "base_accel",
+                        [&req.base_accel.linear, &req.base_accel.angular],
+                    ),
                     &mut self.a,
-                )?;
-                write_base(
-                    self.map.base(),
-                    &mut self.a,
-                    [&req.base_accel.linear, &req.base_accel.angular],
-                    "base_accel",
                 )?;
                 let n = self.external_wrenches(&req.external_wrenches)?;
                 let ext = Externals {
@@ -222,13 +218,14 @@ impl Engine {
                 } else {
                     req.method.parse()?
                 };
-                self.map
-                    .scatter("effort", &req.effort, Target::Rate, true, &mut self.tau)?;
-                write_base(
-                    self.map.base(),
+                scatter_rates(
+                    &self.map,
+                    ("effort", &req.effort),
+                    (
+                        "base_wrench",
+                        [&req.base_wrench.force, &req.base_wrench.torque],
+                    ),
                     &mut self.tau,
-                    [&req.base_wrench.force, &req.base_wrench.torque],
-                    "base_wrench",
                 )?;
                 let n = self.external_wrenches(&req.external_wrenches)?;
                 let ext = Externals {
@@ -648,6 +645,18 @@ fn base_wrench(base: Option<(usize, usize)>, tau: &[f64]) -> Wrench {
 }
 
 /// Writes a `[linear; angular]` pair into the base's six velocity-like coordinates.
+/// A per-coordinate request field (optional: empty means zero) and the base's six entries of
+/// the same quantity (linear, angular), into `out` in model order.
+fn scatter_rates(
+    map: &JointMap,
+    (field, values): (&str, &[f64]),
+    (base_field, base_parts): (&str, [&Vector3; 2]),
+    out: &mut [f64],
+) -> Result<(), String> {
+    map.scatter(field, values, Target::Rate, true, out)?;
+    write_base(map.base(), out, base_parts, base_field)
+}
+
 fn write_base(
     base: Option<(usize, usize)>,
     out: &mut [f64],
