@@ -97,3 +97,65 @@ fn lamp_jumps_and_lands_within_the_stated_depth() {
         sim.max_penetration()
     );
 }
+
+#[test]
+fn contact_points_and_ground_numbers_are_parsed_and_checked() {
+    let p: ContactPoint = "foot:0.1,-0.05,0".parse().unwrap();
+    assert_eq!(
+        (p.link.as_str(), p.point),
+        ("foot", Vector3::new(0.1, -0.05, 0.0))
+    );
+    assert_eq!(p.to_string().parse::<ContactPoint>().unwrap(), p);
+    for bad in ["foot", "foot:1,2", ":1,2,3", "foot:1,2,x", "foot:1,2,inf"] {
+        let e = bad.parse::<ContactPoint>().unwrap_err();
+        assert!(e.contains(bad) && e.contains("LINK:X,Y,Z"), "{e}");
+    }
+    assert!(Ground::default().check().is_ok());
+    for (ground, field) in [
+        (
+            Ground {
+                stiffness: 0.0,
+                ..Ground::default()
+            },
+            "stiffness is 0",
+        ),
+        (
+            Ground {
+                damping: -1.0,
+                ..Ground::default()
+            },
+            "damping is -1",
+        ),
+        (
+            Ground {
+                friction: f64::NAN,
+                ..Ground::default()
+            },
+            "friction is NaN",
+        ),
+        (
+            Ground {
+                height: f64::INFINITY,
+                ..Ground::default()
+            },
+            "height is inf",
+        ),
+    ] {
+        let e = ground.check().unwrap_err();
+        assert!(e.contains(field), "{e}");
+    }
+    // A simulator refuses a bad ground, and a point on a link the model lacks.
+    let (model, config) = lamp(&[]);
+    let mut bad = config.clone();
+    bad.ground.as_mut().unwrap().damping = -1.0;
+    assert!(Simulator::new(&model, bad)
+        .err()
+        .unwrap()
+        .contains("damping"));
+    let mut bad = config;
+    bad.ground.as_mut().unwrap().points[0].link = "lid".into();
+    assert!(Simulator::new(&model, bad)
+        .err()
+        .unwrap()
+        .contains("unknown link 'lid'"));
+}

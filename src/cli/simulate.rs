@@ -53,13 +53,13 @@ pub struct SimulateArgs {
     #[arg(long = "contact", value_name = "LINK:X,Y,Z")]
     contacts: Vec<String>,
     /// Ground plane height (m), stiffness (N/m), damping (N·s/m) and friction coefficient.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = Ground::default().height)]
     ground_height: f64,
-    #[arg(long, default_value_t = 2e4)]
+    #[arg(long, default_value_t = Ground::default().stiffness)]
     ground_stiffness: f64,
-    #[arg(long, default_value_t = 200.0)]
+    #[arg(long, default_value_t = Ground::default().damping)]
     ground_damping: f64,
-    #[arg(long, default_value_t = 0.8)]
+    #[arg(long, default_value_t = Ground::default().friction)]
     ground_friction: f64,
     /// Output CSV file.
     #[arg(long)]
@@ -146,20 +146,14 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
 
 /// The ground contact asked for, if any: `--contact` points, or the scene's own.
 fn ground(model_args: &ModelArgs, args: &SimulateArgs) -> Result<Option<Ground>, String> {
-    let mut points = Vec::new();
-    for spec in &args.contacts {
-        let parsed = spec.split_once(':').and_then(|(link, xyz)| {
-            let v: Vec<f64> = xyz
-                .split(',')
-                .map(|x| x.trim().parse().ok())
-                .collect::<Option<_>>()?;
-            (v.len() == 3 && v.iter().all(|x| x.is_finite())).then(|| ContactPoint {
-                link: link.to_string(),
-                point: Vector3::new(v[0], v[1], v[2]),
-            })
-        });
-        points.push(parsed.ok_or_else(|| format!("--contact '{spec}': expected LINK:X,Y,Z"))?);
-    }
+    let mut points = args
+        .contacts
+        .iter()
+        .map(|spec| {
+            spec.parse::<ContactPoint>()
+                .map_err(|e| format!("--contact: {e}"))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     if points.is_empty()
         && model_args.builtin.as_deref() == Some("lamp")
         && model_args.urdf.is_none()

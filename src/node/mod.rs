@@ -5,7 +5,8 @@
 //! `~/feedforward_effort`, `~/feedforward_commands`, `/diagnostics`. Services:
 //! `~/inverse_dynamics`, `~/forward_dynamics`, `~/mass_matrix`, `~/describe_model`, and the
 //! standard parameter services. In simulate mode (`mode: simulate`) the node also publishes
-//! `joint_states` (and `/clock` if `publish_clock`) from its own integrated state and serves
+//! `joint_states`, a floating base's `~/base_state` (and `/clock` if `publish_clock`) from its
+//! own integrated state, with ground contact at `ground_contacts` if given, and serves
 //! `~/reset`, `~/pause` (std_srvs/SetBool) and `~/step` (std_srvs/Trigger). With `use_sim_time`
 //! (serve mode) the node reads `/clock` and stamps its outputs with it; the rules are in
 //! [`engine::clock`]. QoS (chosen on purpose):
@@ -16,7 +17,7 @@
 //! | commands, reference | reliable | volatile | 10 |
 //! | outputs, `/diagnostics` | reliable | volatile | 10 |
 //! | `robot_description` | reliable | transient local | 1 |
-//! | `joint_states` (simulate), `/clock` | reliable (matches best-effort readers too) | volatile | 10, 1 |
+//! | `joint_states`, `~/base_state` (simulate), `/clock` | reliable (matches best-effort readers too) | volatile | 10, 1 |
 //! | `/clock` read (`use_sim_time`) | best effort (rclcpp's ClockQoS: matches any publisher) | volatile | 1 |
 //! | services | reliable | volatile | 10 |
 
@@ -131,6 +132,19 @@ impl Finite for JointDynamics {
             && finite(&self.velocity)
             && finite(&self.acceleration)
             && finite(&self.effort)
+    }
+}
+impl Finite for Odometry {
+    fn all_finite(&self) -> bool {
+        let (p, o, t) = (
+            &self.pose.pose.position,
+            &self.pose.pose.orientation,
+            &self.twist.twist,
+        );
+        finite(&[p.x, p.y, p.z, o.x, o.y, o.z, o.w])
+            && [&t.linear, &t.angular]
+                .iter()
+                .all(|v| finite(&[v.x, v.y, v.z]))
     }
 }
 impl Finite for Float64MultiArray {
@@ -496,6 +510,13 @@ async fn serve(
     let clock_pub = node
         .create_publisher::<Clock>(&clock_topic, None)
         .map_err(|e| format!("publisher {clock_name}: {e:?}"))?;
+    let (sim_base_name, sim_base_pub) =
+        publisher!(Odometry, "~/base_state", "nav_msgs", "Odometry", reliable);
+    let sim_out = SimPublishers {
+        joint_states: (sim_js_name, sim_js_pub),
+        base: (sim_base_name, sim_base_pub),
+        clock: clock_pub,
+    };
     let (reset_name, reset_server) = server!(ResetRequest, ResetResponse, "~/reset", "Reset");
     let (pause_name, pause_server) =
         std_server!(SetBoolRequest, SetBoolResponse, "~/pause", "SetBool");
@@ -684,7 +705,7 @@ async fn serve(
             _ = async { sim_timer.as_mut().expect("guarded").tick().await }, if sim_timer.is_some() => {
                 let tick = engine.simulation_tick(Instant::now());
                 time.simulated(node.time_now_not_simulated(), engine.simulated_time());
-                publish_simulated(tick, &sim_js_pub, &clock_pub, publish_clock(&shared), &sim_js_name, &mut health);
+                sim_out.publish(tick, engine.simulated_base_state(), publish_clock(&shared), &mut health);
             }
             Some(item) = reset_stream.next() => {
                 if let Ok((id, request)) = item {
@@ -709,7 +730,7 @@ async fn serve(
                         Err(message) => TriggerResponse { success: false, message: message.clone() },
                     };
                     if stepped.is_ok() {
-                        publish_simulated(Some(stepped), &sim_js_pub, &clock_pub, publish_clock(&shared), &sim_js_name, &mut health);
+                        sim_out.publish(Some(stepped), engine.simulated_base_state(), publish_clock(&shared), &mut health);
                     }
                     if let Err(e) = step_server.send_response(id, response) { health.dropped(&step_name, &format!("response not sent: {e:?}")); }
                 } else { health.dropped(&step_name, "unreadable request"); }
@@ -742,6 +763,9 @@ async fn serve(
                     status.values.push(KeyValue { key: "real-time factor".into(), value: format!("{rtf:.3}") });
                     status.values.push(KeyValue { key: "paused".into(), value: paused.to_string() });
                     status.values.push(KeyValue { key: "efforts clamped".into(), value: clamped.to_string() });
+                    if let Some(depth) = engine.simulated_penetration() {
+                        status.values.push(KeyValue { key: "deepest ground penetration (m)".into(), value: format!("{depth:.6}") });
+                    }
                     if let Some(why) = diverged {
                         status.level = 2;
                         status.message = why;
@@ -780,23 +804,35 @@ fn simulation_timer(engine: &Engine) -> Option<tokio::time::Interval> {
     })
 }
 
-/// Publishes a simulated `joint_states` (and `/clock`), or reports why the simulation stopped.
-fn publish_simulated(
-    tick: Option<Result<(JointState, Time), String>>,
-    js_pub: &ros2_client::Publisher<JointState>,
-    clock_pub: &ros2_client::Publisher<Clock>,
-    publish_clock: bool,
-    topic: &str,
-    health: &mut Health,
-) {
-    match tick {
-        None => {}
-        Some(Ok((js, stamp))) => {
-            if publish_clock {
-                let _ = clock_pub.publish(Clock { clock: stamp });
+/// Simulate mode's outputs: `joint_states`, the floating base on `~/base_state`, `/clock`.
+struct SimPublishers {
+    joint_states: (String, ros2_client::Publisher<JointState>),
+    base: (String, ros2_client::Publisher<Odometry>),
+    clock: ros2_client::Publisher<Clock>,
+}
+
+impl SimPublishers {
+    /// Publishes a tick's `joint_states` (with the base's state, and `/clock` when asked), or
+    /// reports why the simulation stopped.
+    fn publish(
+        &self,
+        tick: Option<Result<(JointState, Time), String>>,
+        base: Option<Odometry>,
+        publish_clock: bool,
+        health: &mut Health,
+    ) {
+        match tick {
+            None => {}
+            Some(Ok((js, stamp))) => {
+                if publish_clock {
+                    let _ = self.clock.publish(Clock { clock: stamp });
+                }
+                send(&self.joint_states.1, js, &self.joint_states.0, health);
+                if let Some(odometry) = base {
+                    send(&self.base.1, odometry, &self.base.0, health);
+                }
             }
-            send(js_pub, js, topic, health);
+            Some(Err(why)) => eprintln!("[ERROR] [spatial_dynamics]: {why}"),
         }
-        Some(Err(why)) => eprintln!("[ERROR] [spatial_dynamics]: {why}"),
     }
 }

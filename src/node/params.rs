@@ -22,6 +22,9 @@
 //! | `command_timeout` | double | `0.5` | simulate: a command older than this (wall s) drops to zero effort; 0: never |
 //! | `passive` | string[] | `[]` | simulate: URDF forces applied: `damping`, `friction`, `effort_limits`, `position_limits` |
 //! | `initial_positions` | string[] | `[]` | simulate: `"NAME=POSITION"` at start and on reload (others zero) |
+//! | `ground_contacts` | string[] | `[]` | simulate: `"LINK:X,Y,Z"` points (link frame, m) that touch a ground plane; empty: no ground |
+//! | `ground_height` | double | `0` | simulate: the plane `z = height` (world, m) |
+//! | `ground_stiffness`, `ground_damping`, `ground_friction` | double | `2e4`, `200`, `0.8` | simulate: penalty contact per point: N/m, N·s/m, Coulomb μ (`spatial_dynamics::sim::contact`) |
 //! | `use_sim_time` | bool | `false` | the node's clock is ROS simulated time: the latest `/clock` (simulate mode: its own simulated time); outputs are stamped with it |
 //! | `max_stamp_age` | double | `0` | drop a `joint_states` stamped more than this (s) before the node's clock; 0: off |
 //! | `future_stamp_tolerance` | double | `0` | drop a `joint_states` stamped more than this (s) after the node's clock; 0: off |
@@ -34,7 +37,7 @@
 
 use ros2_client::ParameterValue;
 use spatial_dynamics::model::joint_position;
-use spatial_dynamics::sim::{Integrator, Passive};
+use spatial_dynamics::sim::{ContactPoint, Ground, Integrator, Passive};
 use spatial_dynamics::spatial::Vector3;
 use spatial_dynamics::{ForwardDynamicsMethod, ModelOptions};
 use std::path::Path;
@@ -63,6 +66,8 @@ pub struct Settings {
     pub command_timeout: f64,
     pub passive: Vec<String>,
     pub initial_positions: Vec<(String, f64)>,
+    /// Simulate: the ground plane and its contact points (no points: no ground).
+    pub ground: Ground,
     pub use_sim_time: bool,
     pub max_stamp_age: f64,
     pub future_stamp_tolerance: f64,
@@ -91,6 +96,7 @@ impl Default for Settings {
             command_timeout: 0.5,
             passive: Vec::new(),
             initial_positions: Vec::new(),
+            ground: Ground::default(),
             use_sim_time: false,
             max_stamp_age: 0.0,
             future_stamp_tolerance: 0.0,
@@ -176,6 +182,13 @@ impl Settings {
                     .map(|(n, v)| format!("{n}={v:?}"))
                     .collect(),
             ),
+            "ground_contacts" => {
+                P::StringArray(self.ground.points.iter().map(|p| p.to_string()).collect())
+            }
+            "ground_height" => P::Double(self.ground.height),
+            "ground_stiffness" => P::Double(self.ground.stiffness),
+            "ground_damping" => P::Double(self.ground.damping),
+            "ground_friction" => P::Double(self.ground.friction),
             "use_sim_time" => P::Boolean(self.use_sim_time),
             "max_stamp_age" => P::Double(self.max_stamp_age),
             "future_stamp_tolerance" => P::Double(self.future_stamp_tolerance),
@@ -257,9 +270,35 @@ impl Settings {
                     .map(|s| parse_lock(s))
                     .collect::<Result<_, _>>()?
             }
+            ("ground_contacts", P::StringArray(items)) => {
+                self.ground.points = items
+                    .iter()
+                    .map(|s| s.parse::<ContactPoint>())
+                    .collect::<Result<_, _>>()
+                    .map_err(|e| format!("ground_contacts: {e}"))?
+            }
+            ("ground_height" | "ground_stiffness" | "ground_damping" | "ground_friction", _) => {
+                let mut ground = self.ground.clone();
+                *match name {
+                    "ground_height" => &mut ground.height,
+                    "ground_stiffness" => &mut ground.stiffness,
+                    "ground_damping" => &mut ground.damping,
+                    _ => &mut ground.friction,
+                } = match value {
+                    P::Double(x) => *x,
+                    P::Integer(x) => *x as f64,
+                    _ => return wrong("a number"),
+                };
+                ground
+                    .check()
+                    .map_err(|e| format!("parameter '{name}': {e}"))?;
+                self.ground = ground;
+            }
             ("integrator", _) => return wrong("a string"),
             ("publish_clock" | "use_sim_time", _) => return wrong("a bool"),
-            ("passive" | "initial_positions", _) => return wrong("a list of strings"),
+            ("passive" | "initial_positions" | "ground_contacts", _) => {
+                return wrong("a list of strings")
+            }
             ("robot_description" | "urdf_file" | "method" | "root_link", _) => {
                 return wrong("a string")
             }

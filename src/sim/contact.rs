@@ -19,6 +19,35 @@ pub struct ContactPoint {
     pub point: Vector3,
 }
 
+impl std::str::FromStr for ContactPoint {
+    type Err = String;
+    /// `LINK:X,Y,Z`, the point in the link's frame (m).
+    fn from_str(spec: &str) -> Result<ContactPoint, String> {
+        spec.split_once(':')
+            .and_then(|(link, xyz)| {
+                let v: Vec<f64> = xyz
+                    .split(',')
+                    .map(|x| x.trim().parse().ok())
+                    .collect::<Option<_>>()?;
+                (!link.is_empty() && v.len() == 3 && v.iter().all(|x| x.is_finite())).then(|| {
+                    ContactPoint {
+                        link: link.to_string(),
+                        point: Vector3::new(v[0], v[1], v[2]),
+                    }
+                })
+            })
+            .ok_or_else(|| format!("contact point '{spec}': expected LINK:X,Y,Z (finite, m)"))
+    }
+}
+
+impl std::fmt::Display for ContactPoint {
+    /// As parsed: `LINK:X,Y,Z`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let p = &self.point;
+        write!(f, "{}:{:?},{:?},{:?}", self.link, p.x, p.y, p.z)
+    }
+}
+
 /// The ground and the points that can touch it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Ground {
@@ -44,6 +73,31 @@ impl Default for Ground {
     }
 }
 
+impl Ground {
+    /// The plane's numbers are usable: finite height, stiffness > 0, damping and friction ≥ 0.
+    /// The error names the field and its value.
+    pub fn check(&self) -> Result<(), String> {
+        for (field, value, least) in [
+            ("height", self.height, f64::NEG_INFINITY),
+            ("stiffness", self.stiffness, f64::MIN_POSITIVE),
+            ("damping", self.damping, 0.0),
+            ("friction", self.friction, 0.0),
+        ] {
+            if !(value.is_finite() && value >= least) {
+                let want = if least > 0.0 {
+                    "> 0"
+                } else if least == 0.0 {
+                    "≥ 0"
+                } else {
+                    "finite"
+                };
+                return Err(format!("ground {field} is {value}: it must be {want}"));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Tangential smoothing velocity of contact friction (m/s).
 pub const CONTACT_FRICTION_SMOOTHING: f64 = 0.01;
 
@@ -61,6 +115,7 @@ pub(crate) struct Contacts {
 impl Contacts {
     /// Resolves each point's link to its body (fused links included).
     pub(crate) fn new(model: &Model, ground: &Ground) -> Result<Contacts, String> {
+        ground.check()?;
         let mut points = Vec::new();
         for p in &ground.points {
             let link = model

@@ -195,6 +195,13 @@ impl Simulator {
         })
     }
 
+    /// The state was set from outside (a reset): the energy budget of the divergence check
+    /// starts again from the state of the next step.
+    pub fn restart_energy_budget(&mut self) {
+        self.initial_energy = None;
+        self.work = 0.0;
+    }
+
     /// Deepest ground penetration of any contact point so far (m).
     pub fn max_penetration(&self) -> f64 {
         self.eval

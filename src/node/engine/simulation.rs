@@ -41,7 +41,7 @@ impl Engine {
             dt: settings.sim_dt,
             substeps: 1,
             passive: parse_passive(&settings.passive)?,
-            ground: None,
+            ground: (!settings.ground.points.is_empty()).then(|| settings.ground.clone()),
         };
         let mut q = vec![0.0; self.model.nq];
         if let Some((qi, _)) = self.map.base() {
@@ -153,6 +153,61 @@ impl Engine {
         Ok((js, stamp))
     }
 
+    /// The floating base in simulate mode, on `~/base_state` as the node reads it in serve mode
+    /// (nav_msgs/Odometry): the base link's pose in the `world` frame and its twist in the base
+    /// frame, linear then angular; `None` without a floating base.
+    pub fn simulated_base_state(&self) -> Option<Odometry> {
+        let sim = self.simulation.as_ref()?;
+        let (qi, vi) = self.map.base()?;
+        let (q, v) = (&sim.state.q[qi..qi + 7], &sim.state.v[vi..vi + 6]);
+        let base = self
+            .model
+            .bodies
+            .iter()
+            .find(|b| b.parent.is_none() && b.joint.coords.q_index == qi)?;
+        let vector = |x: &[f64]| Vector3 {
+            x: x[0],
+            y: x[1],
+            z: x[2],
+        };
+        Some(Odometry {
+            header: Header {
+                stamp: time_of(sim.state.t),
+                frame_id: "world".into(),
+            },
+            child_frame_id: base.name.clone(),
+            pose: PoseWithCovariance {
+                pose: Pose {
+                    position: Point {
+                        x: q[0],
+                        y: q[1],
+                        z: q[2],
+                    },
+                    orientation: Quaternion {
+                        x: q[3],
+                        y: q[4],
+                        z: q[5],
+                        w: q[6],
+                    },
+                },
+                covariance: Covariance::default(),
+            },
+            twist: TwistWithCovariance {
+                twist: Twist {
+                    linear: vector(&v[..3]),
+                    angular: vector(&v[3..]),
+                },
+                covariance: Covariance::default(),
+            },
+        })
+    }
+
+    /// The deepest ground penetration so far (m), in simulate mode with ground contacts.
+    pub fn simulated_penetration(&self) -> Option<f64> {
+        let sim = self.simulation.as_ref()?;
+        (!sim.sim.config.ground.as_ref()?.points.is_empty()).then(|| sim.sim.max_penetration())
+    }
+
     /// `~/pause` (true: pause, false: resume).
     pub fn simulation_pause(&mut self, pause: bool) -> Result<String, String> {
         let sim = self
@@ -190,6 +245,7 @@ impl Engine {
         let sim = self.simulation.as_mut().expect("checked above");
         sim.state.q.copy_from_slice(&self.q);
         sim.state.v.copy_from_slice(&self.v);
+        sim.sim.restart_energy_budget();
         sim.diverged = None;
         self.command.iter_mut().for_each(|c| *c = 0.0);
         self.command_time = None;
