@@ -167,35 +167,7 @@ pub fn kernel_flops(model: &Model, name: &str) -> Option<Flops> {
 fn joints(model: &Model) -> Flops {
     let mut total = Flops::default();
     for body in &model.bodies {
-        total += match body.joint.kind {
-            JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
-                if is_coordinate_axis(&axis) {
-                    Flops {
-                        sincos: 1,
-                        ..Flops::new(13, 6)
-                    }
-                } else {
-                    Flops {
-                        sincos: 1,
-                        ..Flops::new(24, 13)
-                    } + COMPOSE
-                }
-            }
-            JointKind::Prismatic { .. } => Flops::new(12, 9),
-            JointKind::Floating => {
-                Flops {
-                    sqrt: 1,
-                    div: 4,
-                    ..Flops::new(4 + 16, 3 + 15)
-                } + COMPOSE
-            }
-            JointKind::Planar { .. } => {
-                Flops {
-                    sincos: 1,
-                    ..Flops::new(24 + 18, 13 + 12)
-                } + COMPOSE
-            }
-        };
+        total += jcalc_up(&body.joint.kind);
         // A mimic follower's position, scale · q + offset.
         if body.joint.is_mimic() {
             total += Flops::new(1, 1);
@@ -204,13 +176,47 @@ fn joints(model: &Model) -> Flops {
     total
 }
 
+/// `JointKind::jcalc_up` for a joint of kind `kind` (its `sin_cos`, if any, in `sincos`).
+pub fn jcalc_up(kind: &JointKind) -> Flops {
+    match kind {
+        JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
+            if is_coordinate_axis(axis) {
+                Flops {
+                    sincos: 1,
+                    ..Flops::new(13, 6)
+                }
+            } else {
+                Flops {
+                    sincos: 1,
+                    ..Flops::new(24, 13)
+                } + COMPOSE
+            }
+        }
+        JointKind::Prismatic { .. } => Flops::new(12, 9),
+        JointKind::Floating => {
+            Flops {
+                sqrt: 1,
+                div: 4,
+                ..Flops::new(4 + 16, 3 + 15)
+            } + COMPOSE
+        }
+        JointKind::Planar { .. } => {
+            Flops {
+                sincos: 1,
+                ..Flops::new(24 + 18, 13 + 12)
+            } + COMPOSE
+        }
+    }
+}
+
 fn is_coordinate_axis(axis: &crate::spatial::Vector3) -> bool {
     let zeros = axis.iter().filter(|x| **x == 0.0).count();
     zeros == 2 && axis.iter().any(|x| x.abs() == 1.0)
 }
 
-/// `c_J` of a planar joint: rotation, `E (u ẋ + w ẏ)`, cross product and scale.
-fn joint_bias(kind: &JointKind) -> Flops {
+/// `JointKind::bias`, `c_J`; non-zero only for a planar joint: rotation, `E (u ẋ + w ẏ)`,
+/// cross product and scale.
+pub fn joint_bias(kind: &JointKind) -> Flops {
     match kind {
         JointKind::Planar { .. } => {
             Flops {
