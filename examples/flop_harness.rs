@@ -40,8 +40,14 @@ fn run(args: &[String]) -> Result<(), String> {
         .parse()
         .map_err(|_| format!("CALLS '{calls}' is not a count"))?;
     match kernel.as_str() {
-        "dot64" => return Ok(calibrate_dot(calls)),
-        "mat3" => return Ok(calibrate_mat3(calls)),
+        "dot64" => {
+            calibrate_dot(calls);
+            return Ok(());
+        }
+        "mat3" => {
+            calibrate_mat3(calls);
+            return Ok(());
+        }
         _ => {}
     }
     if let Some(name) = kernel.strip_prefix("op:") {
@@ -230,6 +236,15 @@ fn operation(name: &str, calls: usize) -> Result<(), String> {
             prismatic.jcalc_up(&q[..1], &x, &mut s);
             repeat!(black_box(&s).apply(black_box(&q[..1]), black_box(0.5)));
             flops::SUBSPACE_COLUMN
+        }
+        "spd_inverse6" => {
+            let spd = m6.transpose() * m6 + Matrix6::identity();
+            repeat!(black_box(&spd).cholesky().map(|c| c.inverse()));
+            flops::SPD_INVERSE6
+        }
+        "inertia_to_matrix" => {
+            repeat!(black_box(&inertia).to_matrix());
+            flops::INERTIA_TO_MATRIX
         }
         "jcalc_revolute_z" => jcalc(&revolute_z, calls, &mut s),
         "jcalc_revolute_axis" => jcalc(&revolute_axis, calls, &mut s),
