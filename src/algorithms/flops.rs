@@ -1,13 +1,33 @@
 //! Floating-point operation counts of the algorithms *as implemented here*, for a given model:
-//! each spatial operation's cost read off its code, summed over the tree (and, for `crba` and
-//! the `LᵀL` factorisation, over the mass matrix's sparsity pattern). Validation and bookkeeping
-//! (index arithmetic, comparisons, copies, negations) are not counted.
+//! each spatial operation's cost, summed over the tree (and, for `crba` and the `LᵀL`
+//! factorisation, over the mass matrix's sparsity pattern).
 //!
 //! A FLOP is one scalar multiplication, addition or subtraction, division or square root
 //! ([`Flops::total`]); a joint angle's `sin_cos` is a library call, counted apart
-//! ([`Flops::sincos`]). No fused multiply-add: Rust does not contract `a * b + c`.
+//! ([`Flops::sincos`]). No fused multiply-add: Rust does not contract `a * b + c`. Negations,
+//! comparisons, absolute values, copies and index arithmetic are not FLOPs.
 //!
-//! Costs of the building blocks (multiplications m, additions a):
+//! **What is counted: the operations the compiled code performs, one per scalar result.** That
+//! is the source's arithmetic after the simplifications the compiler makes without changing any
+//! result: a product written twice is computed once (nalgebra's `from_axis_angle`), `2 x`
+//! becomes `x + x`, `0 − 0` and `−0 + x` on constants are folded. Validation that computes
+//! (a quaternion's norm, a pivot's threshold `H_kk ε`) is counted. Packed SIMD instructions the
+//! vectoriser emits are not counted by the lane: a packed instruction whose second lane
+//! computes nothing needed is one operation here, two in the executed count.
+//!
+//! **How this was checked** (`benches/count_flops.py`, `tests/python/test_flop_counts.py`):
+//! valgrind (callgrind) counts how often each machine instruction of `examples/flop_harness`
+//! runs while it calls a kernel; `objdump` says which are floating-point arithmetic. Built
+//! without LLVM's vectorisers (`--scalar`, one operation per instruction), the measurement
+//! equals this table exactly for every building block below and for every kernel on the
+//! default arm (fixed and floating), a 12-link chain, `tests/models/tree.urdf` and the mimic
+//! gripper (ABA with a planar joint: 3 multiplications apart; its nalgebra 6×6 inverse is a
+//! measured constant, [`SPD_INVERSE6`]). The release build as shipped executes more: its
+//! packed instructions waste lanes (RNEA and the n+1 RNEA method about +15 %, gravity +10 %,
+//! CRBA with `LᵀL` +6 to +9 %, ABA +2 to +3 %, CRBA alone under +2.5 %).
+//!
+//! Costs of the building blocks (multiplications m, additions a), each measured alone too
+//! (`count_flops.py --ops`):
 //!
 //! | operation | code | m | a |
 //! |---|---|---:|---:|
@@ -24,16 +44,16 @@
 //! | `I₁ + I₂` (rigid inertias) | `Inertia + Inertia` | 0 | 13 |
 //! | 6×6 × 6-vector | `Matrix6 * Vector6` | 36 | 30 |
 //! | `S q̇` (per column) | `MotionSubspace::apply` | 7 | 6 |
+//! | rigid inertia as 6×6 | `Inertia::to_matrix` | 1 | 0 |
 //!
-//! and `jcalc_up` (`JointKind::jcalc_up`) per joint kind: revolute about a coordinate axis
-//! 13 m + 6 a and one `sin_cos`; prismatic 12 m + 9 a; revolute about another axis (nalgebra's
-//! `from_axis_angle`, 24 m + 13 a) then `compose`; floating (quaternion normalised, 4 m + 3 a,
-//! one square root, 4 divisions; then to a rotation matrix, 16 m + 15 a) then `compose`;
-//! planar (rotation about the normal, then `E u`, `E w`, `u x + w y`: 18 m + 12 a more) then
-//! `compose`.
+//! and `jcalc_up` (`JointKind::jcalc_up`, [`jcalc_up`]) per joint kind, after the joint's
+//! coordinates `scale · q + offset` (1 m + 1 a each, for every joint): revolute about a
+//! coordinate axis 13 m + 6 a and one `sin_cos`; prismatic 12 m + 9 a; revolute about another
+//! axis [`AXIS_ROTATION`] then `compose`; floating [`QUATERNION_ROTATION`] then `compose`;
+//! planar ([`AXIS_ROTATION`], then `E u`, `E w`, `u x + w y`: 24 m + 15 a more) then `compose`.
 //!
 //! Dense factorisations count exactly their loops; nalgebra's 6×6 Cholesky and inverse, used
-//! by ABA for a joint with several degrees of freedom, are counted as `n³/3` and `n³` (n = 6).
+//! by ABA for a joint with several degrees of freedom, is [`SPD_INVERSE6`].
 
 use crate::model::{JointKind, Model};
 use std::ops::{Add, AddAssign, Mul};
@@ -127,81 +147,124 @@ pub const INERTIA_ADD: Flops = Flops::new(0, 13);
 pub const MAT6_VEC6: Flops = Flops::new(36, 30);
 /// One column of `S q̇` with the coordinate scale.
 pub const SUBSPACE_COLUMN: Flops = Flops::new(7, 6);
+/// `Inertia::to_matrix`: skew matrices are negations and `1 m` is folded to copies of `m` (the
+/// source's `Matrix3::identity() * m` is 9 m; one multiplication is left in the code).
+pub const INERTIA_TO_MATRIX: Flops = Flops::new(1, 0);
+/// nalgebra's `Cholesky::new` and `inverse` of a 6×6 symmetric positive definite matrix (ABA
+/// pads a joint's `D` with the identity to 6×6): library code (generic `axpy` with β = 1,
+/// triangular solves on the six columns of the identity), so this entry is measured, not read
+/// off the source: what `fd_aba` executes for it (`benches/count_flops.py`, a model with a
+/// floating or planar joint). The same calls alone (`op:spd_inverse6`) execute 215 m + 245 a,
+/// 87 divisions and 7 square roots: how inlining into ABA saves the difference is not known.
+pub const SPD_INVERSE6: Flops = Flops {
+    mul: 170,
+    add: 219,
+    div: 77,
+    sqrt: 6,
+    sincos: 0,
+};
+/// `axis_rotation` (nalgebra's `Rotation3::from_axis_angle`), without its `sin_cos`: as written
+/// 24 m + 13 a, but the repeated products `u_i u_j (1 − c)` and `u_k s` are computed once.
+pub const AXIS_ROTATION: Flops = Flops::new(15, 13);
+/// `quaternion_rotation`: normalising (4 m + 3 a, a square root, 4 divisions), then nalgebra's
+/// `to_rotation_matrix` (16 m + 15 a as written; its six `2 x` become `x + x` and `w² − i²` is
+/// shared: 10 m + 20 a).
+pub const QUATERNION_ROTATION: Flops = Flops {
+    mul: 4 + 10,
+    add: 3 + 20,
+    div: 4,
+    sqrt: 1,
+    sincos: 0,
+};
 
 /// The count of kernel `name` (as `spatial_dynamics bench` names them: `rnea`, `crba`,
 /// `fd_aba`, `fd_crba`, `fd_rnea_columns`, `gravity`) on `model`; `None` for another name, or
 /// for `fd_aba` on a model with mimic joints (ABA refuses them).
 pub fn kernel_flops(model: &Model, name: &str) -> Option<Flops> {
     let n = model.nv as u64;
+    let check = check_q(model);
     Some(match name {
-        "rnea" => joints(model) + rnea_passes(model, true, true),
-        "crba" => joints(model) + crba_passes(model),
-        "gravity" => joints(model) + gravity_passes(model),
+        "rnea" => check + joints(model) + rnea_passes(model, true, true),
+        "crba" => check + joints(model) + crba_passes(model),
+        "gravity" => check + joints(model) + gravity_passes(model),
         "fd_aba" => {
             if model.bodies.iter().any(|b| b.joint.is_mimic()) {
                 return None;
             }
-            joints(model) + aba_passes(model)
+            check + joints(model) + aba_passes(model)
         }
         "fd_crba" => {
             let solve = match &model.dof_parent {
                 Some(lambda) => ltl(lambda),
                 None => dense_cholesky(n),
             };
-            joints(model) + rnea_passes(model, true, false) + crba_passes(model) + solve
-                // τ − C
-                + Flops::new(0, n)
+            check + joints(model) + rnea_passes(model, true, false) + crba_passes(model) + solve
+                // τ − C; each pivot checked against H_kk ε
+                + Flops::new(n, n)
         }
         "fd_rnea_columns" => {
-            (joints(model) + rnea_passes(model, true, false))
+            check
+                + (joints(model) + rnea_passes(model, true, false))
                 + (joints(model) + rnea_passes(model, true, true)) * n
-                // H_k = τ − C for each column, τ − C once
-                + Flops::new(0, n * n + n)
+                // H_k = τ − C for each column, τ − C once; each pivot checked against H_kk ε
+                + Flops::new(n, n * n + n)
                 + dense_cholesky(n)
         }
         _ => return None,
     })
 }
 
+/// `check_q`: the norm of every floating joint's quaternion (4 m + 3 a and a square root).
+fn check_q(model: &Model) -> Flops {
+    let floating = model
+        .bodies
+        .iter()
+        .filter(|b| b.joint.kind == JointKind::Floating && !b.joint.is_mimic())
+        .count() as u64;
+    Flops {
+        sqrt: floating,
+        ..Flops::new(4, 3)
+    } * floating
+}
+
 /// `update_joints`: `jcalc_up` for every body.
 fn joints(model: &Model) -> Flops {
     let mut total = Flops::default();
     for body in &model.bodies {
-        total += match body.joint.kind {
-            JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
-                if is_coordinate_axis(&axis) {
-                    Flops {
-                        sincos: 1,
-                        ..Flops::new(13, 6)
-                    }
-                } else {
-                    Flops {
-                        sincos: 1,
-                        ..Flops::new(24, 13)
-                    } + COMPOSE
-                }
-            }
-            JointKind::Prismatic { .. } => Flops::new(12, 9),
-            JointKind::Floating => {
-                Flops {
-                    sqrt: 1,
-                    div: 4,
-                    ..Flops::new(4 + 16, 3 + 15)
-                } + COMPOSE
-            }
-            JointKind::Planar { .. } => {
-                Flops {
-                    sincos: 1,
-                    ..Flops::new(24 + 18, 13 + 12)
-                } + COMPOSE
-            }
-        };
-        // A mimic follower's position, scale · q + offset.
-        if body.joint.is_mimic() {
-            total += Flops::new(1, 1);
-        }
+        // The joint's coordinates `scale · q + offset` (the identity map unless mimic; still
+        // computed), then its transform.
+        let nq = body.joint.kind.nq() as u64;
+        total += Flops::new(nq, nq) + jcalc_up(&body.joint.kind);
     }
     total
+}
+
+/// One `sin_cos` call.
+const SINCOS: Flops = Flops {
+    sincos: 1,
+    ..Flops::new(0, 0)
+};
+
+/// `JointKind::jcalc_up` for a joint of kind `kind` (its `sin_cos`, if any, in `sincos`).
+pub fn jcalc_up(kind: &JointKind) -> Flops {
+    match kind {
+        JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
+            if is_coordinate_axis(axis) {
+                Flops {
+                    sincos: 1,
+                    ..Flops::new(13, 6)
+                }
+            } else {
+                SINCOS + AXIS_ROTATION + COMPOSE
+            }
+        }
+        JointKind::Prismatic { .. } => Flops::new(12, 9),
+        JointKind::Floating => QUATERNION_ROTATION + COMPOSE,
+        // E = rot(θ)ᵀ, S's columns E u and E w, the origin u x + w y.
+        JointKind::Planar { .. } => {
+            SINCOS + AXIS_ROTATION + MAT3_VEC3 * 2 + Flops::new(6, 3) + COMPOSE
+        }
+    }
 }
 
 fn is_coordinate_axis(axis: &crate::spatial::Vector3) -> bool {
@@ -209,17 +272,12 @@ fn is_coordinate_axis(axis: &crate::spatial::Vector3) -> bool {
     zeros == 2 && axis.iter().any(|x| x.abs() == 1.0)
 }
 
-/// `c_J` of a planar joint: rotation, `E (u ẋ + w ẏ)`, cross product and scale.
-fn joint_bias(kind: &JointKind) -> Flops {
+/// `JointKind::bias`, `c_J`; non-zero only for a planar joint: rotation, `E (u ẋ + w ẏ)`,
+/// cross product and scale.
+pub fn joint_bias(kind: &JointKind) -> Flops {
     match kind {
         JointKind::Planar { .. } => {
-            Flops {
-                sincos: 1,
-                ..Flops::new(24, 13)
-            } + Flops::new(6, 3)
-                + MAT3_VEC3
-                + CROSS3
-                + Flops::new(3, 0)
+            SINCOS + AXIS_ROTATION + Flops::new(6, 3) + MAT3_VEC3 + CROSS3 + Flops::new(3, 0)
         }
         _ => Flops::default(),
     }
@@ -227,7 +285,9 @@ fn joint_bias(kind: &JointKind) -> Flops {
 
 /// `rnea_passes` with velocities (`with_v`) and accelerations (`with_a`) given.
 fn rnea_passes(model: &Model, with_v: bool, with_a: bool) -> Flops {
-    let mut total = Flops::default();
+    // a_0 = a_base − [0; g] (the angular part is 0 − 0 for the externals the kernels take, which
+    // the compiler folds).
+    let mut total = Flops::new(0, 3);
     for body in &model.bodies {
         let nv = body.joint.kind.nv() as u64;
         if with_v {
@@ -287,8 +347,11 @@ fn crba_passes(model: &Model) -> Flops {
         }
     }
     if model.dof_parent.is_none() {
-        // The general path scales every entry by μ_i μ_j (two multiplications) and adds it.
-        total += Flops::new(2, 1) * pattern_entries(model);
+        // The general path scales every entry by μ_i μ_j (two multiplications) and adds it, an
+        // entry off the diagonal to both of its places.
+        let diagonal: u64 = model.bodies.iter().map(|b| b.joint.kind.nv() as u64).sum();
+        let entries = pattern_entries(model);
+        total += Flops::new(2, 1) * entries + Flops::new(0, entries - diagonal);
     }
     total
 }
@@ -310,26 +373,26 @@ fn pattern_entries(model: &Model) -> u64 {
 
 /// The three ABA passes (world frame).
 fn aba_passes(model: &Model) -> Flops {
-    let mut total = placements(model);
+    // Pass 3's a_0 = a_base − [0; g] (as in `rnea_passes`).
+    let mut total = placements(model) + Flops::new(0, 3);
     for body in &model.bodies {
         let nv = body.joint.kind.nv() as u64;
-        // Pass 1: ⁰S, v_J, v_i, c_i, ⁰I, p^A.
-        total += TRANSFORM_VECTOR * nv + SUBSPACE_COLUMN * nv + ADD6;
+        // Pass 1: ⁰S, v_J (`S q̇` unscaled: 6 m + 6 a a column), v_i, c_i, ⁰I (and as a 6×6),
+        // p^A.
+        total += TRANSFORM_VECTOR * nv + Flops::new(6, 6) * nv + ADD6;
         total += joint_bias(&body.joint.kind) + TRANSFORM_VECTOR + CROSS6 + ADD6;
-        total += TRANSFORM_INERTIA + INERTIA_APPLY + CROSS6;
-        // Pass 2: U, D, u, D⁻¹.
+        total += TRANSFORM_INERTIA + INERTIA_TO_MATRIX + INERTIA_APPLY + CROSS6;
+        // Pass 2: U, D, u, D⁻¹ (its pivot check scales `64 · max diag I^A` by ε).
         total += MAT6_VEC6 * nv + DOT6 * (nv * nv) + (DOT6 + Flops::new(0, 1)) * nv;
+        total += Flops::new(1, 0);
         total += if nv == 1 {
             Flops {
                 div: 1,
-                ..Flops::default()
+                ..Flops::new(1, 0)
             }
         } else {
-            // nalgebra's Cholesky (6 square roots) and inverse of the padded 6×6.
-            Flops {
-                sqrt: 6,
-                ..Flops::new(36, 36)
-            } + Flops::new(108, 108)
+            // nalgebra's Cholesky and inverse of the padded 6×6; each pivot `L_kk²` checked.
+            SPD_INVERSE6 + Flops::new(2, 0) * nv
         };
         if body.parent.is_some() {
             // D⁻¹ u and the rows of D⁻¹ Uᵀ, the rank-nv update, p^a, I^a c, the parent sums.
@@ -337,9 +400,10 @@ fn aba_passes(model: &Model) -> Flops {
             total += (Flops::new(36, 36) + Flops::new(6, 6)) * nv;
             total += MAT6_VEC6 + ADD6 + Flops::new(0, 36) + ADD6;
         }
-        // Pass 3: a' = a_λ + c_i, the right-hand side, q̈ = D⁻¹ rhs, a_i += S q̈.
+        // Pass 3: a' = a_λ + c_i, the right-hand side, q̈ = D⁻¹ rhs (a `sum` of nv products:
+        // its first addition, to −0, is folded), a_i += S q̈.
         total += ADD6 + (DOT6 + Flops::new(0, 1)) * nv;
-        total += Flops::new(nv, nv) * nv + Flops::new(6, 6) * nv;
+        total += Flops::new(nv, nv - 1) * nv + Flops::new(6, 6) * nv;
     }
     total
 }
@@ -463,20 +527,23 @@ mod tests {
         }
     }
 
-    /// Per body of a revolute chain, RNEA costs what its passes do: jcalc (13 m + 6 a),
+    /// Per body of a revolute chain, RNEA costs what its passes do: the joint coordinate
+    /// `scale · q + offset` (1 m + 1 a), jcalc (13 m + 6 a),
     /// `S q̇`, `S q̈` (7 m + 6 a each), two transforms, a spatial cross product and four
     /// 6-vector sums outward, two inertia products, a cross product and a sum for `f`, and
     /// inward a projection (scaled, accumulated) and, below the root, a transform and a sum.
     #[test]
     fn rnea_per_body_on_a_chain() {
         let per_body = Flops::new(
-            13 + 7 + 7 + 48 + 18 + 48 + 18 + 7,
-            6 + 6 + 6 + 36 + 12 + 24 + 36 + 12 + 6 + 6,
+            1 + 13 + 7 + 7 + 48 + 18 + 48 + 18 + 7,
+            1 + 6 + 6 + 6 + 36 + 12 + 24 + 36 + 12 + 6 + 6,
         );
         let below_root = Flops::new(24, 24);
+        // a_0 = −[0; g]: three subtractions from zero.
+        let root = Flops::new(0, 3);
         for n in [1usize, 4, 9] {
             let model = chain(n);
-            let mut expected = per_body * n as u64 + below_root * (n as u64 - 1);
+            let mut expected = root + per_body * n as u64 + below_root * (n as u64 - 1);
             expected.sincos = n as u64;
             assert_eq!(kernel_flops(&model, "rnea"), Some(expected), "n = {n}");
         }
