@@ -2,7 +2,7 @@
 """Counts the floating-point operations each kernel executes, independently of the table in
 src/algorithms/flops.rs, and prints table against measurement.
 
-Method: `examples/flop_harness.rs` calls one kernel CALLS times; valgrind's callgrind
+Method: `benches/flop_harness.rs` calls one kernel CALLS times; valgrind's callgrind
 (`--dump-instr=yes`) gives how often every machine instruction ran; `objdump -d` says what
 each instruction is. Each executed SSE/AVX/x87 arithmetic instruction counts as the number of
 double-precision operations it performs: `addsd`/`subsd` 1 add, `mulsd` 1 mul, `divsd` 1 div,
@@ -49,7 +49,7 @@ KERNELS = ["rnea", "crba", "fd_aba", "fd_crba", "fd_rnea_columns", "gravity"]
 # off-axis revolute, prismatic), a 12-link chain, a gripper with mimic joints.
 MODELS = ["arm", "arm+floating", "tests/models/tree.urdf", "pendulum12", "gripper"]
 CATEGORIES = ("mul", "add", "div", "sqrt")
-# The building blocks the table prices (examples/flop_harness.rs `op:NAME`), each measured alone.
+# The building blocks the table prices (benches/flop_harness.rs `op:NAME`), each measured alone.
 OPS = ["cross3", "mat3_vec3", "mat3_tr_vec3", "apply_motion", "apply_force",
        "inverse_apply_motion", "transpose_apply_force", "compose", "transpose_apply_inertia",
        "inertia_apply", "cross_motion", "cross_force", "dot6", "add6", "inertia_add", "mat6_vec6",

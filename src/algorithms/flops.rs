@@ -16,7 +16,7 @@
 //! computes nothing needed is one operation here, two in the executed count.
 //!
 //! **How this was checked** (`benches/count_flops.py`, `tests/python/test_flop_counts.py`):
-//! valgrind (callgrind) counts how often each machine instruction of `examples/flop_harness`
+//! valgrind (callgrind) counts how often each machine instruction of `benches/flop_harness.rs`
 //! runs while it calls a kernel; `objdump` says which are floating-point arithmetic. Built
 //! without LLVM's vectorisers (`--scalar`, one operation per instruction), the measurement
 //! equals this table exactly for every building block below and for every kernel on the
