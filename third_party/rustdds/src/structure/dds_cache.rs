@@ -111,6 +111,10 @@ impl DDSCache {
   }
 }
 
+/// Payloads up to this size are copied out of the receive buffer when they enter
+/// the cache (spatial_dynamics patch, see `add_change_internal`).
+const COPY_OUT_MAX_PAYLOAD: usize = 16 * 1024;
+
 #[derive(Debug)]
 pub(crate) struct TopicCache {
   topic_name: String,
@@ -314,7 +318,7 @@ impl TopicCache {
   fn add_change_internal(
     &mut self,
     instant: &Timestamp,
-    cache_change: CacheChange,
+    mut cache_change: CacheChange,
   ) -> Option<CacheChange> {
     // First, do garbage collection.
     // But not at every insert, just to save time and effort.
@@ -368,6 +372,15 @@ impl TopicCache {
       };
       self.last_added_instant = key;
 
+      // spatial_dynamics patch: a small payload is a slice of a 256 KiB receive
+      // buffer shared with every other datagram received around it, and keeps that
+      // whole buffer alive while the sample stays here (until it is evicted, or
+      // copied out after 5 s by `remove_changes_before`). A slow topic's few
+      // samples thus pinned seconds' worth of a fast topic's traffic (measured:
+      // ~25 MB at 10 kHz). Copy small payloads out at once.
+      if cache_change.data_value.payload_size() <= COPY_OUT_MAX_PAYLOAD {
+        cache_change.reallocate();
+      }
       self.insert_sn(key, &cache_change);
       self.changes.insert(key, cache_change).inspect(|old_cc| {
         // Should be unreachable now that keys are strictly monotonic, but keep the
