@@ -680,4 +680,40 @@ mod tests {
     }
     assert_eq!(buf.retained_len(), max_retain + 10);
   }
+
+  // spatial_dynamics patch: with a reliable reader matched, acknowledged and sent
+  // samples beyond the History depth are evicted at insert; unacknowledged ones
+  // are kept for repair.
+  #[test]
+  fn reliable_writer_evicts_acknowledged_beyond_depth_at_insert() {
+    let max_retain = 4;
+    let buf = WriterSendBuffer::new(
+      GUID::GUID_UNKNOWN,
+      "t".to_string(),
+      /* reliable_writer */ true,
+      /* is_builtin */ false,
+      /* volatile */ true,
+      /* window_limit */ 1000,
+      /* backlog_limit */ 1000,
+      max_retain,
+    );
+    buf.set_acked_frontier(Some(SequenceNumber::new(1))); // matched, nothing acked
+    for _ in 0..20 {
+      assert!(admit_now(&buf, WriteOptions::default()));
+    }
+    assert_eq!(buf.retained_len(), 20); // all unacknowledged: all kept
+
+    buf.set_sent_frontier(SequenceNumber::new(20));
+    buf.set_acked_frontier(Some(SequenceNumber::new(16))); // 1..=15 acknowledged
+    assert!(admit_now(&buf, WriteOptions::default())); // 21
+    // 1..=15 evicted; 16..=20 (unacknowledged) and 21 kept, though above depth.
+    assert_eq!(buf.retained_len(), 6);
+    assert_eq!(buf.first_change_sequence_number(), SequenceNumber::new(16));
+
+    buf.set_sent_frontier(SequenceNumber::new(21));
+    buf.set_acked_frontier(Some(SequenceNumber::new(22))); // all acknowledged
+    assert!(admit_now(&buf, WriteOptions::default())); // 22
+    assert_eq!(buf.retained_len(), max_retain); // the last `depth` stay
+    assert_eq!(buf.first_change_sequence_number(), SequenceNumber::new(19));
+  }
 }
