@@ -377,7 +377,7 @@ impl TopicCache {
       // whole buffer alive while the sample stays here (until it is evicted, or
       // copied out after 5 s by `remove_changes_before`). A slow topic's few
       // samples thus pinned seconds' worth of a fast topic's traffic (measured:
-      // ~25 MB at 10 kHz). Copy small payloads out at once.
+      // 19-27 MB at 5-10 kHz). Copy small payloads out at once.
       if cache_change.data_value.payload_size() <= COPY_OUT_MAX_PAYLOAD {
         cache_change.reallocate();
       }
