@@ -241,6 +241,32 @@ def cpu_seconds(pid):
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def udp_drops(pid):
+    """Datagrams the kernel dropped on the node's UDP sockets (receive buffer full), summed over them.
+
+    /proc/net/udp{,6} list every socket of this network namespace with its inode and a drop count;
+    the node's sockets are the inodes among its open file descriptors."""
+    inodes = set()
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        try:
+            target = os.readlink(fd)
+        except OSError:
+            continue
+        if target.startswith("socket:["):
+            inodes.add(target[8:-1])
+    total = 0
+    for table in ("/proc/net/udp", "/proc/net/udp6"):
+        try:
+            lines = Path(table).read_text().splitlines()[1:]
+        except OSError:
+            continue
+        for line in lines:
+            f = line.split()
+            if len(f) >= 13 and f[9] in inodes:
+                total += int(f[12])
+    return total
+
+
 def loadavg():
     return float(Path("/proc/loadavg").read_text().split()[0])
 
@@ -295,7 +321,7 @@ class Diagnostics:
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             self.executor.spin_once(timeout_sec=min(0.1, max(0.0, end - time.monotonic())))
-            if not self.rss or time.monotonic() - self.rss[-1][0] >= 1.0:
+            if not self.rss or time.monotonic() - self.rss[-1][0] >= 0.5:
                 self.rss.append((time.monotonic(), rss_kib(self.pid)))
 
     def fresh(self, timeout=5.0):
@@ -345,6 +371,7 @@ def phase(diag, node_pid, index, rate, duration, args, workdir):
     before = diag.fresh()
     computed_from = len(diag.compute)
     cpu0, rss0, load0, t0 = cpu_seconds(node_pid), rss_kib(node_pid), loadavg(), time.monotonic()
+    kernel0 = udp_drops(node_pid)
     feeder = spawn("feeder", "--rate", rate, "--duration", duration, "--phase", index, "--out", feeder_out)
     wait_ready(feeder, "feeder")
     while feeder.poll() is None:
@@ -360,6 +387,7 @@ def phase(diag, node_pid, index, rate, duration, args, workdir):
         proc.send_signal(signal.SIGINT)
     after = diag.fresh()
     rss1 = rss_kib(node_pid)
+    kernel1 = udp_drops(node_pid)
     result = {
         "rate_hz": rate, "duration_s": duration,
         "feeder": {"sent": feeder_report["sent"], "achieved_hz": feeder_report["sent"] / max(feeder_report["seconds"], 1e-9)},
@@ -367,12 +395,16 @@ def phase(diag, node_pid, index, rate, duration, args, workdir):
             "received": counter(after, "/joint_states received") - counter(before, "/joint_states received"),
             "dropped": {k: v - drops(before).get(k, 0) for k, v in drops(after).items() if v - drops(before).get(k, 0)},
             "published": {t: counter(after, f"{t} published") - counter(before, f"{t} published") for t in OUTPUTS},
+            # datagrams (of any topic) the kernel dropped because the node's socket buffer was full
+            "kernel_udp_drops": kernel1 - kernel0,
             "cpu_percent_of_one_core": 100.0 * (cpu1 - cpu0) / wall,
             # Per joint_states (and per ~/reference): the node's 1-s report means, their median, and the max.
             "compute_median_of_means_us": float(np.median([m for m, _ in diag.compute[computed_from:]])) if diag.compute[computed_from:] else None,
             "compute_max_us": max((x for _, x in diag.compute[computed_from:]), default=None),
         },
-        "rss_kib": {"start": rss0, "end": rss1,
+        # monotonic times (s) of the load's start and end: the RSS trace (top level) is cut with them
+        "t_start": t0, "t_fed": fed_until,
+        "rss_kib": {"start": rss0, "end": rss1, "max_while_fed": max((k for t, k in diag.rss if t0 <= t <= fed_until), default=rss0),
                     # growth while the load ran, over its second half (after the buffers filled)
                     "second_half_trend_kib_per_min": trend(diag.rss, fed_until - (fed_until - t0) / 2, fed_until)},
         "loadavg_1min": {"start": load0, "end": load1},
@@ -417,15 +449,15 @@ def fmt(x, digits=0):
 
 def print_report(results, rss_trace, start_rss, end_rss):
     print("\n## Soak: joint_states in, services called by several clients, 7-DOF default arm\n")
-    print("| rate (Hz) | s | sent (achieved Hz) | node received | node dropped | output | published | received | lost | latency p50 / p99 / max (µs) |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| rate (Hz) | s | sent (achieved Hz) | node received | node dropped | kernel UDP drops | output | published | received | lost | latency p50 / p99 / max (µs) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in results:
         dropped = sum(r["node"]["dropped"].values())
         for j, topic in enumerate(OUTPUTS):
             o = r["outputs"][topic]
             lat = o["latency_us"]
             head = (f"| {r['rate_hz']:.0f} | {r['duration_s']:.0f} | {r['feeder']['sent']} ({r['feeder']['achieved_hz']:.0f}) "
-                    f"| {r['node']['received']} | {dropped} ") if j == 0 else "| | | | | "
+                    f"| {r['node']['received']} | {dropped} | {r['node']['kernel_udp_drops']} ") if j == 0 else "| | | | | | "
             print(f"{head}| `{topic.rsplit('/', 1)[-1]}` | {r['node']['published'][topic]} | {o['received']} | {o['lost']} "
                   f"| {fmt(lat['p50'])} / {fmt(lat['p99'])} / {fmt(lat['max'])} |")
     print("\n| rate (Hz) | service | calls (per s) | timeouts | success=false | round trip p50 / p99 / max (µs) |")
@@ -435,12 +467,12 @@ def print_report(results, rss_trace, start_rss, end_rss):
             lat = s["rtt_us"]
             print(f"| {r['rate_hz']:.0f} | `~/{name}` | {s['calls']} ({s['per_second']:.0f}) | {s['timeouts']} | {s['failed']} "
                   f"| {fmt(lat['p50'])} / {fmt(lat['p99'])} / {fmt(lat['max'])} |")
-    print("\n| rate (Hz) | node CPU (% of a core) | compute per message: median of 1-s means / max (µs) | RSS start → end (KiB) | RSS trend, 2nd half (KiB/min) | load avg (1 min) start → end |")
+    print("\n| rate (Hz) | node CPU (% of a core) | compute per message: median of 1-s means / max (µs) | RSS start → max → end (KiB) | RSS trend, 2nd half (KiB/min) | load avg (1 min) start → end |")
     print("|---|---|---|---|---|---|")
     for r in results:
         n = r["node"]
         print(f"| {r['rate_hz']:.0f} | {n['cpu_percent_of_one_core']:.0f} | {fmt(n['compute_median_of_means_us'], 1)} / {fmt(n['compute_max_us'])} "
-              f"| {r['rss_kib']['start']} → {r['rss_kib']['end']} | {fmt(r['rss_kib']['second_half_trend_kib_per_min'], 1)} "
+              f"| {r['rss_kib']['start']} → {r['rss_kib']['max_while_fed']} → {r['rss_kib']['end']} | {fmt(r['rss_kib']['second_half_trend_kib_per_min'], 1)} "
               f"| {r['loadavg_1min']['start']:.2f} → {r['loadavg_1min']['end']:.2f} |")
         if r["node"]["dropped"]:
             print(f"|   | node drops by reason: {r['node']['dropped']} | | | | |")
@@ -449,6 +481,8 @@ def print_report(results, rss_trace, start_rss, end_rss):
     slope = float(np.polyfit(tt - tt[0], rss, 1)[0]) * 60 if len(rss) > 2 else float("nan")
     print(f"\nNode RSS: {start_rss} KiB at start (after warm-up), {end_rss} KiB at the end, max {int(rss.max())} KiB; "
           f"linear trend {slope:+.1f} KiB/min over {len(rss)} samples.")
+    every = max(1, len(rss_trace) // 24)
+    print("RSS over time (s: MiB): " + ", ".join(f"{t - tt[0]:.0f}: {k / 1024:.1f}" for t, k in rss_trace[::every]))
     for r in results:
         for name, s in r["services"].items():
             if s["messages"]:
@@ -504,7 +538,7 @@ def main(argv=None):
     p.add_argument("--duration", type=float, default=60.0, help="seconds per rate (default 60)")
     p.add_argument("--clients", type=int, default=3, help="service client processes (default 3)")
     p.add_argument("--service-rate", type=float, default=100.0, help="calls per second per client (default 100)")
-    p.add_argument("--quick", action="store_true", help="smoke test: 1 kHz for 2 s, 2 clients at 50 Hz")
+    p.add_argument("--quick", action="store_true", help="short run for the test suite: 5 kHz for 8 s, 2 clients at 50 Hz")
     p.add_argument("--json", help="also write the results as JSON to this file")
     # helper-process options
     p.add_argument("--rate", type=float, help=argparse.SUPPRESS)
@@ -521,7 +555,7 @@ def main(argv=None):
     if args.role == "client":
         return run_client(args)
     if args.quick:
-        args.rates, args.duration, args.clients, args.service_rate = [1000.0], 2.0, 2, 50.0
+        args.rates, args.duration, args.clients, args.service_rate = [5000.0], 8.0, 2, 50.0
     return orchestrate(args)
 
 

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Soak benchmark of the node over DDS (not a test): joint_states at 1 kHz and 10 kHz (60 s each by
-# default) while several clients call the dynamics services; counts inputs, outputs and drops,
-# input → output latency by stamp, service round trips, and the node's RSS at start and end.
+# default) while several clients call the dynamics services; counts inputs, outputs and drops (by the
+# node, and datagrams the kernel dropped on its sockets; the rest of a shortfall is lost in DDS),
+# input → output latency by stamp, service round trips, and the node's RSS (start, max, end, and
+# sampled every 0.5 s). `--quick` is the DDS suite's short run (5 kHz for 8 s).
 # Runs inside a private network namespace (loopback only). Prints markdown tables.
 # Usage: launch_scripts/bench_soak.sh [--quick] [--rates 1000 10000] [--duration 60] [--clients 3]
 #                                     [--service-rate 100] [--json FILE]

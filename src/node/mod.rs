@@ -13,7 +13,7 @@
 //!
 //! | what | reliability | durability | depth |
 //! |---|---|---|---|
-//! | `joint_states`, `~/base_state` | best effort (matches reliable and best-effort publishers) | volatile | 10 |
+//! | `joint_states`, `~/base_state` | best effort (matches reliable and best-effort publishers) | volatile | 10 (the `joint_states` reader keeps 1000) |
 //! | commands, reference | reliable | volatile | 10 |
 //! | outputs, `/diagnostics` | reliable | volatile | 10 |
 //! | `robot_description` | reliable | transient local | 1 |
@@ -183,6 +183,9 @@ struct TimeSource {
 
 /// `/clock` messages the reader keeps between two reads (more than any input gap at 1 kHz).
 const CLOCK_READER_DEPTH: usize = 100;
+
+/// `joint_states` messages the reader keeps until the node takes them: 100 ms at 10 kHz.
+const JOINT_STATES_READER_DEPTH: usize = 1000;
 
 impl TimeSource {
     /// Simulate mode: the simulation has reached `t` (s) at wall time `at`.
@@ -398,13 +401,16 @@ async fn serve(
     let sensor = qos(false, Durability::Volatile, 10);
     let reliable = qos(true, Durability::Volatile, 10);
     let latched = qos(true, Durability::TransientLocal, 1);
-    let (js_name, js_sub) = subscription!(
-        JointState,
-        "joint_states",
-        "sensor_msgs",
-        "JointState",
-        sensor
-    );
+    let (js_name, js_topic) = topic!("joint_states", "sensor_msgs", "JointState", sensor);
+    // The reader keeps more than the topic's depth (a local choice, no effect on matching): at
+    // 10 kHz a reader that keeps 64 loses every input that arrives while the node is held up for
+    // more than ~6 ms, as it is on a loaded machine (README, "Soak").
+    let js_sub = node
+        .create_subscription::<JointState>(
+            &js_topic,
+            Some(qos(false, Durability::Volatile, JOINT_STATES_READER_DEPTH)),
+        )
+        .map_err(|e| format!("subscription {js_name}: {e:?}"))?;
     let (effort_name, effort_sub) = subscription!(
         JointState,
         "~/effort_command",
