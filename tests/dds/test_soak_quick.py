@@ -7,7 +7,7 @@ before. What the node may legitimately hold under this load is bounded by counts
 the joint_states reader keeps 1000 samples (~0.5 MB), and a reliable writer keeps at most 8192
 unacknowledged outputs (RustDDS's send window) — both outputs stalled by a starved receiver come to
 ~11 MB, the worst case on a loaded machine. Measured on the 2-core development VM: +0.3 MiB. With
-the two faults that third_party/rustdds fixes (its PATCHED.md) present, this run gave +61 MiB (writers
+the two faults that src/vendor/rustdds fixes (its PATCHED.md) present, this run gave +61 MiB (writers
 kept every acknowledged output for 6 s, and small received samples pinned whole 256 KiB receive
 buffers for 5 s); with only the second fault, +16.5 MiB, right at the bound: this test reliably
 catches the first (or any queue that grows with time), not the second alone. The full benchmark
