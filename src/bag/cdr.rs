@@ -250,9 +250,11 @@ impl<'b> Writer<'b> {
         self.u32(values.len() as u32);
         if values.len() > 0 {
             self.align(8);
-            self.buf.reserve(8 * values.len());
-            for x in values {
-                self.buf.extend_from_slice(&x.to_le_bytes());
+            // Sized once, then filled in place (no capacity check per value).
+            let start = self.buf.len();
+            self.buf.resize(start + 8 * values.len(), 0);
+            for (out, x) in self.buf[start..].chunks_exact_mut(8).zip(values) {
+                out.copy_from_slice(&x.to_le_bytes());
             }
         }
     }

@@ -90,9 +90,22 @@ pub struct ReplayArgs {
     /// Chunk compression of the output.
     #[arg(long, value_enum, default_value_t = OutCompression::Zstd)]
     compression: OutCompression,
+    /// zstd level of the output chunks: 1 to 19 (smaller and slower upwards; rosbag2 writes 1),
+    /// or −1 to −50 (zstd's --fast=N: larger and faster). The default −2 writes about 4 % more
+    /// than level 1 at half its compression time.
+    #[arg(long, value_name = "LEVEL", default_value_t = -2, allow_negative_numbers = true,
+          value_parser = parse_zstd_level)]
+    zstd_level: i32,
     /// Print a JSON summary on stdout: {"model", "read", "written", "skipped", "not_estimated", ...}.
     #[arg(long)]
     json: bool,
+}
+
+fn parse_zstd_level(s: &str) -> Result<i32, String> {
+    match s.parse::<i32>() {
+        Ok(level) if (-50..=19).contains(&level) && level != 0 => Ok(level),
+        _ => Err(format!("'{s}' is not a zstd level (1 to 19, or -1 to -50)")),
+    }
 }
 
 fn parse_method(s: &str) -> Result<ForwardDynamicsMethod, String> {
@@ -748,7 +761,7 @@ pub fn run(model_args: &ModelArgs, args: &ReplayArgs) -> Result<(), String> {
         &args.out,
         match args.compression {
             OutCompression::None => bag::Compression::None,
-            OutCompression::Zstd => bag::Compression::Zstd,
+            OutCompression::Zstd => bag::Compression::Zstd(args.zstd_level),
             OutCompression::Lz4 => bag::Compression::Lz4,
         },
     )?;

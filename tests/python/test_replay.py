@@ -394,6 +394,7 @@ def test_bad_invocations_fail_with_a_message(tmp_path):
         (["--joint-states", "/nope"], "no topic /nope"),
         (["--floating-base"], "floating base"),
         (["--max-gap", "0"], "--max-gap"),
+        (["--zstd-level", "0"], "not a zstd level"),
     ]
     for extra, message in cases:
         run = subprocess.run(
@@ -408,8 +409,9 @@ def test_bad_invocations_fail_with_a_message(tmp_path):
 
 @pytest.mark.parametrize("method", ["crba", "rnea_columns"])
 def test_other_methods_match_pinocchio(tmp_path, method):
-    # Forward dynamics by another method is still pin.aba's result (to 1e-9).
-    check_replay(tmp_path, "mcap", True, False, extra=("--builtin", "default_arm", "--method", method), n=1400)
+    # Forward dynamics by another method is still pin.aba's result (to 1e-9); rosbag2's zstd level.
+    extra = ("--builtin", "default_arm", "--method", method, "--zstd-level", "1")
+    check_replay(tmp_path, "mcap", True, False, extra=extra, n=1400)
 
 
 def test_overflowing_state_is_counted_not_fatal(tmp_path):
