@@ -10,7 +10,7 @@
 //! Called one by one ([`gravity`](super::gravity()), [`forward_dynamics`](super::forward_dynamics()),
 //! [`rnea`](super::rnea())) each recomputes the joint transforms `ⁱX_λ(q)` and motion subspaces;
 //! here they are computed once. So is the first (velocity) pass of ABA, which leaves, in world
-//! (root) coordinates, everything the two RNEA evaluations need (see [`aba`](super::aba)):
+//! (root) coordinates, everything the two RNEA evaluations need (see [`aba`](mod@super::aba)):
 //! placements `ⁱX_0`, axes `⁰S_i`, body velocities `v_i`, velocity-product accelerations
 //! `c_i = ⁰X_i c_J + v_i ×̂ ⁰S_i q̇_i`, inertias `⁰I_i` and bias forces `p_i = v_i ×* ⁰I_i v_i`.
 //!
@@ -26,7 +26,7 @@
 //! ```
 //!
 //! A mimic follower moves with `μ q̇_leader`, `μ q̈_leader` and adds `μ ⁰S_iᵀ f_i` to its
-//! leader's effort, as in [`rnea`](super::rnea). Base at rest in an inertial frame, no external
+//! leader's effort, as in [`rnea`](fn@super::rnea). Base at rest in an inertial frame, no external
 //! wrenches. With `aba` the two RNEA passes run between ABA's first and second passes (before
 //! the second overwrites `⁰I_i` and `p_i` with articulated quantities); with `crba` and
 //! `rnea_columns` forward dynamics runs first, on the same joint transforms, then ABA's first

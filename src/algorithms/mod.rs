@@ -10,7 +10,7 @@
 //! | [`rnea_columns`] | forward dynamics from n+1 inverse-dynamics calls (the handout's method) |
 //! | [`forward_dynamics`] | forward dynamics by a chosen [`ForwardDynamicsMethod`] |
 //! | [`method_choice`] | the fastest forward-dynamics method accurate enough for a model, measured |
-//! | [`joint_state_outputs`] | `g(q)`, `FD(q, q̇, τ)` and `RNEA(q, q̇, q̈)` at one state, sharing the kinematics |
+//! | [`joint_state_outputs`](mod@joint_state_outputs) | `g(q)`, `FD(q, q̇, τ)` and `RNEA(q, q̇, q̈)` at one state, sharing the kinematics |
 //! | [`energy`] | kinetic and potential energy |
 //! | [`ltl`], [`cholesky`] | the factorisations that solve `H q̈ = τ − C` |
 //! | [`flops`] | how many floating-point operations each of them performs on a model |

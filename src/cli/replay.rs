@@ -15,6 +15,10 @@
 //! matched by name with the node's rules ([`JointMap`]); a bad message (unreadable, unknown or
 //! missing joint, wrong length, non-finite value) is skipped and counted, never fatal.
 //!
+//! The three come from one [`joint_state_outputs`] call per joint state (the joint transforms
+//! and velocity pass computed once); when it fails, the separate algorithms find out which
+//! outputs to drop.
+//!
 //! Work is split three ways: the calling thread reads and decodes the bag in order into blocks
 //! of samples; `--jobs` workers compute and serialize whole blocks, each with its own
 //! [`Workspace`] (no allocation per message); one writer thread writes the blocks in order.
