@@ -9,7 +9,8 @@
 #   Environment: MESSAGES (1000000) joint states; STORAGE (mcap) or sqlite3; ZSTD_IN (1): the
 #   input MCAP has zstd chunks; COMPRESSION (zstd) of the output; ZSTD_LEVEL (replay's default)
 #   of the output; REPEATS (3, the best is kept);
-#   SKIP_BUILD=1 uses target/release/spatial_dynamics as it is; KEEP=1 keeps the bags in
+#   SKIP_BUILD=1 uses target/release/spatial_dynamics as it is; BIN=PATH measures another
+#   binary (e.g. an older build, for a before/after comparison); KEEP=1 keeps the bags in
 #   target/bench-replay/. "1 core" pins the whole process (reader, worker, writer threads) to
 #   CPU 0 with taskset and runs --jobs 1; "all cores" runs with the default --jobs (every core).
 set -euo pipefail
@@ -24,7 +25,7 @@ level_flags=()
 [[ -n "${ZSTD_LEVEL:-}" ]] && level_flags=(--zstd-level="$ZSTD_LEVEL")
 repeats="${REPEATS:-3}"
 work="$repo/target/bench-replay"
-bin="$repo/target/release/spatial_dynamics"
+bin="${BIN:-$repo/target/release/spatial_dynamics}"
 
 log() { printf '== %s\n' "$*" >&2; }
 
