@@ -7,8 +7,10 @@
 #
 # Usage: launch_scripts/bench_replay.sh
 #   Environment: MESSAGES (1000000) joint states; STORAGE (mcap) or sqlite3; ZSTD_IN (1): the
-#   input MCAP has zstd chunks; COMPRESSION (zstd) of the output; REPEATS (3, the best is kept);
-#   SKIP_BUILD=1 uses target/release/spatial_dynamics as it is; KEEP=1 keeps the bags in
+#   input MCAP has zstd chunks; COMPRESSION (zstd) of the output; ZSTD_LEVEL (replay's default)
+#   of the output; REPEATS (3, the best is kept);
+#   SKIP_BUILD=1 uses target/release/spatial_dynamics as it is; BIN=PATH measures another
+#   binary (e.g. an older build, for a before/after comparison); KEEP=1 keeps the bags in
 #   target/bench-replay/. "1 core" pins the whole process (reader, worker, writer threads) to
 #   CPU 0 with taskset and runs --jobs 1; "all cores" runs with the default --jobs (every core).
 set -euo pipefail
@@ -19,9 +21,11 @@ messages="${MESSAGES:-1000000}"
 storage="${STORAGE:-mcap}"
 zstd_in="${ZSTD_IN:-1}"
 compression="${COMPRESSION:-zstd}"
+level_flags=()
+[[ -n "${ZSTD_LEVEL:-}" ]] && level_flags=(--zstd-level="$ZSTD_LEVEL")
 repeats="${REPEATS:-3}"
 work="$repo/target/bench-replay"
-bin="$repo/target/release/spatial_dynamics"
+bin="${BIN:-$repo/target/release/spatial_dynamics}"
 
 log() { printf '== %s\n' "$*" >&2; }
 
@@ -47,7 +51,7 @@ fi
 run() {
     local best="0 0" out
     for _ in $(seq "$repeats"); do
-        out="$("$@" --bag "$bag" --out "$work/out.mcap" --compression "$compression" --json 2>>"$work/replay.log" \
+        out="$("$@" --bag "$bag" --out "$work/out.mcap" --compression "$compression" "${level_flags[@]}" --json 2>>"$work/replay.log" \
             | "$repo/.venv/bin/python" -c 'import json,sys; s=json.load(sys.stdin); print(round(s["joint_states_per_second"]), round(s["joint_states_per_cpu_second"]))')"
         if (( ${out% *} > ${best% *} )); then best="$out"; fi
     done
@@ -68,6 +72,6 @@ echo "|---|---:|---:|"
 echo "| 1 core, --jobs 1 | $one | $one_cpu |"
 echo "| $cores cores, --jobs $cores | $all | $all_cpu |"
 echo
-echo "input: $messages joint states, $storage$([[ "$storage" == mcap && "$zstd_in" == 1 ]] && echo ' (zstd chunks)'), $size_in; output ($compression): $size_out, 3 messages per joint state"
+echo "input: $messages joint states, $storage$([[ "$storage" == mcap && "$zstd_in" == 1 ]] && echo ' (zstd chunks)'), $size_in; output ($compression${ZSTD_LEVEL:+ level $ZSTD_LEVEL}): $size_out, 3 messages per joint state"
 echo "load average while measuring: $(cut -d' ' -f1-3 /proc/loadavg) (other work on the machine lowers the wall-clock rates, less the CPU-second ones)"
 if [[ "${KEEP:-0}" != 1 ]]; then rm -f "$work/out.mcap"; fi

@@ -32,6 +32,10 @@ pub struct Workspace {
     pub(crate) f: Vec<Force>,
     /// Composite rigid-body inertias `I^c_i` (CRBA), in world (root) coordinates.
     pub(crate) ic: Vec<Inertia>,
+    /// World-frame forces `[f_i, f^g_i]` of
+    /// [`joint_state_outputs`](crate::algorithms::joint_state_outputs): the inverse-dynamics force
+    /// and the gravity force of each body, summed over its subtree by the inward pass.
+    pub(crate) f_outputs: Vec<[Force; 2]>,
     /// Articulated-body inertias `I^A_i` (ABA), in world coordinates.
     pub(crate) ia: Vec<Matrix6>,
     /// Articulated bias forces `p^A_i` (ABA), in world coordinates.
@@ -87,6 +91,7 @@ impl Workspace {
             a_world: vec![Motion::zero(); n],
             f: vec![Force::zero(); n],
             ic: vec![Inertia::zero(); n],
+            f_outputs: vec![[Force::zero(); 2]; n],
             ia: vec![Matrix6::zeros(); n],
             pa: vec![Force::zero(); n],
             c: vec![Motion::zero(); n],

@@ -41,15 +41,7 @@ pub fn aba<'w>(
     tau: &[f64],
     ext: &Externals<'_>,
 ) -> Result<&'w [f64], DynamicsError> {
-    if let Some(b) = model.bodies.iter().find(|b| b.joint.is_mimic()) {
-        return Err(DynamicsError::Unsupported {
-            method: "aba",
-            reason: format!(
-                "joint '{}' mimics another joint; use 'crba' or 'rnea_columns'",
-                b.joint.name
-            ),
-        });
-    }
+    refuse_mimic(model)?;
     check_forward_inputs(model, q, v, tau, ext)?;
     update_joints(model, ws, q);
     velocity_pass(model, ws, v, ext);
@@ -59,9 +51,24 @@ pub fn aba<'w>(
     Ok(ws.qdd.as_slice())
 }
 
+/// The error for a model with mimic joints, which the recursion cannot express.
+pub(crate) fn refuse_mimic(model: &Model) -> Result<(), DynamicsError> {
+    match model.bodies.iter().find(|b| b.joint.is_mimic()) {
+        Some(b) => Err(DynamicsError::Unsupported {
+            method: "aba",
+            reason: format!(
+                "joint '{}' mimics another joint; use 'crba' or 'rnea_columns'",
+                b.joint.name
+            ),
+        }),
+        None => Ok(()),
+    }
+}
+
 /// Pass 1: placements, world-frame axes, velocities, velocity-product accelerations, initial
-/// articulated quantities.
-fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
+/// articulated quantities (joints already updated). A mimic follower moves with `μ q̇_leader`
+/// (a 1-DOF joint: its `c_J` is zero), so these quantities are right for mimic models too.
+pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
     update_placements(model, ws);
     for (i, body) in model.bodies.iter().enumerate() {
         let x = &ws.x_world[i];
@@ -72,7 +79,7 @@ fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'
         }
         let c = body.joint.coords;
         let rates = &v[c.v_index..c.v_index + s.nv];
-        let v_joint = s_world.apply(rates, 1.0);
+        let v_joint = s_world.apply(rates, c.scale);
         let v_parent = body.parent.map_or(ext.root_velocity, |p| ws.v_world[p]);
         let v_i = v_parent + v_joint;
         let c_joint = body
@@ -91,7 +98,11 @@ fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'
 }
 
 /// Pass 2: articulated-body inertias and bias forces, from the leaves inward.
-fn articulated_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) -> Result<(), DynamicsError> {
+pub(crate) fn articulated_pass(
+    model: &Model,
+    ws: &mut Workspace,
+    tau: &[f64],
+) -> Result<(), DynamicsError> {
     for (i, body) in model.bodies.iter().enumerate().rev() {
         // Work on body i's slots in place (each is a 6×6 or six 6-vectors: no copies).
         let s = &ws.s_world[i];
@@ -142,7 +153,7 @@ fn articulated_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) -> Result<()
 }
 
 /// Pass 3: accelerations, from the root outward.
-fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
+pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
     let a_root = ext.root_acceleration - Motion::new(nalgebra::Vector3::zeros(), model.gravity);
     for (i, body) in model.bodies.iter().enumerate() {
         let nv = ws.s_world[i].nv;

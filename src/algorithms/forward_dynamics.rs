@@ -91,6 +91,17 @@ fn crba_solve<'w>(
 ) -> Result<&'w [f64], DynamicsError> {
     check_forward_inputs(model, q, v, tau, ext)?;
     update_joints(model, ws, q);
+    crba_solve_on_joints(model, ws, v, tau, ext)
+}
+
+/// [`crba_solve`] on joints already updated for `q` (inputs already checked).
+pub(crate) fn crba_solve_on_joints<'w>(
+    model: &Model,
+    ws: &'w mut Workspace,
+    v: &[f64],
+    tau: &[f64],
+    ext: &Externals<'_>,
+) -> Result<&'w [f64], DynamicsError> {
     rnea_passes(model, ws, Some(v), None, ext);
     crba_passes(model, ws);
     ws.qdd.copy_from_slice(tau);

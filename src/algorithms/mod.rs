@@ -10,6 +10,7 @@
 //! | [`rnea_columns`] | forward dynamics from n+1 inverse-dynamics calls (the handout's method) |
 //! | [`forward_dynamics`] | forward dynamics by a chosen [`ForwardDynamicsMethod`] |
 //! | [`method_choice`] | the fastest forward-dynamics method accurate enough for a model, measured |
+//! | [`joint_state_outputs`](mod@joint_state_outputs) | `g(q)`, `FD(q, q̇, τ)` and `RNEA(q, q̇, q̈)` at one state, sharing the kinematics |
 //! | [`energy`] | kinetic and potential energy |
 //! | [`ltl`], [`cholesky`] | the factorisations that solve `H q̈ = τ − C` |
 //! | [`flops`] | how many floating-point operations each of them performs on a model |
@@ -25,6 +26,7 @@ pub mod energy;
 pub mod flops;
 pub mod forward_dynamics;
 pub mod gravity;
+pub mod joint_state_outputs;
 pub mod kinematics;
 pub mod ltl;
 pub mod method_choice;
@@ -38,6 +40,7 @@ pub use crba::crba;
 pub use energy::energy;
 pub use forward_dynamics::{forward_dynamics, ForwardDynamicsMethod};
 pub use gravity::gravity;
+pub use joint_state_outputs::{joint_state_outputs, JointStateInputs, JointStateOutputs};
 pub use method_choice::{choose_method, MethodChoice};
 pub use rnea::{rnea, rnea_with};
 

@@ -102,9 +102,10 @@ impl<'a> Reader<'a> {
     }
 
     fn take(&mut self, n: usize, align: usize, field: &str) -> Result<&'a [u8], String> {
+        // Alignments are powers of two: the padding is −rel mod align.
         let align = align.min(self.max_align);
         let rel = self.pos - self.origin;
-        let start = self.pos + (align - rel % align) % align;
+        let start = self.pos + (rel.wrapping_neg() & (align - 1));
         let end = start.checked_add(n).filter(|&e| e <= self.data.len());
         let Some(end) = end else {
             return Err(format!(
@@ -215,7 +216,7 @@ impl<'b> Writer<'b> {
 
     fn align(&mut self, n: usize) {
         let rel = self.buf.len() - self.origin;
-        let pad = (n - rel % n) % n;
+        let pad = rel.wrapping_neg() & (n - 1); // n is a power of two
         self.buf.extend_from_slice(&[0u8; 8][..pad]);
     }
 
@@ -250,9 +251,11 @@ impl<'b> Writer<'b> {
         self.u32(values.len() as u32);
         if values.len() > 0 {
             self.align(8);
-            self.buf.reserve(8 * values.len());
-            for x in values {
-                self.buf.extend_from_slice(&x.to_le_bytes());
+            // Sized once, then filled in place (no capacity check per value).
+            let start = self.buf.len();
+            self.buf.resize(start + 8 * values.len(), 0);
+            for (out, x) in self.buf[start..].chunks_exact_mut(8).zip(values) {
+                out.copy_from_slice(&x.to_le_bytes());
             }
         }
     }

@@ -132,8 +132,9 @@ pub fn read(path: &Path, wanted: &[Wanted<'_>], visit: &mut Visitor<'_>) -> Resu
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Compression {
     None,
-    /// zstd level 1 (what the MCAP C++ writer, and so rosbag2, calls the default).
-    Zstd,
+    /// zstd at a level: 1 is what the MCAP C++ writer, and so rosbag2, calls the default;
+    /// negative levels (zstd's `--fast=N`) trade a few percent of size for speed.
+    Zstd(i32),
     /// LZ4 frames.
     Lz4,
 }
@@ -142,7 +143,7 @@ impl Compression {
     fn name(self) -> &'static str {
         match self {
             Compression::None => "",
-            Compression::Zstd => "zstd",
+            Compression::Zstd(_) => "zstd",
             Compression::Lz4 => "lz4",
         }
     }
@@ -192,7 +193,6 @@ pub struct ChunkBuilder {
     zstd: Option<zstd::bulk::Compressor<'static>>,
     /// Uncompressed Message records.
     records: Vec<u8>,
-    compressed: Vec<u8>,
     message: usize,
     /// `(log_time, offset in records)` by channel id.
     index: Vec<Vec<(u64, u64)>>,
@@ -227,14 +227,15 @@ impl ChunkBuilder {
     /// A builder for channels with ids below `channels`.
     pub fn new(compression: Compression, channels: u16) -> Result<ChunkBuilder, String> {
         let zstd = match compression {
-            Compression::Zstd => Some(zstd::bulk::Compressor::new(1).map_err(|e| e.to_string())?),
+            Compression::Zstd(level) => {
+                Some(zstd::bulk::Compressor::new(level).map_err(|e| format!("zstd: {e}"))?)
+            }
             _ => None,
         };
         Ok(ChunkBuilder {
             compression,
             zstd,
             records: Vec::new(),
-            compressed: Vec::new(),
             message: 0,
             index: vec![Vec::new(); channels as usize],
             start: u64::MAX,
@@ -283,15 +284,16 @@ impl ChunkBuilder {
         let data_start = out.bytes.len();
         match self.compression {
             Compression::None => out.bytes.extend_from_slice(&self.records),
-            Compression::Zstd => {
-                // Into the spare capacity of a buffer of its own (no zeroing), then appended.
-                self.compressed.clear();
-                self.compressed
+            Compression::Zstd(_) => {
+                // Straight into the spare capacity after the chunk's header (no zeroing, no
+                // copy): a cursor at the end makes zstd append.
+                out.bytes
                     .reserve(zstd::zstd_safe::compress_bound(self.records.len()));
+                let mut at_end = std::io::Cursor::new(&mut out.bytes);
+                at_end.set_position(data_start as u64);
                 let zstd = self.zstd.as_mut().expect("a zstd compressor");
-                zstd.compress_to_buffer(&self.records, &mut self.compressed)
+                zstd.compress_to_buffer(&self.records, &mut at_end)
                     .map_err(|e| format!("zstd: {e}"))?;
-                out.bytes.extend_from_slice(&self.compressed);
             }
             Compression::Lz4 => {
                 let mut encoder = lz4::EncoderBuilder::new()
@@ -611,7 +613,8 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         for (compression, name) in [
             (Compression::None, "none"),
-            (Compression::Zstd, "zstd"),
+            (Compression::Zstd(1), "zstd"),
+            (Compression::Zstd(-2), "zstd-fast"),
             (Compression::Lz4, "lz4"),
         ] {
             let path = dir.join(format!("{name}.mcap"));

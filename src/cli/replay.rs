@@ -15,6 +15,10 @@
 //! matched by name with the node's rules ([`JointMap`]); a bad message (unreadable, unknown or
 //! missing joint, wrong length, non-finite value) is skipped and counted, never fatal.
 //!
+//! The three come from one [`joint_state_outputs`] call per joint state (the joint transforms
+//! and velocity pass computed once); when it fails, the separate algorithms find out which
+//! outputs to drop.
+//!
 //! Work is split three ways: the calling thread reads and decodes the bag in order into blocks
 //! of samples; `--jobs` workers compute and serialize whole blocks, each with its own
 //! [`Workspace`] (no allocation per message); one writer thread writes the blocks in order.
@@ -26,7 +30,9 @@ use crate::bag::{
 use crate::node::joint_map::{JointMap, Target};
 use clap::{Args, ValueEnum};
 use serde_json::{json, Value};
-use spatial_dynamics::algorithms::{forward_dynamics, gravity, rnea};
+use spatial_dynamics::algorithms::{
+    forward_dynamics, gravity, joint_state_outputs, rnea, JointStateInputs, JointStateOutputs,
+};
 use spatial_dynamics::model::examples::DEFAULT_ARM_URDF;
 use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
 use std::collections::BTreeMap;
@@ -88,9 +94,22 @@ pub struct ReplayArgs {
     /// Chunk compression of the output.
     #[arg(long, value_enum, default_value_t = OutCompression::Zstd)]
     compression: OutCompression,
+    /// zstd level of the output chunks: 1 to 19 (smaller and slower upwards; rosbag2 writes 1),
+    /// or −1 to −50 (zstd's --fast=N: larger and faster). The default −2 writes about 4 % more
+    /// than level 1 at half its compression time.
+    #[arg(long, value_name = "LEVEL", default_value_t = -2, allow_negative_numbers = true,
+          value_parser = parse_zstd_level)]
+    zstd_level: i32,
     /// Print a JSON summary on stdout: {"model", "read", "written", "skipped", "not_estimated", ...}.
     #[arg(long)]
     json: bool,
+}
+
+fn parse_zstd_level(s: &str) -> Result<i32, String> {
+    match s.parse::<i32>() {
+        Ok(level) if (-50..=19).contains(&level) && level != 0 => Ok(level),
+        _ => Err(format!("'{s}' is not a zstd level (1 to 19, or -1 to -50)")),
+    }
 }
 
 fn parse_method(s: &str) -> Result<ForwardDynamicsMethod, String> {
@@ -496,10 +515,10 @@ fn read_names(
 struct Scratch {
     ws: Workspace,
     builder: ChunkBuilder,
-    g: Vec<f64>,
-    qdd: Vec<f64>,
+    /// The measured acceleration.
     a: Vec<f64>,
-    tau: Vec<f64>,
+    out: JointStateOutputs,
+    one_by_one: OneByOne,
 }
 
 /// The dynamics of samples `lo..hi` of a block, serialized into one MCAP chunk; `channels`
@@ -536,75 +555,126 @@ fn compute(
             };
         }
 
+        // The measured acceleration, when the sample has velocities and a neighbour.
+        let measured = if !block.has_velocity[i] {
+            Err(("no velocities in the message", "velocity[] is empty"))
+        } else {
+            let neighbour = |j: usize| {
+                let h = (block.t[i].abs_diff(block.t[j])) as f64 * 1e-9;
+                (h, &block.v[j * nv..(j + 1) * nv])
+            };
+            let prev = (i > 0 && block.joins_prev[i]).then(|| neighbour(i - 1));
+            let next = (i + 1 < block.n && block.joins_prev[i + 1]).then(|| neighbour(i + 1));
+            if velocity_derivative(prev, v, next, &mut s.a) {
+                Ok(())
+            } else {
+                Err((
+                    "no neighbour in its segment",
+                    "an isolated sample: no difference can be taken",
+                ))
+            }
+        };
+        let input = JointStateInputs {
+            q,
+            v,
+            effort_command: command,
+            measured_acceleration: measured.is_ok().then_some(s.a.as_slice()),
+        };
+        // All three at once; on an error, one by one to learn which failed.
+        let combined = joint_state_outputs(model, &mut s.ws, method, &input, &mut s.out).is_ok();
+        let (node_outputs, inverse) = match combined {
+            true => (Ok(()), Ok(())),
+            false => s.one_by_one.compute(model, method, &input, &mut s.ws),
+        };
+        let (g, qdd, tau) = match combined {
+            true => (
+                s.out.gravity(),
+                s.out.acceleration(),
+                s.out.inverse_dynamics(),
+            ),
+            false => (
+                &s.one_by_one.g[..],
+                &s.one_by_one.qdd[..],
+                &s.one_by_one.tau[..],
+            ),
+        };
+
         // The node's two outputs: both or neither, as the node publishes them.
-        let node_outputs = gravity(model, &mut s.ws, q)
-            .map(|g| s.g.copy_from_slice(g))
-            .and_then(|_| {
-                forward_dynamics(model, &mut s.ws, q, v, command, method, &Externals::none())
-            })
-            .map(|qdd| s.qdd.copy_from_slice(qdd));
         match node_outputs {
             Ok(()) => {
                 let mut w = start!(0);
                 w.f64s(std::iter::empty());
-                w.f64s(rate(&s.g));
+                w.f64s(rate(g));
                 s.builder.end_message();
                 let mut w = start!(1);
                 w.f64s(rate(v));
-                w.f64s(rate(&s.qdd));
+                w.f64s(rate(qdd));
                 w.f64s(rate(command));
+                s.builder.end_message();
+            }
+            Err(e) => block
+                .problems
+                .add("joint_states", "dynamics failed", log_time, e),
+        }
+
+        // Inverse dynamics of the measured motion.
+        if let Err((kind, e)) = measured {
+            block
+                .problems
+                .add("measured_dynamics", kind, log_time, e.into());
+            continue;
+        }
+        match inverse {
+            Ok(()) => {
+                let mut w = start!(2);
+                w.f64s(rate(v));
+                w.f64s(rate(&s.a));
+                w.f64s(rate(tau));
                 s.builder.end_message();
             }
             Err(e) => {
                 block
                     .problems
-                    .add("joint_states", "dynamics failed", log_time, e.to_string())
+                    .add("measured_dynamics", "inverse dynamics failed", log_time, e)
             }
-        }
-
-        // Inverse dynamics of the measured motion.
-        if !block.has_velocity[i] {
-            block.problems.add(
-                "measured_dynamics",
-                "no velocities in the message",
-                log_time,
-                "velocity[] is empty".into(),
-            );
-            continue;
-        }
-        let neighbour = |j: usize| {
-            let h = (block.t[i].abs_diff(block.t[j])) as f64 * 1e-9;
-            (h, &block.v[j * nv..(j + 1) * nv])
-        };
-        let prev = (i > 0 && block.joins_prev[i]).then(|| neighbour(i - 1));
-        let next = (i + 1 < block.n && block.joins_prev[i + 1]).then(|| neighbour(i + 1));
-        if !velocity_derivative(prev, v, next, &mut s.a) {
-            block.problems.add(
-                "measured_dynamics",
-                "no neighbour in its segment",
-                log_time,
-                "an isolated sample: no difference can be taken".into(),
-            );
-            continue;
-        }
-        match rnea(model, &mut s.ws, q, v, &s.a) {
-            Ok(tau) => {
-                s.tau.copy_from_slice(tau);
-                let mut w = start!(2);
-                w.f64s(rate(v));
-                w.f64s(rate(&s.a));
-                w.f64s(rate(&s.tau));
-                s.builder.end_message();
-            }
-            Err(e) => block.problems.add(
-                "measured_dynamics",
-                "inverse dynamics failed",
-                log_time,
-                e.to_string(),
-            ),
         }
     }
     s.builder.finish(&mut block.chunk)
+}
+
+/// The outputs of one sample by the separate algorithms, after the combined call failed: which
+/// of them can still be written (the node's two: both or neither).
+struct OneByOne {
+    g: Vec<f64>,
+    qdd: Vec<f64>,
+    tau: Vec<f64>,
+}
+
+impl OneByOne {
+    fn compute(
+        &mut self,
+        model: &Model,
+        method: ForwardDynamicsMethod,
+        input: &JointStateInputs<'_>,
+        ws: &mut Workspace,
+    ) -> (Result<(), String>, Result<(), String>) {
+        let JointStateInputs { q, v, .. } = *input;
+        let node = gravity(model, ws, q)
+            .map(|g| self.g.copy_from_slice(g))
+            .and_then(|_| {
+                let (tau, none) = (input.effort_command, Externals::none());
+                forward_dynamics(model, ws, q, v, tau, method, &none)
+            })
+            .map(|qdd| self.qdd.copy_from_slice(qdd));
+        let inverse = match input.measured_acceleration {
+            Some(a) => rnea(model, ws, q, v, a).map(|tau| self.tau.copy_from_slice(tau)),
+            None => Ok(()),
+        };
+        (
+            node.map_err(|e| e.to_string()),
+            inverse.map_err(|e| e.to_string()),
+        )
+    }
 }
 
 /// Header, names and positions: the start of every output.
@@ -695,7 +765,7 @@ pub fn run(model_args: &ModelArgs, args: &ReplayArgs) -> Result<(), String> {
         &args.out,
         match args.compression {
             OutCompression::None => bag::Compression::None,
-            OutCompression::Zstd => bag::Compression::Zstd,
+            OutCompression::Zstd => bag::Compression::Zstd(args.zstd_level),
             OutCompression::Lz4 => bag::Compression::Lz4,
         },
     )?;
@@ -858,10 +928,13 @@ fn pipeline(
                 let mut s = Scratch {
                     ws: Workspace::new(model),
                     builder,
-                    g: vec![0.0; nv],
-                    qdd: vec![0.0; nv],
                     a: vec![0.0; nv],
-                    tau: vec![0.0; nv],
+                    out: JointStateOutputs::new(model),
+                    one_by_one: OneByOne {
+                        g: vec![0.0; nv],
+                        qdd: vec![0.0; nv],
+                        tau: vec![0.0; nv],
+                    },
                 };
                 loop {
                     let next = work_rx.lock().map(|rx| rx.recv());

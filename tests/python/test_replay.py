@@ -394,6 +394,7 @@ def test_bad_invocations_fail_with_a_message(tmp_path):
         (["--joint-states", "/nope"], "no topic /nope"),
         (["--floating-base"], "floating base"),
         (["--max-gap", "0"], "--max-gap"),
+        (["--zstd-level", "0"], "not a zstd level"),
     ]
     for extra, message in cases:
         run = subprocess.run(
@@ -404,3 +405,30 @@ def test_bad_invocations_fail_with_a_message(tmp_path):
         [BIN, "replay", "--bag", str(tmp_path / "missing"), "--out", str(out)], capture_output=True, text=True, timeout=60
     )
     assert run.returncode != 0 and "missing" in run.stderr
+
+
+@pytest.mark.parametrize("method", ["crba", "rnea_columns"])
+def test_other_methods_match_pinocchio(tmp_path, method):
+    # Forward dynamics by another method is still pin.aba's result (to 1e-9); rosbag2's zstd level.
+    extra = ("--builtin", "default_arm", "--method", method, "--zstd-level", "1")
+    check_replay(tmp_path, "mcap", True, False, extra=extra, n=1400)
+
+
+def test_overflowing_state_is_counted_not_fatal(tmp_path):
+    """A joint state whose dynamics overflow (velocities of 1e200) loses its outputs, counted;
+    the others keep theirs."""
+    records, exp = make_inputs(n=300, commands=True)
+    target = exp["states"][100]
+    k = next(i for i, r in enumerate(records) if r[0] == "/joint_states" and r[2] == target["log"])
+    msg = TS.deserialize_cdr(records[k][3], JS)
+    msg.velocity = np.full(len(msg.name), 1e200)
+    records[k] = records[k][:3] + (cdr(msg),)
+    bag = tmp_path / "in"
+    write_bag(bag, "mcap", records)
+    summary, stderr = replay(bag, tmp_path / "out.mcap", "--builtin", "default_arm")
+    kinds = summary["skipped"]["/joint_states"]["kinds"]
+    assert kinds["dynamics failed"]["count"] == 1, stderr
+    assert "acceleration" in kinds["dynamics failed"]["first"], kinds
+    assert summary["not_estimated"]["kinds"]["inverse dynamics failed"]["count"] >= 1, stderr
+    written = summary["written"]
+    assert written[NODE + "/gravity_effort"] == written[NODE + "/acceleration"] == len(exp["states"]) - 1
