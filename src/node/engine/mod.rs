@@ -11,7 +11,10 @@ use super::params::Settings;
 use simulation::Simulation;
 use spatial_dynamics::algorithms::kinematics::body_placements;
 use spatial_dynamics::algorithms::method_choice::AUTO_TOLERANCE;
-use spatial_dynamics::algorithms::{choose_method, crba, forward_dynamics, gravity, rnea_with};
+use spatial_dynamics::algorithms::{
+    choose_method, crba, forward_dynamics, joint_state_outputs, rnea_with, JointStateInputs,
+    JointStateOutputs,
+};
 use spatial_dynamics::model::examples::DEFAULT_ARM_URDF;
 use spatial_dynamics::spatial::{Force, Transform};
 use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
@@ -34,6 +37,8 @@ pub struct Engine {
     /// How `method: auto` chose (`None` when the method was given).
     pub method_choice: Option<String>,
     ws: Workspace,
+    /// Scratch for `joint_states`: gravity torques and accelerations computed together.
+    outputs: JointStateOutputs,
     map: JointMap,
     /// For each `command_joints` entry, its index in the map's names.
     command_slots: Vec<usize>,
@@ -100,6 +105,7 @@ impl Engine {
         let (nq, nv, nb) = (model.nq, model.nv, model.nbodies());
         let mut engine = Engine {
             ws: Workspace::new(&model),
+            outputs: JointStateOutputs::new(&model),
             map,
             command_slots,
             q: vec![0.0; nq],
@@ -435,8 +441,23 @@ impl Engine {
     /// `joint_states` → (`~/gravity_effort`, `~/acceleration` under the latest command).
     pub fn joint_states(&mut self, js: &JointState) -> Result<(JointState, JointDynamics), String> {
         self.read_state(&js.name, &js.position, &js.velocity, None, None)?;
-        let g = gravity(&self.model, &mut self.ws, &self.q).map_err(|e| e.to_string())?;
-        self.tau.copy_from_slice(g);
+        // g(q) and q̈ = FD(q, q̇, τ_cmd) on one set of joint transforms.
+        let input = JointStateInputs {
+            q: &self.q,
+            v: &self.v,
+            effort_command: &self.command,
+            measured_acceleration: None,
+        };
+        joint_state_outputs(
+            &self.model,
+            &mut self.ws,
+            self.method,
+            &input,
+            &mut self.outputs,
+        )
+        .map_err(|e| e.to_string())?;
+        self.tau.copy_from_slice(self.outputs.gravity());
+        self.a.copy_from_slice(self.outputs.acceleration());
         let names = self.map.answer_names();
         let mut position = Vec::new();
         self.map.gather(&self.q, Target::Position, &mut position);
@@ -448,17 +469,6 @@ impl Engine {
             velocity: Vec::new(),
             effort: self.out.clone(),
         };
-        let qdd = forward_dynamics(
-            &self.model,
-            &mut self.ws,
-            &self.q,
-            &self.v,
-            &self.command,
-            self.method,
-            &Externals::none(),
-        )
-        .map_err(|e| e.to_string())?;
-        self.a.copy_from_slice(qdd);
         let mut velocity = Vec::new();
         let mut acceleration = Vec::new();
         let mut effort = Vec::new();
