@@ -6,7 +6,8 @@
 //! ```
 //!
 //! `MODEL` is a URDF path, `arm` (the embedded default arm), `pendulumN` (an N-link chain) or
-//! `gripper` (mimic joints), with `+floating` appended for a floating base; `KERNEL` is one of
+//! `gripper` (mimic joints), with `+floating` appended for a floating base (and `+ignore_mimic`
+//! to treat mimic joints as independent, as `bench --ignore-mimic` does); `KERNEL` is one of
 //! `spatial_dynamics bench`'s kernels (`rnea`, `crba`, `fd_aba`, `fd_crba`, `fd_rnea_columns`,
 //! `gravity`), called exactly as the bench calls it, or a calibration kernel whose count is
 //! known exactly: `dot64` (a length-64 dot product, 64 m + 63 a) or `mat3` (a 3×3 matrix
@@ -78,14 +79,16 @@ fn run(args: &[String]) -> Result<(), String> {
 
 /// `arm`, `gripper`, `pendulumN` or a URDF path, `+floating` for a floating base.
 fn load(name: &str) -> Result<Model, String> {
-    let (base, floating) = match name.strip_suffix("+floating") {
-        Some(base) => (base, true),
-        None => (name, false),
-    };
-    let options = ModelOptions {
-        floating_base: floating,
-        ..ModelOptions::default()
-    };
+    let mut parts = name.split('+');
+    let base = parts.next().unwrap_or_default();
+    let mut options = ModelOptions::default();
+    for flag in parts {
+        match flag {
+            "floating" => options.floating_base = true,
+            "ignore_mimic" => options.ignore_mimic = true,
+            _ => return Err(format!("model '{name}': unknown flag '+{flag}'")),
+        }
+    }
     let model = if base == "arm" {
         model_from_str(examples::DEFAULT_ARM_URDF, &options)
     } else if base == "gripper" {

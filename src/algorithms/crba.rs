@@ -36,10 +36,16 @@ pub fn crba<'w>(
 ) -> Result<&'w DMatrix<f64>, DynamicsError> {
     check_q(model, q)?;
     update_joints(model, ws, q);
-    crba_passes(model, ws);
     // Finite inputs can still overflow (a prismatic coordinate of 1e200 under a revolute joint
-    // puts m·x² on the diagonal). Column-major: entry i is in row i mod nv.
-    if let Some(i) = ws.mass_matrix.iter().position(|x| !x.is_finite()) {
+    // puts m·x² on the diagonal). The passes say whether every entry came out finite; only
+    // then is the matrix searched, for the coordinate to name (column-major: entry i is in row
+    // i mod nv).
+    if !crba_passes(model, ws) {
+        let i = ws
+            .mass_matrix
+            .iter()
+            .position(|x| !x.is_finite())
+            .unwrap_or(0);
         return Err(DynamicsError::NonFiniteResult {
             quantity: "mass matrix",
             coordinate: model.v_name(i % model.nv),
@@ -49,8 +55,8 @@ pub fn crba<'w>(
 }
 
 /// The two passes, on joints already updated for `q`. Writes `ws.x_world`, `ws.s_world`,
-/// `ws.ic` (world coordinates) and `ws.mass_matrix`.
-pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) {
+/// `ws.ic` (world coordinates) and `ws.mass_matrix`; true when every entry of `H` is finite.
+pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
     update_placements(model, ws);
     for (i, body) in model.bodies.iter().enumerate() {
         let x = &ws.x_world[i];
@@ -63,10 +69,14 @@ pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) {
     }
     match ws.subtree_end.take() {
         Some(subtree_end) => {
-            row_blocks(model, ws, &subtree_end);
+            let finite = row_blocks(model, ws, &subtree_end);
             ws.subtree_end = Some(subtree_end);
+            finite
         }
-        None => along_paths(model, ws),
+        None => {
+            along_paths(model, ws);
+            ws.mass_matrix.iter().all(|x| x.is_finite())
+        }
     }
 }
 
@@ -75,22 +85,34 @@ pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) {
 /// `F_c = ⁰I^c_i ⁰S_c` for its own columns, then the row block
 /// `H[v_i + k, c] = ⁰S_ikᵀ F_c` for `c` from `v_i + k` to `e_i` (upper triangle, mirrored):
 /// each descendant's `F_c` was stored when that descendant was visited.
-/// Entries outside the pattern are never written (they stay zero).
-fn row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) {
+/// Entries outside the pattern are never written (they stay zero). True when every entry
+/// written is finite.
+fn row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) -> bool {
     let n = model.nv;
     let h = ws.mass_matrix.as_mut_slice();
+    let mut finite = true;
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let v0 = body.joint.coords.v_index;
         let s_i = &ws.s_world[i];
         for k in 0..s_i.nv {
             ws.f_cols[v0 + k] = ws.ic[i].apply(&s_i.cols[k]);
         }
+        let end = subtree_end[i];
         for k in 0..s_i.nv {
             let row = v0 + k;
-            for (c, f) in (row..subtree_end[i]).zip(&ws.f_cols[row..subtree_end[i]]) {
-                let h_rc = s_i.cols[k].dot(f);
-                h[row + c * n] = h_rc;
-                h[c + row * n] = h_rc;
+            // Column `row` from the diagonal down, `H[c, row] = S_ikᵀ F_c` (contiguous in the
+            // column-major storage), then its mirror, row `row` right of the diagonal (stride n).
+            let (left, right) = h.split_at_mut((row + 1) * n);
+            let column = &mut left[row * n + row..row * n + end];
+            let (w, v) = (s_i.cols[k].ang, s_i.cols[k].lin);
+            for (h_cr, f) in column.iter_mut().zip(&ws.f_cols[row..end]) {
+                // S_ikᵀ F_c = ω·n + v·f, written out (nalgebra's generic dot does not unroll).
+                let (n, f) = (&f.ang, &f.lin);
+                *h_cr = w.x * n.x + w.y * n.y + w.z * n.z + v.x * f.x + v.y * f.y + v.z * f.z;
+            }
+            finite &= column.iter().fold(true, |all, x| all & x.is_finite());
+            for (j, h_cr) in column.iter().enumerate().skip(1) {
+                right[row + (j - 1) * n] = *h_cr;
             }
         }
         if let Some(p) = body.parent {
@@ -98,6 +120,7 @@ fn row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) {
             ws.ic[p] += ic_i;
         }
     }
+    finite
 }
 
 /// Inward pass in general (mimic joints, coordinates out of body order): each column force `F`

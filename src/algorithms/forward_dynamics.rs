@@ -103,6 +103,7 @@ pub(crate) fn crba_solve_on_joints<'w>(
     ext: &Externals<'_>,
 ) -> Result<&'w [f64], DynamicsError> {
     rnea_passes(model, ws, Some(v), None, ext);
+    // A non-finite H fails the factorisation or shows in q̈ (checked below).
     crba_passes(model, ws);
     ws.qdd.copy_from_slice(tau);
     ws.qdd -= &ws.tau;
