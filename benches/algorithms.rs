@@ -6,7 +6,8 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use spatial_dynamics::algorithms::{crba, forward_dynamics, gravity, rnea};
-use spatial_dynamics::model::{examples, JointKind};
+use spatial_dynamics::model::examples;
+use spatial_dynamics::sampling::{random_q, Rng};
 use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
 use std::hint::black_box;
 use std::time::Duration;
@@ -20,38 +21,13 @@ struct State {
     a_or_tau: Vec<f64>,
 }
 
-/// xorshift64*, uniform in [-1, 1).
-struct Rng(u64);
-
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        let x = self.0.wrapping_mul(0x2545_F491_4F6C_DD1D);
-        (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-    }
-}
-
 fn random_states(model: &Model) -> Vec<State> {
-    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
-    let mut vector =
-        |n: usize, scale: f64| -> Vec<f64> { (0..n).map(|_| scale * rng.uniform()).collect() };
+    let mut rng = Rng::new(1);
     (0..STATES)
-        .map(|_| {
-            let mut q = vector(model.nq, 1.5);
-            for j in model.coordinate_joints() {
-                if *j.kind == JointKind::Floating {
-                    let quat = &mut q[j.q_index + 3..j.q_index + 7];
-                    let norm = quat.iter().map(|x| x * x).sum::<f64>().sqrt();
-                    quat.iter_mut().for_each(|x| *x /= norm);
-                }
-            }
-            State {
-                q,
-                v: vector(model.nv, 1.0),
-                a_or_tau: vector(model.nv, 1.0),
-            }
+        .map(|_| State {
+            q: random_q(model, &mut rng),
+            v: rng.vector(model.nv, 1.0),
+            a_or_tau: rng.vector(model.nv, 1.0),
         })
         .collect()
 }

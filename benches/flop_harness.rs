@@ -19,6 +19,7 @@
 use nalgebra::{Matrix3, Rotation3, Vector6};
 use spatial_dynamics::algorithms::{crba, flops, forward_dynamics, gravity, rnea};
 use spatial_dynamics::model::{examples, JointKind, MotionSubspace};
+use spatial_dynamics::sampling::{random_q, Rng};
 use spatial_dynamics::spatial::{Force, Inertia, Matrix6, Motion, Transform, Vector3};
 use spatial_dynamics::urdf::{model_from_file, model_from_str};
 use spatial_dynamics::{Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
@@ -58,7 +59,7 @@ fn run(args: &[String]) -> Result<(), String> {
     let table = flops::kernel_flops(&model, kernel)
         .ok_or_else(|| format!("no FLOP count for kernel '{kernel}' on this model"))?;
     let states: Vec<State> = {
-        let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+        let mut rng = Rng::new(1);
         (0..8).map(|_| State::random(&model, &mut rng)).collect()
     };
     let mut ws = Workspace::new(&model);
@@ -303,31 +304,11 @@ struct State {
 
 impl State {
     fn random(model: &Model, rng: &mut Rng) -> Self {
-        let mut q: Vec<f64> = (0..model.nq).map(|_| 1.5 * rng.uniform()).collect();
-        for j in model.coordinate_joints() {
-            if *j.kind == JointKind::Floating {
-                let quat = &mut q[j.q_index + 3..j.q_index + 7];
-                let norm = quat.iter().map(|x| x * x).sum::<f64>().sqrt().max(1e-3);
-                quat.iter_mut().for_each(|x| *x /= norm);
-            }
-        }
+        let q = random_q(model, rng);
         State {
             q,
-            v: (0..model.nv).map(|_| rng.uniform()).collect(),
-            a: (0..model.nv).map(|_| rng.uniform()).collect(),
+            v: rng.vector(model.nv, 1.0),
+            a: rng.vector(model.nv, 1.0),
         }
-    }
-}
-
-/// xorshift64*, uniform in [-1, 1).
-struct Rng(u64);
-
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        let x = self.0.wrapping_mul(0x2545_F491_4F6C_DD1D);
-        (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
     }
 }

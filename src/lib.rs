@@ -14,6 +14,7 @@ pub mod algorithms;
 pub mod error;
 pub mod model;
 pub mod requests;
+pub mod sampling;
 pub mod sim;
 pub mod spatial;
 pub mod urdf;

@@ -16,6 +16,7 @@
 //! random `τ`, drawn from a fixed seed.
 
 use super::{flops, forward_dynamics, ForwardDynamicsMethod};
+use crate::sampling::Rng;
 use crate::{DynamicsError, Externals, Model, Workspace};
 use std::time::{Duration, Instant};
 
@@ -196,23 +197,15 @@ fn time_per_call(
 
 /// [`SAMPLES`] states `(q, q̇, τ)` from a fixed seed.
 fn sample_states(model: &Model) -> Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> {
-    let mut seed: u64 = 0x9e37_79b9_7f4a_7c15;
-    let mut uniform = move || {
-        // xorshift64*: uniform in [−1, 1).
-        seed ^= seed >> 12;
-        seed ^= seed << 25;
-        seed ^= seed >> 27;
-        let bits = seed.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11;
-        bits as f64 / (1u64 << 52) as f64 - 1.0
-    };
+    let mut rng = Rng::new(1);
     let neutral = model.neutral();
     (0..SAMPLES)
         .map(|_| {
-            let step: Vec<f64> = (0..model.nv).map(|_| uniform()).collect();
+            let step = rng.vector(model.nv, 1.0);
             let mut q = vec![0.0; model.nq];
             model.integrate(&neutral, &step, 1.0, &mut q);
-            let v = (0..model.nv).map(|_| uniform()).collect();
-            let tau = (0..model.nv).map(|_| 10.0 * uniform()).collect();
+            let v = rng.vector(model.nv, 1.0);
+            let tau = rng.vector(model.nv, 10.0);
             (q, v, tau)
         })
         .collect()

@@ -10,7 +10,7 @@ use clap::Args;
 use serde_json::{json, Map, Value};
 use spatial_dynamics::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics::algorithms::{choose_method, crba, flops, forward_dynamics, gravity, rnea};
-use spatial_dynamics::model::JointKind;
+use spatial_dynamics::sampling::{random_q, Rng};
 use spatial_dynamics::{DynamicsError, Externals, ForwardDynamicsMethod, Model, Workspace};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -187,8 +187,8 @@ pub fn time_kernels(
     let states: Vec<State> = (0..settings.states)
         .map(|_| State {
             q: random_q(model, &mut rng),
-            v: rng.vector(model.nv),
-            a_or_tau: rng.vector(model.nv),
+            v: rng.vector(model.nv, 1.0),
+            a_or_tau: rng.vector(model.nv, 1.0),
         })
         .collect();
     kernels
@@ -285,46 +285,4 @@ fn measure(
         .collect();
     samples.sort_by(f64::total_cmp);
     Ok(Some(samples[samples.len() / 2]))
-}
-
-/// xorshift64*: deterministic, no dependency.
-pub struct Rng(u64);
-
-impl Rng {
-    pub fn new(seed: u64) -> Self {
-        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
-    }
-
-    /// Uniform in [-1, 1).
-    pub fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        let x = self.0.wrapping_mul(0x2545_F491_4F6C_DD1D);
-        (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-    }
-
-    fn vector(&mut self, n: usize) -> Vec<f64> {
-        (0..n).map(|_| self.uniform()).collect()
-    }
-}
-
-/// Angles and positions uniform in [-1.5, 1.5]; a floating joint gets a random unit quaternion.
-fn random_q(model: &Model, rng: &mut Rng) -> Vec<f64> {
-    let mut q: Vec<f64> = (0..model.nq).map(|_| 1.5 * rng.uniform()).collect();
-    for j in model.coordinate_joints() {
-        if *j.kind == JointKind::Floating {
-            let quat = &mut q[j.q_index + 3..j.q_index + 7];
-            // Uniform in the unit ball, by rejection, then normalised: uniform on the sphere.
-            loop {
-                quat.iter_mut().for_each(|x| *x = rng.uniform());
-                let norm = quat.iter().map(|x| x * x).sum::<f64>().sqrt();
-                if (0.1..=1.0).contains(&norm) {
-                    quat.iter_mut().for_each(|x| *x /= norm);
-                    break;
-                }
-            }
-        }
-    }
-    q
 }
