@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{max_diff, norm, random_q, Rng};
+use common::{allocations_during, max_diff, norm, random_q, Rng};
 use spatial_dynamics::algorithms::{
     forward_dynamics, gravity, joint_state_outputs, rnea, JointStateInputs, JointStateOutputs,
 };
@@ -13,8 +13,6 @@ use spatial_dynamics::model::examples::{self, pendulum_urdf};
 use spatial_dynamics::{
     urdf, DynamicsError, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace,
 };
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 
 const TREE: &str = include_str!("models/tree.urdf");
 
@@ -191,34 +189,8 @@ fn bad_input_is_an_error_naming_it() {
     );
 }
 
-/// Counts this thread's allocations (tests run on several threads).
-struct Counting;
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        System.alloc(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        System.realloc(ptr, layout, new_size)
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations_during(f: impl FnOnce()) -> usize {
-    let before = ALLOCATIONS.with(Cell::get);
-    f();
-    ALLOCATIONS.with(Cell::get) - before
-}
+static GLOBAL: common::Counting = common::Counting;
 
 #[test]
 fn allocates_nothing() {
