@@ -25,6 +25,7 @@ use super::kinematics::{update_joints, update_placements};
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::Model;
+use crate::spatial::{Force, Motion};
 use crate::Workspace;
 use nalgebra::DMatrix;
 
@@ -86,11 +87,12 @@ pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
 /// `H[v_i + k, c] = ⁰S_ikᵀ F_c` for `c` from `v_i + k` to `e_i` (upper triangle, mirrored):
 /// each descendant's `F_c` was stored when that descendant was visited.
 /// Entries outside the pattern are never written (they stay zero). True when every entry
-/// written is finite.
+/// written is finite: `0·x` is 0 for a finite `x` and NaN otherwise, so the sum `probe` of
+/// `0·H_rc` stays 0 exactly when every entry is finite (two flops an entry, no branch).
 fn row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) -> bool {
     let n = model.nv;
     let h = ws.mass_matrix.as_mut_slice();
-    let mut finite = true;
+    let mut probe = 0.0;
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let v0 = body.joint.coords.v_index;
         let s_i = &ws.s_world[i];
@@ -98,21 +100,24 @@ fn row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) -> bool 
             ws.f_cols[v0 + k] = ws.ic[i].apply(&s_i.cols[k]);
         }
         let end = subtree_end[i];
-        for k in 0..s_i.nv {
+        for (k, s_ik) in s_i.cols[..s_i.nv].iter().enumerate() {
             let row = v0 + k;
             // Column `row` from the diagonal down, `H[c, row] = S_ikᵀ F_c` (contiguous in the
-            // column-major storage), then its mirror, row `row` right of the diagonal (stride n).
+            // column-major storage), and its mirror `H[row, c]` right of the diagonal (one
+            // column of `right` further for each c), in one sweep.
             let (left, right) = h.split_at_mut((row + 1) * n);
-            let column = &mut left[row * n + row..row * n + end];
-            let (w, v) = (s_i.cols[k].ang, s_i.cols[k].lin);
-            for (h_cr, f) in column.iter_mut().zip(&ws.f_cols[row..end]) {
-                // S_ikᵀ F_c = ω·n + v·f, written out (nalgebra's generic dot does not unroll).
-                let (n, f) = (&f.ang, &f.lin);
-                *h_cr = w.x * n.x + w.y * n.y + w.z * n.z + v.x * f.x + v.y * f.y + v.z * f.z;
-            }
-            finite &= column.iter().fold(true, |all, x| all & x.is_finite());
-            for (j, h_cr) in column.iter().enumerate().skip(1) {
-                right[row + (j - 1) * n] = *h_cr;
+            let (diagonal, below) = left[row * n + row..row * n + end]
+                .split_first_mut()
+                .expect("a body's subtree holds its own coordinates");
+            let mirror = right.chunks_exact_mut(n).map(|column| &mut column[row]);
+            let f_row = &ws.f_cols[row..end];
+            let s_ik = *s_ik; // a copy held in registers through the sweep
+            *diagonal = dot6(&s_ik, &f_row[0]);
+            probe += 0.0 * *diagonal;
+            for ((h_cr, h_rc), f) in below.iter_mut().zip(mirror).zip(&f_row[1..]) {
+                let x = dot6(&s_ik, f);
+                (*h_cr, *h_rc) = (x, x);
+                probe += 0.0 * x;
             }
         }
         if let Some(p) = body.parent {
@@ -120,7 +125,17 @@ fn row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) -> bool 
             ws.ic[p] += ic_i;
         }
     }
-    finite
+    probe == 0.0
+}
+
+/// `Sᵀ F = ω·n + v·f`, written out (nalgebra's generic dot does not unroll), summed as two
+/// interleaved halves, `(ω_x n_x + ω_z n_z + v_y f_y) + (ω_y n_y + v_x f_x + v_z f_z)`: the
+/// lanes of the stored pairs `(x, y), (z, x'), (y', z')`, so the products pair up in SIMD
+/// registers.
+#[inline(always)]
+fn dot6(s: &Motion, f: &Force) -> f64 {
+    let (w, v, n, f) = (&s.ang, &s.lin, &f.ang, &f.lin);
+    (w.x * n.x + w.z * n.z + v.y * f.y) + (w.y * n.y + v.x * f.x + v.z * f.z)
 }
 
 /// Inward pass in general (mimic joints, coordinates out of body order): each column force `F`

@@ -329,7 +329,7 @@ fn placements(model: &Model) -> Flops {
 
 /// `crba_passes`: world placements, inertias and axes; `F = I^c S` per coordinate; one
 /// `S_jᵀ F` per entry of `H`'s upper triangle in the tree pattern (counted along each
-/// coordinate's ancestors); composite inertias added into the parents.
+/// coordinate's ancestors) and its finiteness probe; composite inertias added into the parents.
 fn crba_passes(model: &Model) -> Flops {
     let mut total = placements(model);
     for (i, body) in model.bodies.iter().enumerate() {
@@ -352,6 +352,9 @@ fn crba_passes(model: &Model) -> Flops {
         let diagonal: u64 = model.bodies.iter().map(|b| b.joint.kind.nv() as u64).sum();
         let entries = pattern_entries(model);
         total += Flops::new(2, 1) * entries + Flops::new(0, entries - diagonal);
+    } else {
+        // The row blocks check every entry for finiteness by adding `0·H_rc` to a probe.
+        total += Flops::new(1, 1) * pattern_entries(model);
     }
     total
 }

@@ -150,7 +150,9 @@ impl JointKind {
     /// coordinate axis `±e_k` has `E_J = rot_k(±q)ᵀ`, which mixes only the two rows `i, j` of
     /// `E_tree` other than `k` (`(i, j, k)` cyclic): `row_i ← c row_i + s row_j`,
     /// `row_j ← c row_j − s row_i`; it does not move the origin. A prismatic joint keeps
-    /// `E_tree` and moves the origin by `E_treeᵀ (axis q)`.
+    /// `E_tree` and moves the origin by `E_treeᵀ (axis q)`. Inlined, so the fast paths write
+    /// straight into the caller's transform.
+    #[inline]
     pub fn jcalc_up(&self, q: &[f64], x_tree: &Transform, s: &mut MotionSubspace) -> Transform {
         match *self {
             JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
@@ -179,6 +181,17 @@ impl JointKind {
             }
             _ => {}
         }
+        self.jcalc_then_compose(q, x_tree, s)
+    }
+
+    /// The general case of [`jcalc_up`](Self::jcalc_up), kept out of line.
+    #[inline(never)]
+    fn jcalc_then_compose(
+        &self,
+        q: &[f64],
+        x_tree: &Transform,
+        s: &mut MotionSubspace,
+    ) -> Transform {
         self.jcalc(q, s).compose(x_tree)
     }
 
