@@ -160,11 +160,13 @@ impl JointKind {
                     s.nv = 1;
                     s.cols[0] = Motion::new(axis, Vector3::zeros());
                     let (sin, cos) = (sign * q[0]).sin_cos();
-                    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-                    let mut rot = x_tree.rot;
-                    let (row_i, row_j) = (x_tree.rot.row(i), x_tree.rot.row(j));
-                    rot.set_row(i, &(row_i * cos + row_j * sin));
-                    rot.set_row(j, &(row_j * cos - row_i * sin));
+                    let e = &x_tree.rot;
+                    // One arm per axis, so that the rows are known at compile time.
+                    let rot = match k {
+                        0 => mix_rows::<1, 2>(e, cos, sin),
+                        1 => mix_rows::<2, 0>(e, cos, sin),
+                        _ => mix_rows::<0, 1>(e, cos, sin),
+                    };
                     return Transform {
                         rot,
                         trans: x_tree.trans,
@@ -253,6 +255,17 @@ impl JointKind {
 }
 
 /// `Some((k, ±1))` when the unit `axis` is `±e_k`, a coordinate axis.
+/// `E` with its rows `I` and `J` mixed by a rotation: `row_I ← c row_I + s row_J`,
+/// `row_J ← c row_J − s row_I`, the others kept.
+#[inline(always)]
+fn mix_rows<const I: usize, const J: usize>(e: &Matrix3, c: f64, s: f64) -> Matrix3 {
+    Matrix3::from_fn(|r, col| match r {
+        _ if r == I => c * e[(I, col)] + s * e[(J, col)],
+        _ if r == J => c * e[(J, col)] - s * e[(I, col)],
+        _ => e[(r, col)],
+    })
+}
+
 fn coordinate_axis(axis: &Vector3) -> Option<(usize, f64)> {
     match (axis.x, axis.y, axis.z) {
         (x, 0.0, 0.0) if x.abs() == 1.0 => Some((0, x)),
