@@ -9,6 +9,9 @@
 #   `robot=NAME=URDF[,floating]` (its first URDF that exists; the form `spatial_dynamics chart
 #   --robot` takes). launch_scripts/charts.sh uses it.
 #   Environment: STATES (1024), REPEATS (7), MIN_TIME (0.2 s per repeat) go to both benches;
+#   ROUNDS (1) times each robot that many times, ours then Pinocchio back to back, and reports
+#   per cell the median over rounds of each round's ratio (on a shared VM whose speed drifts by
+#   tens of percent over minutes, a ratio of two runs taken seconds apart is what holds);
 #   MARCH (native) is g++'s -march for the Pinocchio bench; OURS_NATIVE=1 also builds ours with
 #   -C target-cpu=native (into target/bench-native, so the shared target/release is untouched);
 #   SKIP_BUILD=1 uses our binary as it is, OURS_BIN=PATH another binary (implies SKIP_BUILD);
@@ -135,29 +138,54 @@ run_robot() {  # NAME FLOATING(0|1) URDF [FALLBACK_URDF]
         fi
         die "$name: a bench failed on $urdf"
     fi
-    printf '{"robot": "%s", "urdf": "%s", "floating": %s, "ours": %s, "pinocchio": %s}\n' \
+    printf '{"robot": "%s", "urdf": "%s", "floating": %s, "round": %s, "ours": %s, "pinocchio": %s}\n' \
         "$name" "$(basename "$urdf")" "$([[ $floating == 1 ]] && echo true || echo false)" \
-        "$ours_json" "$pin_json" >> "$results"
-    log "$name done"
+        "$round" "$ours_json" "$pin_json" >> "$results"
+    log "$name done (round $round)"
 }
 
-log "timing (${bench_args[*]}): about 15 s per robot and library"
+rounds="${ROUNDS:-1}"
+log "timing (${bench_args[*]}), $rounds round(s): about 15 s per robot, library and round"
 for row in "${robot_table[@]}"; do
-    # shellcheck disable=SC2086 # the row splits into run_robot's arguments
-    run_robot $row
+    for round in $(seq "$rounds"); do
+        # shellcheck disable=SC2086 # the row splits into run_robot's arguments
+        run_robot $row
+    done
 done
 
 "$venv/bin/python" - "$results" <<'EOF'
 import json, sys
 
-rows = [json.loads(line) for line in open(sys.argv[1])]
+import statistics
+
+runs = [json.loads(line) for line in open(sys.argv[1])]
 kernels = ["rnea", "crba", "fd_aba", "fd_crba", "fd_rnea_columns", "gravity"]
+
+# One row per robot: per kernel the median time of each library over the rounds and the median
+# of the rounds' ratios (each round times ours and Pinocchio back to back).
+rows = []
+for r in runs:
+    if not rows or rows[-1]["robot"] != r["robot"]:
+        rows.append(dict(r, rounds=[]))
+    rows[-1]["rounds"].append(r)
+
+def median_of(row, f):
+    values = [f(r) for r in row["rounds"]]
+    return None if None in values else statistics.median(values)
+
+def ns_of(row, lib, k):
+    return median_of(row, lambda r: r[lib]["ns_per_call"][k])
+
+def ratio_of(row, k):
+    return median_of(row, lambda r: None if r["ours"]["ns_per_call"][k] is None
+                     or r["pinocchio"]["ns_per_call"][k] is None
+                     else r["pinocchio"]["ns_per_call"][k] / r["ours"]["ns_per_call"][k])
 
 def ns(x):
     return "n/a" if x is None else f"{x:,.0f}"
 
-def ratio(ours, pin):
-    return "—" if ours is None or pin is None else f"{pin / ours:.2f}"
+def ratio(x):
+    return "—" if x is None else f"{x:.2f}"
 
 print("| robot | nv | algorithm | ours (ns) | Pinocchio (ns) | Pinocchio / ours |")
 print("|---|---:|---|---:|---:|---:|")
@@ -167,16 +195,17 @@ for r in rows:
         nv = f'{nv} (Pinocchio: {r["pinocchio"]["nv"]})'
     name = r["robot"] + (" (floating)" if r["floating"] else "")
     for k in kernels:
-        o, p = r["ours"]["ns_per_call"][k], r["pinocchio"]["ns_per_call"][k]
-        print(f"| {name} | {nv} | {k} | {ns(o)} | {ns(p)} | {ratio(o, p)} |")
+        o, p = ns_of(r, "ours", k), ns_of(r, "pinocchio", k)
+        print(f"| {name} | {nv} | {k} | {ns(o)} | {ns(p)} | {ratio(ratio_of(r, k))} |")
 
 print()
-print("Pinocchio / ours (> 1: we are faster):")
+print(f"Pinocchio / ours (> 1: we are faster; median over {len(rows[0]['rounds']) if rows else 0} "
+      "round(s) of the ratio within each round):")
 print()
 print("| robot | nv | " + " | ".join(kernels) + " |")
 print("|---|---:|" + "---:|" * len(kernels))
 for r in rows:
-    cells = [ratio(r["ours"]["ns_per_call"][k], r["pinocchio"]["ns_per_call"][k]) for k in kernels]
+    cells = [ratio(ratio_of(r, k)) for k in kernels]
     print(f'| {r["robot"]} ({r["urdf"]}) | {r["ours"]["nv"]} | ' + " | ".join(cells) + " |")
 d = rows[0]["pinocchio"]["detail"]["pinocchio"] if rows else "?"
 print()
