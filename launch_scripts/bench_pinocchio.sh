@@ -154,9 +154,7 @@ for row in "${robot_table[@]}"; do
 done
 
 "$venv/bin/python" - "$results" <<'EOF'
-import json, sys
-
-import statistics
+import json, statistics, sys
 
 runs = [json.loads(line) for line in open(sys.argv[1])]
 kernels = ["rnea", "crba", "fd_aba", "fd_crba", "fd_rnea_columns", "gravity"]

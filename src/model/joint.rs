@@ -254,18 +254,22 @@ impl JointKind {
     }
 }
 
-/// `Some((k, ±1))` when the unit `axis` is `±e_k`, a coordinate axis.
 /// `E` with its rows `I` and `J` mixed by a rotation: `row_I ← c row_I + s row_J`,
 /// `row_J ← c row_J − s row_I`, the others kept.
 #[inline(always)]
 fn mix_rows<const I: usize, const J: usize>(e: &Matrix3, c: f64, s: f64) -> Matrix3 {
-    Matrix3::from_fn(|r, col| match r {
-        _ if r == I => c * e[(I, col)] + s * e[(J, col)],
-        _ if r == J => c * e[(J, col)] - s * e[(I, col)],
-        _ => e[(r, col)],
+    Matrix3::from_fn(|r, col| {
+        if r == I {
+            c * e[(I, col)] + s * e[(J, col)]
+        } else if r == J {
+            c * e[(J, col)] - s * e[(I, col)]
+        } else {
+            e[(r, col)]
+        }
     })
 }
 
+/// `Some((k, ±1))` when the unit `axis` is `±e_k`, a coordinate axis.
 fn coordinate_axis(axis: &Vector3) -> Option<(usize, f64)> {
     match (axis.x, axis.y, axis.z) {
         (x, 0.0, 0.0) if x.abs() == 1.0 => Some((0, x)),
