@@ -1,6 +1,7 @@
 //! Scratch buffers for the algorithms (Pinocchio's `Data`): sized once from a model, reused by
 //! every call so that no call allocates.
 
+use crate::algorithms::crba::CrbaFrames;
 use crate::algorithms::ltl::Ancestors;
 use crate::model::{Model, MotionSubspace};
 use crate::spatial::{Force, Inertia, Matrix6, Motion, Transform};
@@ -18,6 +19,11 @@ pub struct Workspace {
     pub(crate) x_world: Vec<Transform>,
     /// Motion subspace `S_i` of each body's joint.
     pub(crate) s: Vec<MotionSubspace>,
+    /// For each body, the columns of `S_i` that are a signed unit vector of `[ω; v]` whatever
+    /// `q` ([`JointKind::subspace_axes`](crate::model::JointKind::subspace_axes)).
+    pub(crate) s_axes: Vec<[Option<(usize, f64)>; 6]>,
+    /// The coordinates `crba`'s row blocks work in, chosen for the model.
+    pub(crate) crba_frames: CrbaFrames,
     /// Motion subspace `⁰X_i S_i` of each body's joint in world (root) coordinates (CRBA).
     pub(crate) s_world: Vec<MotionSubspace>,
     /// Body spatial velocities `v_i`.
@@ -84,6 +90,12 @@ impl Workspace {
             x_up: vec![Transform::identity(); n],
             x_world: vec![Transform::identity(); n],
             s: vec![MotionSubspace::default(); n],
+            s_axes: model
+                .bodies
+                .iter()
+                .map(|b| b.joint.kind.subspace_axes())
+                .collect(),
+            crba_frames: crate::algorithms::crba::crba_frames(model),
             s_world: vec![MotionSubspace::default(); n],
             v: vec![Motion::zero(); n],
             a: vec![Motion::zero(); n],

@@ -1,10 +1,11 @@
 //! The joint-space inertia matrix `H(q)` by the composite rigid-body algorithm (Featherstone,
-//! RBDA Table 6.2), with every spatial quantity in world (root) coordinates, as Pinocchio's
-//! `crba` in its WORLD convention does (RBDA §6.2 notes the algorithm works in any frame).
+//! RBDA Table 6.2), in either of the two frames Pinocchio's `crba` offers (RBDA §6.2 notes the
+//! algorithm works in any frame), whichever counts fewer operations for the model
+//! ([`crba_frames`]).
 //!
-//! In world coordinates a composite inertia needs no transform on its way to the parent and a
-//! column force `F` none on its way to the root; only each body's inertia and joint axes are
-//! carried to the world once, by its placement `⁰X_i`:
+//! **World (root) coordinates** (`CrbaFrames::World`): a composite inertia needs no transform on
+//! its way to the parent and a column force `F` none on its way to the root; only each body's
+//! inertia and joint axes are carried to the world once, by its placement `⁰X_i`:
 //!
 //! ```text
 //! outward:  ⁱX_0 = ⁱX_λ ᵏX_0,   ⁰S_i = ⁰X_i S_i,   ⁰I^c_i = ⁱX_0ᵀ I_i ⁱX_0
@@ -12,22 +13,66 @@
 //!           ⁰I^c_λ(i) += ⁰I^c_i
 //! ```
 //!
-//! which is RBDA Table 6.2 with `ʲX_iᵀ` replaced by the identity (all in one frame). When every
-//! subtree's coordinates are contiguous (the usual depth-first order) the inward pass fills `H`
-//! by row blocks, Pinocchio's way: the `F` of each coordinate is kept, and body `i` fills its
-//! rows from its own columns to the end of its subtree, `H_ij = S_iᵀ F_j` (see `row_blocks`).
+//! which is RBDA Table 6.2 with `ʲX_iᵀ` replaced by the identity (all in one frame).
 //!
-//! With mimic joints, body `i` contributes to the column of its leader scaled by `μ_i`:
-//! `H[c_j, c_i] += μ_j μ_i S_jᵀ F` (and its mirror), which is `Jᵀ H_full J` for the coordinate
-//! map `J`.
+//! **Body coordinates** (`CrbaFrames::Local`), RBDA Table 6.2 as written: no placements, each
+//! body's own `S_i` (a coordinate axis for most joints, so `S_iᵀ F` reads one component), and
+//! every column force moved up one body at a time:
+//!
+//! ```text
+//! inward:   F = ⁱI^c_i S_i,   H_ii = S_iᵀ F,   then at each ancestor j:  F ← ᵏX_jᵀ F,
+//!           H_ji = S_jᵀ F;    ᵏI^c_λ(i) += ⁱX_λᵀ ⁱI^c_i ⁱX_λ
+//! ```
+//!
+//! A force moved costs four times a world product `⁰S_jᵀ F`, but the world frame pays a
+//! placement, an axis and an inertia transform per body: body coordinates win on short
+//! branches (arms, legs, a floating base over them), world coordinates on long chains.
+//!
+//! When every subtree's coordinates are contiguous (the usual depth-first order) the inward
+//! pass fills `H` by row blocks, Pinocchio's way: the `F` of each coordinate is kept, and body
+//! `i` fills its rows from its own columns to the end of its subtree, `H_ij = S_iᵀ F_j` (see
+//! `row_blocks` and `local_row_blocks`). Otherwise (mimic joints) it runs in world
+//! coordinates along each column's path to the root: body `i` contributes to the column of its
+//! leader scaled by `μ_i`, `H[c_j, c_i] += μ_j μ_i S_jᵀ F` (and its mirror), which is
+//! `Jᵀ H_full J` for the coordinate map `J`.
 
+use super::flops;
 use super::kinematics::{update_joints, update_placements};
 use super::validate::check_q;
 use crate::error::DynamicsError;
-use crate::model::Model;
+use crate::model::{Model, MotionSubspace};
 use crate::spatial::{Force, Motion};
 use crate::Workspace;
 use nalgebra::DMatrix;
+
+/// The coordinates the row-block inward pass works in (Pinocchio's `Convention`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CrbaFrames {
+    /// World (root) coordinates: each body's inertia and axes are carried to the world once,
+    /// and an entry of `H` is one product `⁰S_jᵀ F_c` (the module's first scheme).
+    World,
+    /// Each body's own coordinates: no placements, and a joint axis that is a coordinate axis
+    /// reads one component of `F`, but each column force is moved up one body at a time (see
+    /// the module's second scheme).
+    Local,
+}
+
+/// The frames with fewer operations for `model` by the counts of
+/// [`flops::crba_world`] and
+/// [`flops::crba_local`]: body coordinates for short branches
+/// (arms, legs, a floating root over them), world coordinates for long ones. World
+/// coordinates when mimic joints break the tree pattern (only the world pass handles them).
+pub fn crba_frames(model: &Model) -> CrbaFrames {
+    if model.dof_parent.is_none() {
+        return CrbaFrames::World;
+    }
+    let (world, local) = (flops::crba_world(model), flops::crba_local(model));
+    if local.total() < world.total() {
+        CrbaFrames::Local
+    } else {
+        CrbaFrames::World
+    }
+}
 
 /// `H(q)` into `ws.mass_matrix()` (full and symmetric).
 pub fn crba<'w>(
@@ -58,6 +103,28 @@ pub fn crba<'w>(
 /// The two passes, on joints already updated for `q`. Writes `ws.x_world`, `ws.s_world`,
 /// `ws.ic` (world coordinates) and `ws.mass_matrix`; true when every entry of `H` is finite.
 pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
+    match ws.subtree_end.take() {
+        Some(subtree_end) => {
+            let finite = match ws.crba_frames {
+                CrbaFrames::World => {
+                    world_axes_and_inertias(model, ws);
+                    row_blocks(model, ws, &subtree_end)
+                }
+                CrbaFrames::Local => local_row_blocks(model, ws, &subtree_end),
+            };
+            ws.subtree_end = Some(subtree_end);
+            finite
+        }
+        None => {
+            world_axes_and_inertias(model, ws);
+            along_paths(model, ws);
+            ws.mass_matrix.iter().all(|x| x.is_finite())
+        }
+    }
+}
+
+/// `ⁱX_0`, `⁰S_i = ⁰X_i S_i` and `⁰I_i = ⁱX_0ᵀ I_i ⁱX_0` for every body.
+fn world_axes_and_inertias(model: &Model, ws: &mut Workspace) {
     update_placements(model, ws);
     for (i, body) in model.bodies.iter().enumerate() {
         let x = &ws.x_world[i];
@@ -68,17 +135,6 @@ pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
             s_world.cols[k] = x.inverse_apply_motion(&s.cols[k]);
         }
     }
-    match ws.subtree_end.take() {
-        Some(subtree_end) => {
-            let finite = row_blocks(model, ws, &subtree_end);
-            ws.subtree_end = Some(subtree_end);
-            finite
-        }
-        None => {
-            along_paths(model, ws);
-            ws.mass_matrix.iter().all(|x| x.is_finite())
-        }
-    }
 }
 
 /// Inward pass when every subtree's coordinates are contiguous (Pinocchio's layout): for body
@@ -87,10 +143,8 @@ pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
 /// `H[v_i + k, c] = ⁰S_ikᵀ F_c` for `c` from `v_i + k` to `e_i` (upper triangle, mirrored):
 /// each descendant's `F_c` was stored when that descendant was visited.
 /// Entries outside the pattern are never written (they stay zero). True when every entry
-/// written is finite: `0·x` is 0 for a finite `x` and NaN otherwise, so the sum `probe` of
-/// `0·H_rc` stays 0 exactly when every entry is finite (two flops an entry, no branch).
+/// written is finite (see [`fill_rows`]).
 fn row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) -> bool {
-    let n = model.nv;
     let h = ws.mass_matrix.as_mut_slice();
     let mut probe = 0.0;
     for (i, body) in model.bodies.iter().enumerate().rev() {
@@ -99,33 +153,107 @@ fn row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) -> bool 
         for k in 0..s_i.nv {
             ws.f_cols[v0 + k] = ws.ic[i].apply(&s_i.cols[k]);
         }
-        let end = subtree_end[i];
-        for (k, s_ik) in s_i.cols[..s_i.nv].iter().enumerate() {
-            let row = v0 + k;
-            // Column `row` from the diagonal down, `H[c, row] = S_ikᵀ F_c` (contiguous in the
-            // column-major storage), and its mirror `H[row, c]` right of the diagonal (one
-            // column of `right` further for each c), in one sweep.
-            let (left, right) = h.split_at_mut((row + 1) * n);
-            let (diagonal, below) = left[row * n + row..row * n + end]
-                .split_first_mut()
-                .expect("a body's subtree holds its own coordinates");
-            let mirror = right.chunks_exact_mut(n).map(|column| &mut column[row]);
-            let f_row = &ws.f_cols[row..end];
-            let s_ik = *s_ik; // a copy held in registers through the sweep
-            *diagonal = dot6(&s_ik, &f_row[0]);
-            probe += 0.0 * *diagonal;
-            for ((h_cr, h_rc), f) in below.iter_mut().zip(mirror).zip(&f_row[1..]) {
-                let x = dot6(&s_ik, f);
-                (*h_cr, *h_rc) = (x, x);
-                probe += 0.0 * x;
-            }
-        }
+        probe += fill_rows(
+            h,
+            model.nv,
+            v0,
+            s_i,
+            &[None; 6],
+            &ws.f_cols[..subtree_end[i]],
+        );
         if let Some(p) = body.parent {
             let ic_i = ws.ic[i];
             ws.ic[p] += ic_i;
         }
     }
     probe == 0.0
+}
+
+/// The row block in body coordinates (Pinocchio's LOCAL convention), same layout as
+/// [`row_blocks`]: body `i`'s composite inertia `ⁱI^c_i` and the forces `F_c` of its subtree's
+/// columns are in its own coordinates, so `H[v_i + k, c] = S_ikᵀ F_c` with the joint's own
+/// `S_i`; then the forces and the inertia move to the parent,
+///
+/// ```text
+/// F_c ← ⁱX_λᵀ F_c  (c in v_i .. e_i),   ᵏI^c_λ += ⁱX_λᵀ ⁱI^c_i ⁱX_λ
+/// ```
+///
+/// (RBDA Table 6.2's inward pass with its column forces kept). No world placements or world
+/// axes are needed; each force is transformed once per ancestor instead.
+fn local_row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) -> bool {
+    let h = ws.mass_matrix.as_mut_slice();
+    let mut probe = 0.0;
+    for (ic, body) in ws.ic.iter_mut().zip(&model.bodies) {
+        *ic = body.inertia;
+    }
+    for (i, body) in model.bodies.iter().enumerate().rev() {
+        let v0 = body.joint.coords.v_index;
+        let (s_i, axes, end) = (&ws.s[i], &ws.s_axes[i], subtree_end[i]);
+        for k in 0..s_i.nv {
+            ws.f_cols[v0 + k] = match axes[k] {
+                Some((j, sign)) => ws.ic[i].column(j) * sign,
+                None => ws.ic[i].apply(&s_i.cols[k]),
+            };
+        }
+        probe += fill_rows(h, model.nv, v0, s_i, axes, &ws.f_cols[..end]);
+        if let Some(p) = body.parent {
+            let x = &ws.x_up[i];
+            for f in &mut ws.f_cols[v0..end] {
+                *f = x.transpose_apply_force(f);
+            }
+            let ic_i = x.transpose_apply_inertia(&ws.ic[i]);
+            ws.ic[p] += ic_i;
+        }
+    }
+    probe == 0.0
+}
+
+/// Rows `v0 .. v0 + n_i` of `H` (`n × n`, column-major) from the diagonal to the end of
+/// `f_cols`: `H[v0 + k, c] = S_kᵀ F_c` and its mirror `H[c, v0 + k]`, where a column `S_k`
+/// that is a signed unit vector `σ e_j` (`axes[k]`) reads `σ F_c[j]` instead of a product.
+/// Returns the sum of `0·H_rc` over the entries written: `0·x` is 0 for a finite `x` and NaN
+/// otherwise, so the sum is 0 exactly when every entry is finite (two flops an entry and one
+/// addition a row, no branch).
+#[inline(always)]
+fn fill_rows(
+    h: &mut [f64],
+    n: usize,
+    v0: usize,
+    s: &MotionSubspace,
+    axes: &[Option<(usize, f64)>; 6],
+    f_cols: &[Force],
+) -> f64 {
+    let mut probe = 0.0;
+    for (k, s_k) in s.cols[..s.nv].iter().enumerate() {
+        probe += match axes[k] {
+            Some((j, sign)) => fill_row(h, n, v0 + k, f_cols, |f| sign * f.component(j)),
+            None => {
+                let s_k = *s_k; // a copy held in registers through the sweep
+                fill_row(h, n, v0 + k, f_cols, |f| dot6(&s_k, f))
+            }
+        };
+    }
+    probe
+}
+
+/// Row `row` of `H` from the diagonal to the end of `f_cols`, `H[row, c] = s_dot(F_c)`, and its
+/// mirror `H[c, row]`; returns the sum of `0·H_rc` (see [`fill_rows`]).
+#[inline(always)]
+fn fill_row(
+    h: &mut [f64],
+    n: usize,
+    row: usize,
+    f_cols: &[Force],
+    s_dot: impl Fn(&Force) -> f64,
+) -> f64 {
+    let mut probe = 0.0;
+    for (c, f) in f_cols.iter().enumerate().skip(row) {
+        let x = s_dot(f);
+        // Column-major: `H[c, row]` is at `row·n + c`, `H[row, c]` at `c·n + row`.
+        (h[row * n + c], h[c * n + row]) = (x, x);
+        probe += 0.0 * x;
+    }
+    probe
 }
 
 /// `Sᵀ F = ω·n + v·f`, written out (nalgebra's generic dot does not unroll), summed as two
@@ -172,5 +300,97 @@ fn along_paths(model: &Model, ws: &mut Workspace) {
             let ic_i = ws.ic[i];
             ws.ic[p] += ic_i;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::examples::{self, pendulum_urdf};
+    use crate::sampling::{random_q, Rng};
+    use crate::{urdf, ModelOptions};
+
+    const TREE: &str = include_str!("../../tests/models/tree.urdf");
+    const TURN_SLIDE: &str = include_str!("../../tests/models/turn_slide.urdf");
+
+    fn load(text: &str, floating_base: bool) -> Model {
+        let options = ModelOptions {
+            floating_base,
+            ..Default::default()
+        };
+        urdf::model_from_str(text, &options).unwrap()
+    }
+
+    /// `H` by the row blocks in world and in body coordinates, and by the general pass along
+    /// the paths, on trees with every joint kind (planar and floating roots, axes on and off
+    /// the coordinate axes, prismatic joints), agree to rounding and are exactly symmetric.
+    #[test]
+    fn world_and_body_frames_and_the_general_pass_agree() {
+        let models = [
+            load(TREE, false),
+            load(
+                &TREE.replace(r#"type="planar""#, r#"type="floating""#),
+                false,
+            ),
+            load(&pendulum_urdf(9, 0.5, 0.7), false),
+            load(examples::DEFAULT_ARM_URDF, false),
+            load(examples::DEFAULT_ARM_URDF, true),
+            load(examples::LAMP_URDF, true),
+        ];
+        for model in &models {
+            let mut ws = Workspace::new(model);
+            let subtree_end = ws.subtree_end.clone();
+            assert!(subtree_end.is_some(), "{}", model.name);
+            let mut rng = Rng::new(21);
+            for _ in 0..5 {
+                let q = random_q(model, &mut rng);
+                let mut h = Vec::new();
+                for (frames, subtree_end) in [
+                    (CrbaFrames::World, subtree_end.clone()),
+                    (CrbaFrames::Local, subtree_end.clone()),
+                    (CrbaFrames::Local, None),
+                ] {
+                    (ws.crba_frames, ws.subtree_end) = (frames, subtree_end);
+                    ws.mass_matrix.fill(0.0); // an entry a pass misses stays 0
+                    let m = crba(model, &mut ws, &q).unwrap();
+                    assert_eq!(m, &m.transpose(), "{}: {frames:?}", model.name);
+                    h.push(m.clone());
+                }
+                let scale = h[0].amax();
+                for other in &h[1..] {
+                    let err = (&h[0] - other).amax();
+                    assert!(err < 1e-13 * scale, "{}: H differs by {err:e}", model.name);
+                }
+            }
+        }
+    }
+
+    /// An entry that overflows is found in either frame (`m x²` for a slide at `x = 1e200`).
+    #[test]
+    fn overflow_is_found_in_both_frames() {
+        let model = load(TURN_SLIDE, false);
+        let mut ws = Workspace::new(&model);
+        for frames in [CrbaFrames::World, CrbaFrames::Local] {
+            ws.crba_frames = frames;
+            let err = crba(&model, &mut ws, &[0.0, 1e200]).unwrap_err();
+            assert!(
+                matches!(err, DynamicsError::NonFiniteResult { .. }),
+                "{frames:?}: {err}"
+            );
+        }
+    }
+
+    /// Short branches count fewer operations in body coordinates, a long chain fewer in world
+    /// coordinates (one product an entry instead of moving each column force up a body).
+    #[test]
+    fn frames_follow_the_operation_counts() {
+        assert_eq!(
+            crba_frames(&load(examples::DEFAULT_ARM_URDF, true)),
+            CrbaFrames::Local
+        );
+        assert_eq!(
+            crba_frames(&load(&pendulum_urdf(60, 0.5, 0.7), false)),
+            CrbaFrames::World
+        );
     }
 }

@@ -55,6 +55,7 @@
 //! Dense factorisations count exactly their loops; nalgebra's 6×6 Cholesky and inverse, used
 //! by ABA for a joint with several degrees of freedom, is [`SPD_INVERSE6`].
 
+use super::crba::CrbaFrames;
 use crate::model::{JointKind, Model};
 use std::ops::{Add, AddAssign, Mul};
 
@@ -327,49 +328,95 @@ fn placements(model: &Model) -> Flops {
     COMPOSE * model.bodies.iter().filter(|b| b.parent.is_some()).count() as u64
 }
 
-/// `crba_passes`: world placements, inertias and axes; `F = I^c S` per coordinate; one
-/// `S_jᵀ F` per entry of `H`'s upper triangle in the tree pattern (counted along each
-/// coordinate's ancestors) and its finiteness probe; composite inertias added into the parents.
+/// `crba_passes`: the row blocks in the frames [`crba_frames`](super::crba::crba_frames)
+/// chooses (the cheaper of the two counts below), or the general pass along the paths.
 fn crba_passes(model: &Model) -> Flops {
+    match super::crba::crba_frames(model) {
+        CrbaFrames::World => crba_world(model),
+        CrbaFrames::Local => crba_local(model),
+    }
+}
+
+/// `crba_passes` in world coordinates: world placements, inertias and axes; `F = I^c S` per
+/// coordinate; one `S_jᵀ F` per entry of `H`'s upper triangle in the tree pattern (counted
+/// along each coordinate's ancestors) and its finiteness probe; composite inertias added into
+/// the parents.
+pub fn crba_world(model: &Model) -> Flops {
     let mut total = placements(model);
-    for (i, body) in model.bodies.iter().enumerate() {
+    for body in &model.bodies {
         let nv = body.joint.kind.nv() as u64;
         total += TRANSFORM_INERTIA + TRANSFORM_VECTOR * nv + INERTIA_APPLY * nv;
-        // Own block (upper triangle with the diagonal) and one block per ancestor.
-        total += DOT6 * (nv * (nv + 1) / 2);
-        let mut j = i;
-        while let Some(p) = model.bodies[j].parent {
-            total += DOT6 * (nv * model.bodies[p].joint.kind.nv() as u64);
-            j = p;
-        }
         if body.parent.is_some() {
             total += INERTIA_ADD;
         }
     }
+    // One product per entry in the pattern (own block and one block per ancestor).
+    let entries = pattern_entries(model);
+    total += DOT6 * entries;
     if model.dof_parent.is_none() {
         // The general path scales every entry by μ_i μ_j (two multiplications) and adds it, an
         // entry off the diagonal to both of its places.
         let diagonal: u64 = model.bodies.iter().map(|b| b.joint.kind.nv() as u64).sum();
-        let entries = pattern_entries(model);
         total += Flops::new(2, 1) * entries + Flops::new(0, entries - diagonal);
     } else {
-        // The row blocks check every entry for finiteness by adding `0·H_rc` to a probe.
-        total += Flops::new(1, 1) * pattern_entries(model);
+        total += row_probes(model, entries);
     }
     total
 }
 
-/// Entries of `H`'s upper triangle (with the diagonal) that the tree's sparsity allows.
+/// `crba_passes` in body coordinates (row blocks only): for each body, `F = I^c S` per column
+/// (`σ I e_j` for a column that is an axis: a cross product and the sign, 12 m + 3 a, and
+/// `m e_j` for a linear one, 3 m more), its rows
+/// `S_kᵀ F_c` over its subtree's columns (`σ F_j`, one multiplication, for an axis) and their
+/// finiteness probe, then each of those forces `Xᵀ F` and its composite inertia `Xᵀ I X` moved
+/// to the parent and added.
+pub fn crba_local(model: &Model) -> Flops {
+    let mut subtree_nv: Vec<u64> = model
+        .bodies
+        .iter()
+        .map(|b| b.joint.kind.nv() as u64)
+        .collect();
+    for (i, body) in model.bodies.iter().enumerate().rev() {
+        if let Some(p) = body.parent {
+            subtree_nv[p] += subtree_nv[i];
+        }
+    }
+    let mut total = Flops::default();
+    for (i, body) in model.bodies.iter().enumerate() {
+        let axes = body.joint.kind.subspace_axes();
+        for (k, axis) in axes[..body.joint.kind.nv()].iter().enumerate() {
+            let row_entries = subtree_nv[i] - k as u64;
+            let (force, entry) = match axis {
+                Some((j, _)) if *j < 3 => (Flops::new(12, 3), Flops::new(1, 0)),
+                Some(_) => (Flops::new(15, 3), Flops::new(1, 0)),
+                None => (INERTIA_APPLY, DOT6),
+            };
+            total += force + entry * row_entries;
+        }
+        if body.parent.is_some() {
+            total += TRANSFORM_VECTOR * subtree_nv[i] + TRANSFORM_INERTIA + INERTIA_ADD;
+        }
+    }
+    total + row_probes(model, pattern_entries(model))
+}
+
+/// The row blocks' finiteness probe: `0·H_rc` added up for each of the `entries`, then each
+/// row's sum added into its body's and each body's into the total.
+fn row_probes(model: &Model, entries: u64) -> Flops {
+    Flops::new(1, 1) * entries + Flops::new(0, (model.nv + model.nbodies()) as u64)
+}
+
+/// Entries of `H`'s upper triangle (with the diagonal) that the tree's sparsity allows: for
+/// each body, its own block and one block for the coordinates of all its ancestors.
 fn pattern_entries(model: &Model) -> u64 {
+    let mut ancestor_nv = vec![0; model.nbodies()];
     let mut count = 0;
     for (i, body) in model.bodies.iter().enumerate() {
         let nv = body.joint.kind.nv() as u64;
-        count += nv * (nv + 1) / 2;
-        let mut j = i;
-        while let Some(p) = model.bodies[j].parent {
-            count += nv * model.bodies[p].joint.kind.nv() as u64;
-            j = p;
+        if let Some(p) = body.parent {
+            ancestor_nv[i] = ancestor_nv[p] + model.bodies[p].joint.kind.nv() as u64;
         }
+        count += nv * (nv + 1) / 2 + nv * ancestor_nv[i];
     }
     count
 }

@@ -197,6 +197,31 @@ impl JointKind {
         self.jcalc(q, s).compose(x_tree)
     }
 
+    /// The columns of `S` (child body coordinates) that are a signed unit vector of `[ω; v]`
+    /// whatever `q`: `Some((j, σ))` when column `k` is `σ e_j` (`j` in `0..6`, angular first),
+    /// so that `S_kᵀ f = σ f_j` and `I S_k = σ I e_j`. A revolute joint about `±e_k` has its
+    /// one column on `k`, a prismatic joint along `±e_k` on `3 + k`, the floating joint's
+    /// `S = [0 1; 1 0]` (`v = [linear; angular]`) is all axes, and a planar joint's rotation
+    /// column is one when its normal is a coordinate axis (its translation columns turn with θ).
+    pub fn subspace_axes(&self) -> [Option<(usize, f64)>; 6] {
+        let mut axes = [None; 6];
+        match *self {
+            JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
+                axes[0] = coordinate_axis(&axis);
+            }
+            JointKind::Prismatic { axis } => {
+                axes[0] = coordinate_axis(&axis).map(|(k, sign)| (3 + k, sign));
+            }
+            JointKind::Planar { normal, .. } => axes[2] = coordinate_axis(&normal),
+            JointKind::Floating => {
+                for k in 0..3 {
+                    (axes[k], axes[k + 3]) = (Some((3 + k, 1.0)), Some((k, 1.0)));
+                }
+            }
+        }
+        axes
+    }
+
     /// The velocity-product term `c_J = S̊(q) q̇` (the apparent derivative of `S` in the child
     /// frame times `q̇`), zero for every kind whose `S` is constant in the child frame.
     /// `qd` holds the joint's velocity coordinates, already scaled.
@@ -364,6 +389,58 @@ mod tests {
                 (twist.to_vector() - expected.to_vector()).norm() < 1e-8,
                 "{kind:?}: {twist:?} vs {expected:?}"
             );
+        }
+    }
+
+    /// Every column `subspace_axes` names is that signed unit vector in `jcalc`'s `S`, at any
+    /// `q`; a column it does not name is not one.
+    #[test]
+    fn subspace_axes_match_jcalc() {
+        let kinds = [
+            JointKind::Revolute {
+                axis: Vector3::new(0.0, -1.0, 0.0),
+            },
+            JointKind::Revolute {
+                axis: Vector3::new(1.0, 2.0, -0.5).normalize(),
+            },
+            JointKind::Continuous { axis: Vector3::x() },
+            JointKind::Prismatic {
+                axis: Vector3::new(0.0, 0.0, -1.0),
+            },
+            JointKind::planar(Vector3::z()),
+            JointKind::planar(Vector3::new(1.0, 1.0, 0.0)),
+            JointKind::Floating,
+        ];
+        for kind in kinds {
+            let axes = kind.subspace_axes();
+            for q0 in [0.0, 0.4, -2.1] {
+                let mut q = [q0, -0.5 * q0, 0.3, 0.1, -0.2, 0.3, 0.9];
+                if kind == JointKind::Floating {
+                    let norm = q[3..].iter().map(|x| x * x).sum::<f64>().sqrt();
+                    q[3..].iter_mut().for_each(|x| *x /= norm);
+                }
+                let mut s = MotionSubspace::default();
+                kind.jcalc(&q[..kind.nq()], &mut s);
+                for (k, (col, axis)) in s.cols[..s.nv].iter().zip(axes).enumerate() {
+                    let column = col.to_vector();
+                    let unit = (0..6).find(|&j| {
+                        column
+                            .iter()
+                            .enumerate()
+                            .all(|(i, &x)| x.abs() == if i == j { 1.0 } else { 0.0 })
+                    });
+                    match axis {
+                        Some((j, sign)) => {
+                            assert_eq!((unit, column[j]), (Some(j), sign), "{kind:?} column {k}")
+                        }
+                        None => assert!(
+                            unit.is_none() || matches!(kind, JointKind::Planar { .. }),
+                            "{kind:?} column {k} is an axis"
+                        ),
+                    }
+                }
+                assert!(axes[s.nv..].iter().all(Option::is_none), "{kind:?}");
+            }
         }
     }
 }

@@ -45,6 +45,19 @@ impl Inertia {
         )
     }
 
+    /// `I e_j`, column `j` of [`to_matrix`](Self::to_matrix): for an angular unit vector
+    /// (`j < 3`) `[Ī e_j; e_j × h]`, for a linear one (`j = 3 + k`) `[h × e_k; m e_k]`.
+    #[inline]
+    pub fn column(&self, j: usize) -> Force {
+        if j < 3 {
+            let e = Vector3::ith(j, 1.0);
+            Force::new(self.i_bar.column(j).into(), e.cross(&self.h))
+        } else {
+            let e = Vector3::ith(j - 3, 1.0);
+            Force::new(self.h.cross(&e), e * self.mass)
+        }
+    }
+
     /// Centre of mass `c = h / m`; the frame origin for a massless body.
     pub fn com(&self) -> Vector3 {
         if self.mass > 0.0 {
@@ -102,5 +115,17 @@ mod tests {
         let v = Motion::new(Vector3::new(0.3, -0.2, 0.9), Vector3::new(1.0, 2.0, -1.0));
         assert!((i.apply(&v).to_vector() - i.to_matrix() * v.to_vector()).norm() < 1e-14);
         assert!((i.com() - Vector3::new(0.0, 0.0, l)).norm() < 1e-15);
+        let general = Inertia::from_com(
+            1.5,
+            &Vector3::new(0.1, -0.3, 0.2),
+            &Matrix3::new(0.3, 0.01, 0.02, 0.01, 0.2, -0.03, 0.02, -0.03, 0.25),
+        );
+        for j in 0..6 {
+            let column = general.to_matrix().column(j).into_owned();
+            assert!(
+                (general.column(j).to_vector() - column).norm() < 1e-15,
+                "column {j}"
+            );
+        }
     }
 }

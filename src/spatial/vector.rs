@@ -45,6 +45,14 @@ macro_rules! spatial_vector_ops {
             pub fn from_vector(x: &Vector6<f64>) -> Self {
                 Self::new(x.fixed_rows::<3>(0).into(), x.fixed_rows::<3>(3).into())
             }
+            /// Component `j` of `[angular; linear]`.
+            pub fn component(&self, j: usize) -> f64 {
+                if j < 3 {
+                    self.ang[j]
+                } else {
+                    self.lin[j - 3]
+                }
+            }
             /// True when all six components are finite.
             pub fn is_finite(&self) -> bool {
                 self.ang
