@@ -40,7 +40,7 @@ use super::flops;
 use super::kinematics::{update_joints, update_placements};
 use super::validate::check_q;
 use crate::error::DynamicsError;
-use crate::model::{Model, MotionSubspace};
+use crate::model::{JointKind, Model, MotionSubspace};
 use crate::spatial::{Force, Motion};
 use crate::Workspace;
 use nalgebra::DMatrix;
@@ -195,7 +195,10 @@ fn local_row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) ->
                 None => ws.ic[i].apply(&s_i.cols[k]),
             };
         }
-        probe += fill_rows(h, model.nv, v0, s_i, axes, &ws.f_cols[..end]);
+        probe += match body.joint.kind {
+            JointKind::Floating => floating_rows(h, model.nv, v0, &ws.f_cols[..end]),
+            _ => fill_rows(h, model.nv, v0, s_i, axes, &ws.f_cols[..end]),
+        };
         if let Some(p) = body.parent {
             let x = &ws.x_up[i];
             for f in &mut ws.f_cols[v0..end] {
@@ -232,6 +235,24 @@ fn fill_rows(
                 fill_row(h, n, v0 + k, f_cols, |f| dot6(&s_k, f))
             }
         };
+    }
+    probe
+}
+
+/// The six rows of a floating joint in its body's coordinates: its `S` is `[0 1; 1 0]`
+/// (`v = [linear; angular]`), so `H[v0 .. v0 + 6, c] = Sᵀ F_c = [f_c; n_c]`, each column's force
+/// as it is, and the mirror `H[c, v0 .. v0 + 6]`; column by column, the 6×6 diagonal block in
+/// full (it is symmetric: its columns are those of the composite inertia). Returns the sum of
+/// `0·H_rc` over the entries written (see [`fill_rows`]).
+fn floating_rows(h: &mut [f64], n: usize, v0: usize, f_cols: &[Force]) -> f64 {
+    let mut probe = 0.0;
+    for (c, f) in f_cols.iter().enumerate().skip(v0) {
+        let rows = [f.lin.x, f.lin.y, f.lin.z, f.ang.x, f.ang.y, f.ang.z];
+        h[c * n + v0..c * n + v0 + 6].copy_from_slice(&rows);
+        for (k, x) in rows.iter().enumerate() {
+            h[(v0 + k) * n + c] = *x;
+            probe += 0.0 * x;
+        }
     }
     probe
 }

@@ -36,7 +36,7 @@
 //! | 3×3 × 3×3 | `Matrix3 * Matrix3` | 27 | 18 |
 //! | `X m`, `X* f`, `X⁻¹ m`, `Xᵀ f` | `Transform::apply_*` | 24 | 18 |
 //! | `X₁ X₂` | `Transform::compose` | 36 | 27 |
-//! | `Xᵀ I X` (rigid inertia) | `Transform::transpose_apply_inertia` | 72 | 59 |
+//! | `Xᵀ I X` (rigid inertia) | `Transform::transpose_apply_inertia` | 55 | 58 |
 //! | `I v` | `Inertia::apply` | 24 | 18 |
 //! | `v ×̂ m`, `v ×* f` | `Motion::cross_*` | 18 | 12 |
 //! | `mᵀ f` | `Motion::dot` | 6 | 5 |
@@ -133,7 +133,7 @@ pub const TRANSFORM_VECTOR: Flops = Flops::new(24, 18);
 /// `Transform::compose`.
 pub const COMPOSE: Flops = Flops::new(36, 27);
 /// `Transform::transpose_apply_inertia`.
-pub const TRANSFORM_INERTIA: Flops = Flops::new(72, 59);
+pub const TRANSFORM_INERTIA: Flops = Flops::new(55, 58);
 /// `Inertia::apply`.
 pub const INERTIA_APPLY: Flops = Flops::new(24, 18);
 /// Spatial cross product, motion or force.
@@ -366,10 +366,10 @@ pub fn crba_world(model: &Model) -> Flops {
 
 /// `crba_passes` in body coordinates (row blocks only): for each body, `F = I^c S` per column
 /// (`σ I e_j` for a column that is an axis: a cross product and the sign, 12 m + 3 a, and
-/// `m e_j` for a linear one, 3 m more), its rows
-/// `S_kᵀ F_c` over its subtree's columns (`σ F_j`, one multiplication, for an axis) and their
-/// finiteness probe, then each of those forces `Xᵀ F` and its composite inertia `Xᵀ I X` moved
-/// to the parent and added.
+/// `m e_j` for a linear one, 3 m more), its rows `S_kᵀ F_c` over its subtree's columns
+/// (`σ F_j`, one multiplication, for an axis; a floating joint's six rows are the forces as
+/// they are, its diagonal block written in full) and their finiteness probe, then each of those
+/// forces `Xᵀ F` and its composite inertia `Xᵀ I X` moved to the parent and added.
 pub fn crba_local(model: &Model) -> Flops {
     let mut subtree_nv: Vec<u64> = model
         .bodies
@@ -381,23 +381,32 @@ pub fn crba_local(model: &Model) -> Flops {
             subtree_nv[p] += subtree_nv[i];
         }
     }
+    let probe = Flops::new(1, 1);
     let mut total = Flops::default();
     for (i, body) in model.bodies.iter().enumerate() {
         let axes = body.joint.kind.subspace_axes();
         for (k, axis) in axes[..body.joint.kind.nv()].iter().enumerate() {
-            let row_entries = subtree_nv[i] - k as u64;
             let (force, entry) = match axis {
                 Some((j, _)) if *j < 3 => (Flops::new(12, 3), Flops::new(1, 0)),
                 Some(_) => (Flops::new(15, 3), Flops::new(1, 0)),
                 None => (INERTIA_APPLY, DOT6),
             };
-            total += force + entry * row_entries;
+            total += force;
+            if body.joint.kind != JointKind::Floating {
+                // The row's entries, and its probe added into the body's.
+                total += (entry + probe) * (subtree_nv[i] - k as u64) + Flops::new(0, 1);
+            }
         }
+        if body.joint.kind == JointKind::Floating {
+            total += probe * (6 * subtree_nv[i]);
+        }
+        // The body's probe added into the total.
+        total += Flops::new(0, 1);
         if body.parent.is_some() {
             total += TRANSFORM_VECTOR * subtree_nv[i] + TRANSFORM_INERTIA + INERTIA_ADD;
         }
     }
-    total + row_probes(model, pattern_entries(model))
+    total
 }
 
 /// The row blocks' finiteness probe: `0·H_rc` added up for each of the `entries`, then each
@@ -427,9 +436,9 @@ fn aba_passes(model: &Model) -> Flops {
     let mut total = placements(model) + Flops::new(0, 3);
     for body in &model.bodies {
         let nv = body.joint.kind.nv() as u64;
-        // Pass 1: ⁰S, v_J (`S q̇` unscaled: 6 m + 6 a a column), v_i, c_i, ⁰I (and as a 6×6),
-        // p^A.
-        total += TRANSFORM_VECTOR * nv + Flops::new(6, 6) * nv + ADD6;
+        // Pass 1: ⁰S, v_J (`S q̇`, each rate scaled by the mimic factor), v_i, c_i, ⁰I (and as
+        // a 6×6), p^A.
+        total += TRANSFORM_VECTOR * nv + SUBSPACE_COLUMN * nv + ADD6;
         total += joint_bias(&body.joint.kind) + TRANSFORM_VECTOR + CROSS6 + ADD6;
         total += TRANSFORM_INERTIA + INERTIA_TO_MATRIX + INERTIA_APPLY + CROSS6;
         // Pass 2: U, D, u, D⁻¹ (its pivot check scales `64 · max diag I^A` by ε).

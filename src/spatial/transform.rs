@@ -172,13 +172,35 @@ impl Transform {
     }
 }
 
-/// `Eᵀ S E` for a symmetric `S`: `t_k = S e_k` for each column `e_k` of `E`, then the six
-/// distinct entries `(Eᵀ S E)_jk = e_j · t_k`.
+/// `Eᵀ S E` for a symmetric `S` and a rotation `E`, in 28 m + 29 a (a product of three 3×3
+/// matrices would take 135, the six distinct entries of `Eᵀ (S E)` 75), using what a rotation
+/// keeps: multiples of the identity, the trace, and cross-product matrices
+/// (`Eᵀ k× E = (Eᵀ k)×`).
+///
+/// With `S = [a b d; b c e; d e f]`, take `S' = S − f 1 = N + k×`, where
+/// `N = [a−f  b  0; b  c−f  0; 2d  2e  0]` has a zero last column and `k = (−e, d, 0)`. Then
+/// `Eᵀ S E = f 1 + P + t×` with `P = Eᵀ N E` and `t = Eᵀ k`. As `N = n₀ ε₀ᵀ + n₁ ε₁ᵀ` (`n_l` its
+/// columns, `ε_jᵀ` row `j` of `E`), `P_pq = y₀_p E_0q + y₁_p E_1q` with `y_l = Eᵀ n_l`: only
+/// the entries below the diagonal and rows 1 and 2 of the diagonal are needed, as the result
+/// is symmetric (`t×` is zero on the diagonal) and its first diagonal entry follows from the
+/// trace, `tr(Eᵀ S' E) = tr S' = (a − f) + (c − f)`.
 fn rotate_symmetric(e: &Matrix3, s: &Matrix3) -> Matrix3 {
-    let t = [s * e.column(0), s * e.column(1), s * e.column(2)];
-    let d = |j: usize, k: usize| e.column(j).dot(&t[k]);
-    let (xx, xy, xz, yy, yz, zz) = (d(0, 0), d(0, 1), d(0, 2), d(1, 1), d(1, 2), d(2, 2));
-    Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz)
+    let f = s[(2, 2)];
+    let (a, c) = (s[(0, 0)] - f, s[(1, 1)] - f);
+    let (b, d, e_) = (s[(1, 0)], s[(2, 0)], s[(2, 1)]);
+    let (n0, n1) = (Vector3::new(a, b, d + d), Vector3::new(b, c, e_ + e_));
+    // y_l = Eᵀ n_l, rows 1 and 2: column p of E dotted with n_l.
+    let y = |l: &Vector3, p: usize| e.column(p).dot(l);
+    let (y01, y11, y02, y12) = (y(&n0, 1), y(&n1, 1), y(&n0, 2), y(&n1, 2));
+    let p = |y0: f64, y1: f64, q: usize| y0 * e[(0, q)] + y1 * e[(1, q)];
+    // t = Eᵀ k = −e ε₀ + d ε₁.
+    let t = |q: usize| d * e[(1, q)] - e_ * e[(0, q)];
+    let m10 = p(y01, y11, 0) + t(2);
+    let m20 = p(y02, y12, 0) - t(1);
+    let m21 = p(y02, y12, 1) + t(0);
+    let (m11, m22) = (p(y01, y11, 1), p(y02, y12, 2));
+    let m00 = (a + c) - m11 - m22;
+    Matrix3::new(m00 + f, m10, m20, m10, m11 + f, m21, m20, m21, m22 + f)
 }
 
 /// `r× M`: the cross product of `r` with each column of `M`.
@@ -247,6 +269,14 @@ mod tests {
         let articulated = g.transpose() * g + Matrix6::identity();
         let dense = xm.transpose() * articulated * xm;
         assert!((x.transpose_apply_matrix6(&articulated) - dense).norm() < 1e-12);
+        // `Eᵀ S E` for symmetric matrices of very different scales, several rotations.
+        for seed in [0.1, 0.7, -1.9, 2.6] {
+            let e = sample(seed).rot;
+            let g = Matrix3::from_fn(|r, c| ((r * 5 + c * 2) % 7) as f64 * seed - 1.0);
+            let s = g.transpose() * g * 10f64.powf(3.0 * seed) + Matrix3::identity();
+            let err = (rotate_symmetric(&e, &s) - e.transpose() * s * e).amax();
+            assert!(err < 1e-14 * s.amax(), "seed {seed}: {err:e}");
+        }
         // Power is frame-invariant: (X m)·(X* f) = m·f.
         assert!((x.apply_motion(&m).dot(&x.apply_force(&f)) - m.dot(&f)).abs() < 1e-13);
         let _ = Vector6::<f64>::zeros();
