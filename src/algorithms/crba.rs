@@ -186,7 +186,8 @@ fn local_row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) ->
     for (ic, body) in ws.ic.iter_mut().zip(&model.bodies) {
         *ic = body.inertia;
     }
-    for (i, body) in model.bodies.iter().enumerate().rev() {
+    for i in (0..model.bodies.len()).rev() {
+        let body = &model.bodies[i];
         let v0 = body.joint.coords.v_index;
         let (s_i, axes, end) = (&ws.s[i], &ws.s_axes[i], subtree_end[i]);
         for k in 0..s_i.nv {
@@ -201,9 +202,7 @@ fn local_row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) ->
         };
         if let Some(p) = body.parent {
             let x = &ws.x_up[i];
-            for f in &mut ws.f_cols[v0..end] {
-                *f = x.transpose_apply_force(f);
-            }
+            x.transpose_apply_forces(&mut ws.f_cols[v0..end]);
             let ic_i = x.transpose_apply_inertia(&ws.ic[i]);
             ws.ic[p] += ic_i;
         }

@@ -86,6 +86,15 @@ impl Transform {
         Force::new(self.rot.tr_mul(&f.ang) + self.trans.cross(&lin), lin)
     }
 
+    /// `Xᵀ f` for each force of `forces`, in place. Kept out of line, so that its loop is
+    /// compiled the same wherever it is called (two forces at a time in SSE2 registers).
+    #[inline(never)]
+    pub fn transpose_apply_forces(&self, forces: &mut [Force]) {
+        for f in forces {
+            *f = self.transpose_apply_force(f);
+        }
+    }
+
     /// Composition `ᶜX_A = ᶜX_B · ᴮX_A` (`self` is `ᶜX_B`, `inner` is `ᴮX_A`):
     /// `E = E_CB E_BA`, `r = r_BA + E_BAᵀ r_CB`.
     pub fn compose(&self, inner: &Transform) -> Transform {
