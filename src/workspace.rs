@@ -36,7 +36,8 @@ pub struct Workspace {
     pub(crate) a_world: Vec<Motion>,
     /// Net spatial forces `f_i` transmitted by each body's joint.
     pub(crate) f: Vec<Force>,
-    /// Composite rigid-body inertias `I^c_i` (CRBA), in world (root) coordinates.
+    /// Composite rigid-body inertias `I^c_i` (CRBA), in world (root) or body coordinates
+    /// (`crba_frames`).
     pub(crate) ic: Vec<Inertia>,
     /// World-frame forces `[f_i, f^g_i]` of
     /// [`joint_state_outputs`](crate::algorithms::joint_state_outputs): the inverse-dynamics force
@@ -58,8 +59,8 @@ pub struct Workspace {
     pub(crate) tau: DVector<f64>,
     /// Generalized accelerations: output of forward dynamics.
     pub(crate) qdd: DVector<f64>,
-    /// `F_c = ⁰I^c S_c` for each velocity coordinate `c`, in world coordinates (CRBA; Pinocchio's
-    /// `Ag`).
+    /// `F_c = I^c S_c` for each velocity coordinate `c` (CRBA's column forces, Pinocchio's `Fcrb`),
+    /// in world coordinates or, moving up the tree, in each ancestor's.
     pub(crate) f_cols: Vec<Force>,
     /// For each body, one past the last velocity coordinate of its subtree, when every subtree's
     /// coordinates are contiguous (bodies depth-first, coordinates in body order, no mimic

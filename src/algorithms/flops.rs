@@ -24,7 +24,7 @@
 //! gripper (ABA with a planar joint: 3 multiplications apart; its nalgebra 6×6 inverse is a
 //! measured constant, [`SPD_INVERSE6`]). The release build as shipped executes more: its
 //! packed instructions waste lanes (RNEA and the n+1 RNEA method about +15 %, gravity +10 %,
-//! CRBA with `LᵀL` +6 to +9 %, ABA +2 to +3 %, CRBA alone under +2.5 %).
+//! CRBA with `LᵀL` +7 to +9 %, ABA +6 %, CRBA alone under +2.5 %).
 //!
 //! Costs of the building blocks (multiplications m, additions a), each measured alone too
 //! (`count_flops.py --ops`):
