@@ -101,8 +101,9 @@ pub fn crba<'w>(
 }
 
 /// The two passes, on joints already updated for `q`, in the frames `ws.crba_frames` says (world
-/// coordinates for the general pass). Writes `ws.ic`, `ws.mass_matrix` (the row blocks also `ws.f_cols`, and in
-/// world coordinates `ws.x_world`, `ws.s_world`); true when every entry of `H` is finite.
+/// coordinates for the general pass). Writes `ws.ic` and `ws.mass_matrix` (the row blocks also
+/// `ws.f_cols`, world coordinates `ws.x_world` and `ws.s_world`); true when every entry of `H`
+/// is finite.
 pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
     match ws.subtree_end.take() {
         Some(subtree_end) => {
