@@ -9,7 +9,7 @@
 //! there is no reference and the fastest method that runs is taken.
 //!
 //! Speed: each method runs over the same sampled states; the median of several timed passes is
-//! its time per call. A method whose predicted cost — its FLOP count ([`flops`](super::flops))
+//! its time per call. A method whose predicted cost — its FLOP count ([`super::flops`])
 //! at the rate measured for one `aba` call — would exceed the budget over the samples is not run
 //! at all (on a 10 000-link chain one CRBA solve costs minutes): it is reported as skipped. The sampled states are `q = q₀ ⊕ δ` (neutral configuration moved along a
 //! random velocity for one second, so every joint kind stays on its manifold), random `q̇` and

@@ -2,16 +2,16 @@
 //!
 //! | file | computes |
 //! |---|---|
-//! | [`rnea`] | inverse dynamics `τ = H(q) q̈ + C(q, q̇)` (recursive Newton–Euler) |
-//! | [`bias`] | `C(q, q̇)`: gravity, Coriolis and centrifugal terms, external forces |
-//! | [`gravity`] | `g(q)`: the gravity part of `C` |
-//! | [`crba`] | `H(q)` (composite rigid-body algorithm) |
-//! | [`aba`] | forward dynamics in O(n) (articulated-body algorithm) |
+//! | [`rnea`](mod@rnea) | inverse dynamics `τ = H(q) q̈ + C(q, q̇)` (recursive Newton–Euler) |
+//! | [`bias`](mod@bias) | `C(q, q̇)`: gravity, Coriolis and centrifugal terms, external forces |
+//! | [`gravity`](mod@gravity) | `g(q)`: the gravity part of `C` |
+//! | [`crba`](mod@crba) | `H(q)` (composite rigid-body algorithm) |
+//! | [`aba`](mod@aba) | forward dynamics in O(n) (articulated-body algorithm) |
 //! | [`rnea_columns`] | forward dynamics from n+1 inverse-dynamics calls (the handout's method) |
-//! | [`forward_dynamics`] | forward dynamics by a chosen [`ForwardDynamicsMethod`] |
+//! | [`forward_dynamics`](mod@forward_dynamics) | forward dynamics by a chosen [`ForwardDynamicsMethod`] |
 //! | [`method_choice`] | the fastest forward-dynamics method accurate enough for a model, measured |
 //! | [`joint_state_outputs`](mod@joint_state_outputs) | `g(q)`, `FD(q, q̇, τ)` and `RNEA(q, q̇, q̈)` at one state, sharing the kinematics |
-//! | [`energy`] | kinetic and potential energy |
+//! | [`energy`](mod@energy) | kinetic and potential energy |
 //! | [`ltl`], [`cholesky`] | the factorisations that solve `H q̈ = τ − C` |
 //! | [`flops`] | how many floating-point operations each of them performs on a model |
 
