@@ -57,11 +57,10 @@ pub enum CrbaFrames {
     Local,
 }
 
-/// The frames with fewer operations for `model` by the counts of
-/// [`flops::crba_world`] and
-/// [`flops::crba_local`]: body coordinates for short branches
-/// (arms, legs, a floating root over them), world coordinates for long ones. World
-/// coordinates when mimic joints break the tree pattern (only the world pass handles them).
+/// The frames with fewer operations for `model` by the counts of [`flops::crba_world`] and
+/// [`flops::crba_local`]: body coordinates for short branches (arms, legs, a floating root over
+/// them), world coordinates for long ones; world coordinates when mimic joints break the tree
+/// pattern (only the world pass handles them).
 pub fn crba_frames(model: &Model) -> CrbaFrames {
     if model.dof_parent.is_none() {
         return CrbaFrames::World;
@@ -370,7 +369,7 @@ mod tests {
                 for (frames, subtree_end) in [
                     (CrbaFrames::World, subtree_end.clone()),
                     (CrbaFrames::Local, subtree_end.clone()),
-                    (CrbaFrames::Local, None),
+                    (CrbaFrames::World, None), // the general pass
                 ] {
                     (ws.crba_frames, ws.subtree_end) = (frames, subtree_end);
                     ws.mass_matrix.fill(0.0); // an entry a pass misses stays 0
