@@ -15,8 +15,12 @@ pub struct Workspace {
     pub(crate) q_joint: Vec<[f64; 7]>,
     /// `ⁱX_λ(i) = X_J(q_i) X_tree,i`: parent body frame → body frame.
     pub(crate) x_up: Vec<Transform>,
-    /// `ⁱX_0`: world (root) frame → body frame, from [`body_placements`](crate::algorithms::kinematics::body_placements).
+    /// `ⁱX_0`: world frame → body frame, from [`body_placements`](crate::algorithms::kinematics::body_placements).
     pub(crate) x_world: Vec<Transform>,
+    /// `ⁱX_R`: the root-aligned frame of body `i`'s tree (world axes, origin at the tree's root
+    /// body) → body frame: the frame of every quantity below said to be in world coordinates
+    /// (see `kinematics::update_aligned_placements`).
+    pub(crate) x_aligned: Vec<Transform>,
     /// Motion subspace `S_i` of each body's joint.
     pub(crate) s: Vec<MotionSubspace>,
     /// For each body, the columns of `S_i` that are a signed unit vector of `[ω; v]` whatever
@@ -90,6 +94,7 @@ impl Workspace {
             q_joint: vec![[0.0; 7]; n],
             x_up: vec![Transform::identity(); n],
             x_world: vec![Transform::identity(); n],
+            x_aligned: vec![Transform::identity(); n],
             s: vec![MotionSubspace::default(); n],
             s_axes: model
                 .bodies
@@ -151,7 +156,10 @@ impl Workspace {
         self.f[i]
     }
 
-    /// `ⁱX_0` of body `i` (world → body) from the last placement pass.
+    /// `ⁱX_0` of body `i` (world → body) from the last
+    /// [`body_placements`](crate::algorithms::kinematics::body_placements),
+    /// [`body_motion`](crate::algorithms::kinematics::body_motion) or
+    /// [`energy`](crate::algorithms::energy()) call.
     pub fn world_to_body(&self, i: usize) -> Transform {
         self.x_world[i]
     }

@@ -20,11 +20,15 @@
 //! a' = a_λ + c_i,   q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),   a_i = a' + S_i q̈_i
 //! ```
 //! (`c_i` in the world frame: the world-frame `S` moves with the body, `d(⁰X_i S_i)/dt =
-//! v_i ×̂ ⁰X_i S_i + ⁰X_i S̊_i`.) Mimic joints tie coordinates across bodies, which the
+//! v_i ×̂ ⁰X_i S_i + ⁰X_i S̊_i`.) The "world" frame `0` has the world's axes and its origin at
+//! the root body's (`kinematics::update_aligned_placements`): `q̈` does not depend on the origin,
+//! but an inertia about an origin `d` away carries `m d²` terms that cancel, so a robot far from
+//! the world's origin would lose digits; the root's motion (`a_base`, `v_0`) and gravity (the
+//! same about every point) move to that origin. Mimic joints tie coordinates across bodies, which the
 //! recursion cannot express: models with them are refused (use the `crba` or `rnea_columns`
 //! method).
 
-use super::kinematics::{update_joints, update_placements};
+use super::kinematics::{update_aligned_placements, update_joints};
 use super::validate::{check_forward_inputs, check_result};
 use super::{pivot_is_sound, Externals};
 use crate::error::DynamicsError;
@@ -69,9 +73,9 @@ pub(crate) fn refuse_mimic(model: &Model) -> Result<(), DynamicsError> {
 /// articulated quantities (joints already updated). A mimic follower moves with `μ q̇_leader`
 /// (a 1-DOF joint: its `c_J` is zero), so these quantities are right for mimic models too.
 pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
-    update_placements(model, ws);
+    update_aligned_placements(model, ws);
     for (i, body) in model.bodies.iter().enumerate() {
-        let x = &ws.x_world[i];
+        let x = &ws.x_aligned[i];
         let (s, s_world) = (&ws.s[i], &mut ws.s_world[i]);
         s_world.nv = s.nv;
         for k in 0..s.nv {
@@ -80,7 +84,10 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
         let c = body.joint.coords;
         let rates = &v[c.v_index..c.v_index + s.nv];
         let v_joint = s_world.apply(rates, c.scale);
-        let v_parent = body.parent.map_or(ext.root_velocity, |p| ws.v_world[p]);
+        let v_parent = match body.parent {
+            Some(p) => ws.v_world[p],
+            None => ext.root_velocity.about(&ws.x_up[i].trans),
+        };
         let v_i = v_parent + v_joint;
         let c_joint = body
             .joint
@@ -158,7 +165,10 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
     for (i, body) in model.bodies.iter().enumerate() {
         let nv = ws.s_world[i].nv;
         let c = body.joint.coords;
-        let a_parent = body.parent.map_or(a_root, |p| ws.a_world[p]);
+        let a_parent = match body.parent {
+            Some(p) => ws.a_world[p],
+            None => a_root.about(&ws.x_up[i].trans),
+        };
         let a_prime = a_parent + ws.c[i];
         let mut rhs = [0.0; 6];
         for k in 0..nv {

@@ -13,7 +13,10 @@
 //!           ⁰I^c_λ(i) += ⁰I^c_i
 //! ```
 //!
-//! which is RBDA Table 6.2 with `ʲX_iᵀ` replaced by the identity (all in one frame).
+//! which is RBDA Table 6.2 with `ʲX_iᵀ` replaced by the identity (all in one frame). The "world"
+//! frame has the world's axes and its origin at the root body's: `H` does not depend on the
+//! origin, but inertias about a far origin carry large `m d²` terms that cancel
+//! (`kinematics::update_aligned_placements`).
 //!
 //! **Body coordinates** (`CrbaFrames::Local`), RBDA Table 6.2 as written: no placements, each
 //! body's own `S_i` (a coordinate axis for most joints, so `S_iᵀ F` reads one component), and
@@ -37,7 +40,7 @@
 //! `Jᵀ H_full J` for the coordinate map `J`.
 
 use super::flops;
-use super::kinematics::{update_joints, update_placements};
+use super::kinematics::{update_aligned_placements, update_joints};
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model, MotionSubspace};
@@ -101,7 +104,7 @@ pub fn crba<'w>(
 
 /// The two passes, on joints already updated for `q`, in the frames `ws.crba_frames` says (world
 /// coordinates for the general pass). Writes `ws.ic` and `ws.mass_matrix` (the row blocks also
-/// `ws.f_cols`, world coordinates `ws.x_world` and `ws.s_world`); true when every entry of `H`
+/// `ws.f_cols`, world coordinates `ws.x_aligned` and `ws.s_world`); true when every entry of `H`
 /// is finite.
 pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
     match ws.subtree_end.take() {
@@ -126,9 +129,9 @@ pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
 
 /// `ⁱX_0`, `⁰S_i = ⁰X_i S_i` and `⁰I_i = ⁱX_0ᵀ I_i ⁱX_0` for every body.
 fn world_axes_and_inertias(model: &Model, ws: &mut Workspace) {
-    update_placements(model, ws);
+    update_aligned_placements(model, ws);
     for (i, body) in model.bodies.iter().enumerate() {
-        let x = &ws.x_world[i];
+        let x = &ws.x_aligned[i];
         ws.ic[i] = x.transpose_apply_inertia(&body.inertia);
         let (s, s_world) = (&ws.s[i], &mut ws.s_world[i]);
         s_world.nv = s.nv;

@@ -453,6 +453,11 @@ fn aba_passes(model: &Model) -> Flops {
             // nalgebra's Cholesky and inverse of the padded 6×6; each pivot `L_kk²` checked.
             SPD_INVERSE6 + Flops::new(2, 0) * nv
         };
+        if body.parent.is_none() {
+            // The root's velocity and acceleration moved to its root-aligned frame
+            // (`Motion::about`: a cross product and three subtractions each).
+            total += (CROSS3 + Flops::new(0, 3)) * 2;
+        }
         if body.parent.is_some() {
             // D⁻¹ u and the rows of D⁻¹ Uᵀ, the rank-nv update, p^a, I^a c, the parent sums.
             total += (Flops::new(nv, nv) + Flops::new(6, 6) * nv) * nv;

@@ -16,7 +16,7 @@
 //!
 //! RNEA (handout eqs. 13–16) holds in any one frame; in the world frame a spatial vector needs
 //! no transform on its way between bodies, and the passes are (all quantities in world
-//! coordinates):
+//! coordinates, which here, as in ABA, means the world's axes about the root body's origin):
 //!
 //! ```text
 //! outward:  a_i   = a_λ + c_i + ⁰S_i q̈_i          a_0 = [0; −g] (gravity as a fictitious

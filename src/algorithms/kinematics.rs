@@ -62,12 +62,39 @@ fn check_bodies(
     }
 }
 
-/// `ws.x_world` from `ws.x_up` (joints already updated).
+/// `ws.x_world` from `ws.x_up` (joints already updated): `ⁱX_0 = ⁱX_λ ᵏX_0`.
 pub(crate) fn update_placements(model: &Model, ws: &mut Workspace) {
+    compose_down(model, &ws.x_up, &mut ws.x_world, |x_root| *x_root);
+}
+
+/// `ws.x_aligned` from `ws.x_up` (joints already updated): `ⁱX_R`, from the *root-aligned*
+/// frame `R` of body `i`'s tree to body `i`. `R` has the world's axes and its origin at the
+/// origin of the tree's root body `r`: `ʳX_R = rot(E_r)` (the root's placement without its
+/// translation), then `ⁱX_R = ⁱX_λ ᵏX_R`.
+///
+/// The passes that work in "world coordinates" (ABA, CRBA's world rows, `joint_state_outputs`)
+/// work in `R`. A translation of the frame changes none of `H`, `τ`, `q̈` (gravity `[0; g]` is
+/// the same about every point), but a spatial inertia about a point `d` away from the body
+/// carries `m d²` terms that cancel in them: about the world origin, a robot a kilometre
+/// away would lose seven digits. Motions given about the world origin (the root's velocity
+/// and acceleration) move to `R` by [`Motion::about`].
+pub(crate) fn update_aligned_placements(model: &Model, ws: &mut Workspace) {
+    compose_down(model, &ws.x_up, &mut ws.x_aligned, |x_root| {
+        Transform::rotation(x_root.rot)
+    });
+}
+
+/// `out[i] = x_up[i] out[λ(i)]` from the root down, `out[r] = root(x_up[r])` for each root `r`.
+fn compose_down(
+    model: &Model,
+    x_up: &[Transform],
+    out: &mut [Transform],
+    root: impl Fn(&Transform) -> Transform,
+) {
     for (i, body) in model.bodies.iter().enumerate() {
-        ws.x_world[i] = match body.parent {
-            Some(p) => ws.x_up[i].compose(&ws.x_world[p]),
-            None => ws.x_up[i],
+        out[i] = match body.parent {
+            Some(p) => x_up[i].compose(&out[p]),
+            None => root(&x_up[i]),
         };
     }
 }

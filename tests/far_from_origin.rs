@@ -1,0 +1,221 @@
+//! A robot a kilometre from the world origin has the joint-space dynamics it has at the origin:
+//! `τ`, `g`, `H` and `q̈` (by every method, alone and through `joint_state_outputs`) do not depend
+//! on where the robot stands. Fixed bases are moved by their root joint's `<origin>`, floating
+//! bases by the position coordinates of `q`. Spatial inertias about the world origin carry
+//! `m r²` terms that cancel in these quantities, so a pass that works about the world origin
+//! loses about `log₁₀(r² / ℓ²)` digits (ℓ the robot's size): 1e-7 relative error at 1 km.
+
+mod common;
+
+use common::{max_diff, norm, random_q, Rng};
+use spatial_dynamics::algorithms::{
+    crba, forward_dynamics, gravity, joint_state_outputs, rnea, rnea_with, JointStateInputs,
+    JointStateOutputs,
+};
+use spatial_dynamics::model::examples::{self, pendulum_urdf};
+use spatial_dynamics::spatial::{Force, Motion, Vector3};
+use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
+
+const TREE: &str = include_str!("models/tree.urdf");
+
+/// How far the robot is moved: about a kilometre along every axis.
+const FAR: [f64; 3] = [1000.0, -700.0, 300.0];
+
+fn load(text: &str, floating_base: bool) -> Model {
+    let options = ModelOptions {
+        floating_base,
+        ..Default::default()
+    };
+    urdf::model_from_str(text, &options).unwrap()
+}
+
+/// `text` with its first `<origin xyz="x y z"` (the root joint's) moved by [`FAR`].
+fn moved_root_origin(text: &str) -> String {
+    let start = text.find("<origin xyz=\"").unwrap() + "<origin xyz=\"".len();
+    let end = start + text[start..].find('"').unwrap();
+    let xyz: Vec<f64> = text[start..end]
+        .split_whitespace()
+        .map(|x| x.parse().unwrap())
+        .collect();
+    let moved: Vec<String> = xyz
+        .iter()
+        .zip(FAR)
+        .map(|(x, d)| (x + d).to_string())
+        .collect();
+    format!("{}{}{}", &text[..start], moved.join(" "), &text[end..])
+}
+
+/// A model at the origin, the same robot far from it, and how a configuration of the first
+/// maps to the second.
+struct Case {
+    name: &'static str,
+    near: Model,
+    far: Model,
+    move_q: fn(&[f64]) -> Vec<f64>,
+}
+
+fn same_q(q: &[f64]) -> Vec<f64> {
+    q.to_vec()
+}
+
+/// A floating base's position coordinates (`q[0..3]`) moved by [`FAR`].
+fn moved_floating_base(q: &[f64]) -> Vec<f64> {
+    let mut q = q.to_vec();
+    for (x, d) in q.iter_mut().zip(FAR) {
+        *x += d;
+    }
+    q
+}
+
+fn cases() -> Vec<Case> {
+    let fixed = |name, text: &str| Case {
+        name,
+        near: load(text, false),
+        far: load(&moved_root_origin(text), false),
+        move_q: same_q,
+    };
+    let pendulum = pendulum_urdf(16, 0.5, 0.7);
+    let tree_floating_joint = TREE.replace(r#"type="planar""#, r#"type="floating""#);
+    vec![
+        fixed("pendulum 16", &pendulum),
+        fixed("tree (planar base joint)", TREE),
+        fixed("tree, floating joint", &tree_floating_joint),
+        fixed("default arm", examples::DEFAULT_ARM_URDF),
+        Case {
+            name: "default arm, floating base",
+            near: load(examples::DEFAULT_ARM_URDF, true),
+            far: load(examples::DEFAULT_ARM_URDF, true),
+            move_q: moved_floating_base,
+        },
+    ]
+}
+
+/// Fails unless `far` equals `near` to a few ulps of `near`'s size.
+fn assert_same(case: &str, quantity: &str, near: &[f64], far: &[f64]) {
+    let err = max_diff(near, far);
+    assert!(
+        err <= 1e-12 * (1.0 + norm(near)),
+        "{case}: {quantity} at {FAR:?} differs from the origin's by {err:e} (|{quantity}| = {:e})",
+        norm(near)
+    );
+}
+
+#[test]
+fn joint_space_dynamics_do_not_depend_on_where_the_robot_stands() {
+    for case in cases() {
+        let (mut ws_near, mut ws_far) = (Workspace::new(&case.near), Workspace::new(&case.far));
+        let mut out_near = JointStateOutputs::new(&case.near);
+        let mut out_far = JointStateOutputs::new(&case.far);
+        let mut rng = Rng::new(41);
+        for _ in 0..5 {
+            let q = random_q(&case.near, &mut rng);
+            let q_far = (case.move_q)(&q);
+            let v = rng.vector(case.near.nv, 2.0);
+            let a = rng.vector(case.near.nv, 3.0);
+            let tau = rng.vector(case.near.nv, 10.0);
+            let name = case.name;
+
+            let near = crba(&case.near, &mut ws_near, &q)
+                .unwrap()
+                .as_slice()
+                .to_vec();
+            let far = crba(&case.far, &mut ws_far, &q_far).unwrap().as_slice();
+            assert_same(name, "H", &near, far);
+            let near = gravity(&case.near, &mut ws_near, &q).unwrap().to_vec();
+            assert_same(
+                name,
+                "g",
+                &near,
+                gravity(&case.far, &mut ws_far, &q_far).unwrap(),
+            );
+            let near = rnea(&case.near, &mut ws_near, &q, &v, &a).unwrap().to_vec();
+            let far = rnea(&case.far, &mut ws_far, &q_far, &v, &a).unwrap();
+            assert_same(name, "τ", &near, far);
+            let none = Externals::none();
+            for method in ForwardDynamicsMethod::ALL {
+                let near = forward_dynamics(&case.near, &mut ws_near, &q, &v, &tau, method, &none)
+                    .unwrap()
+                    .to_vec();
+                let far = forward_dynamics(&case.far, &mut ws_far, &q_far, &v, &tau, method, &none)
+                    .unwrap();
+                assert_same(name, &format!("q̈ by {method}"), &near, far);
+
+                let input = |q| JointStateInputs {
+                    q,
+                    v: &v,
+                    effort_command: &tau,
+                    measured_acceleration: Some(&a),
+                };
+                joint_state_outputs(&case.near, &mut ws_near, method, &input(&q), &mut out_near)
+                    .unwrap();
+                joint_state_outputs(&case.far, &mut ws_far, method, &input(&q_far), &mut out_far)
+                    .unwrap();
+                let (n, f) = (&out_near, &out_far);
+                let what = format!("joint_state_outputs by {method}");
+                assert_same(name, &format!("{what}: g"), n.gravity(), f.gravity());
+                assert_same(
+                    name,
+                    &format!("{what}: q̈"),
+                    n.acceleration(),
+                    f.acceleration(),
+                );
+                assert_same(
+                    name,
+                    &format!("{what}: τ"),
+                    n.inverse_dynamics(),
+                    f.inverse_dynamics(),
+                );
+            }
+        }
+    }
+}
+
+/// A root that moves (velocity and acceleration given about the world origin, a kilometre from
+/// the robot) and wrenches on the bodies: forward dynamics by every method inverts RNEA, which
+/// works in body coordinates and so moves the root's motion to each root body its own way.
+#[test]
+fn forward_dynamics_far_from_origin_inverts_rnea_with_a_moving_root() {
+    for case in cases() {
+        let model = &case.far;
+        let mut ws = Workspace::new(model);
+        let mut rng = Rng::new(42);
+        for _ in 0..5 {
+            let q = (case.move_q)(&random_q(&case.near, &mut rng));
+            let v = rng.vector(model.nv, 2.0);
+            let tau = rng.vector(model.nv, 10.0);
+            let motion = |r: &mut Rng, scale| {
+                let x = r.vector(6, scale);
+                Motion::new(
+                    Vector3::new(x[0], x[1], x[2]),
+                    Vector3::new(x[3], x[4], x[5]),
+                )
+            };
+            // Small angular rates: about the world origin, 1 km away, they are fast.
+            let root_velocity = motion(&mut rng, 1e-3);
+            let root_acceleration = motion(&mut rng, 1e-3);
+            let wrenches: Vec<Force> = (0..model.nbodies())
+                .map(|_| {
+                    let m = motion(&mut rng, 5.0);
+                    Force::new(m.ang, m.lin)
+                })
+                .collect();
+            let ext = Externals {
+                wrenches: Some(&wrenches),
+                root_velocity,
+                root_acceleration,
+            };
+            for method in ForwardDynamicsMethod::ALL {
+                let qdd = forward_dynamics(model, &mut ws, &q, &v, &tau, method, &ext)
+                    .unwrap()
+                    .to_vec();
+                let back = rnea_with(model, &mut ws, &q, &v, &qdd, &ext).unwrap();
+                let err = max_diff(back, &tau);
+                assert!(
+                    err < 1e-9 * (1.0 + norm(&tau)),
+                    "{}, {method}: |RNEA(FD(τ)) − τ| = {err:e}",
+                    case.name
+                );
+            }
+        }
+    }
+}
