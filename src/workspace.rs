@@ -2,9 +2,10 @@
 //! every call so that no call allocates.
 
 use crate::algorithms::crba::CrbaFrames;
+use crate::algorithms::kinematics::frame_anchors;
 use crate::algorithms::ltl::Ancestors;
 use crate::model::{Model, MotionSubspace};
-use crate::spatial::{Force, Inertia, Matrix6, Motion, Transform};
+use crate::spatial::{Force, Inertia, Matrix6, Motion, Transform, Vector3};
 use nalgebra::{DMatrix, DVector};
 
 /// Every intermediate quantity of the algorithms, per body and per coordinate. Quantities per
@@ -17,10 +18,15 @@ pub struct Workspace {
     pub(crate) x_up: Vec<Transform>,
     /// `ⁱX_0`: world frame → body frame, from [`body_placements`](crate::algorithms::kinematics::body_placements).
     pub(crate) x_world: Vec<Transform>,
-    /// `ⁱX_R`: the root-aligned frame of body `i`'s tree (world axes, origin at the tree's root
-    /// body) → body frame: the frame of every quantity below said to be in world coordinates
-    /// (see `kinematics::update_aligned_placements`).
+    /// `ⁱX_A`: body `i`'s aligned frame (world axes, origin at an anchor body's origin) → body
+    /// frame: the frame of every quantity below said to be in world coordinates (see
+    /// `kinematics::update_aligned_placements`).
     pub(crate) x_aligned: Vec<Transform>,
+    /// Which bodies anchor an aligned frame in ABA's passes (`kinematics::frame_anchors`):
+    /// every root, and bodies far along the tree from the anchor above them.
+    pub(crate) anchors: Vec<bool>,
+    /// For an anchor, its origin in its parent's aligned frame (in the world for a root).
+    pub(crate) anchor_shift: Vec<Vector3>,
     /// Motion subspace `S_i` of each body's joint.
     pub(crate) s: Vec<MotionSubspace>,
     /// For each body, the columns of `S_i` that are a signed unit vector of `[ω; v]` whatever
@@ -90,11 +96,14 @@ impl Workspace {
     pub fn new(model: &Model) -> Self {
         let n = model.nbodies();
         let nv = model.nv;
+        let subtree_end = contiguous_subtrees(model);
         Workspace {
             q_joint: vec![[0.0; 7]; n],
             x_up: vec![Transform::identity(); n],
             x_world: vec![Transform::identity(); n],
             x_aligned: vec![Transform::identity(); n],
+            anchors: frame_anchors(model),
+            anchor_shift: vec![Vector3::zeros(); n],
             s: vec![MotionSubspace::default(); n],
             s_axes: model
                 .bodies
@@ -119,7 +128,7 @@ impl Workspace {
             tau: DVector::zeros(nv),
             qdd: DVector::zeros(nv),
             f_cols: vec![Force::zero(); nv],
-            subtree_end: contiguous_subtrees(model),
+            subtree_end,
             // From zeroed allocations (calloc): pages are only touched when used, so a model
             // with thousands of coordinates does not spend seconds writing zeros here.
             mass_matrix: DMatrix::from_vec(nv, nv, vec![0.0; nv * nv]),
@@ -171,7 +180,7 @@ impl Workspace {
 }
 
 /// `subtree_end` (see [`Workspace`]) when each subtree's coordinates are contiguous.
-fn contiguous_subtrees(model: &Model) -> Option<Vec<usize>> {
+pub(crate) fn contiguous_subtrees(model: &Model) -> Option<Vec<usize>> {
     model.dof_parent.as_ref()?;
     let n = model.nbodies();
     let mut end = vec![0; n];

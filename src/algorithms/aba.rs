@@ -1,39 +1,45 @@
 //! Forward dynamics in O(n) by the articulated-body algorithm (Featherstone, RBDA Table 7.1),
-//! with every spatial quantity in world (root) coordinates, as Pinocchio's `aba` in its WORLD
+//! with every spatial quantity in world-aligned coordinates, as Pinocchio's `aba` in its WORLD
 //! convention does: the recursion holds in any one frame, and in the world frame an
 //! articulated inertia needs no 6×6 transform on its way to the parent. Each body's inertia and
 //! joint axes are carried to the world once, by its placement `⁰X_i`.
 //!
-//! Pass 1, outward (world coordinates; `ⁱX_0 = ⁱX_λ ᵏX_0`, `S_i ← ⁰X_i S_i`, `I_i ← ⁰X_i⁻ᵀ I_i ⁱX_0`):
+//! "World" frames here have the world's axes and their origin at an anchor body, a root or a
+//! body a few links further out (`kinematics::update_aligned_placements`): `q̈` does not depend
+//! on the origin, but an inertia about a point `d` away carries `m d²` terms that cancel, so a
+//! robot far from the world origin, or the far end of a long chain about its root, would lose
+//! digits. Where body `i` anchors a frame at `r_i` in its parent's, quantities cross by the
+//! translation `xlt(r_i)` (the root's motion and gravity, `a_0`, `v_0`, likewise into the root's
+//! frame; gravity is the same about every point); elsewhere `xlt` is the identity.
+//!
+//! Pass 1, outward (`ⁱX_0 = ⁱX_λ ᵏX_0`, `S_i ← ⁰X_i S_i`, `I_i ← ⁰X_i⁻ᵀ I_i ⁱX_0`):
 //! ```text
-//! v_i = v_λ + S_i q̇_i,         c_i = ⁰X_i c_J + v_i ×̂ S_i q̇_i
-//! I^A_i = I_i,                 p^A_i = v_i ×* I_i v_i − ⁰X_i⁻ᵀ f^x_i
+//! v_i = xlt(r_i) v_λ + S_i q̇_i,    c_i = ⁰X_i c_J + v_i ×̂ S_i q̇_i
+//! I^A_i = I_i,                     p^A_i = v_i ×* I_i v_i − ⁰X_i⁻ᵀ f^x_i
 //! ```
 //! Pass 2, inward:
 //! ```text
 //! U_i = I^A_i S_i,   D_i = S_iᵀ U_i,   u_i = τ_i − S_iᵀ p^A_i
 //! I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,   p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i
-//! I^A_λ += I^a,                   p^A_λ += p^a
+//! I^A_λ += xlt(r_i)ᵀ I^a xlt(r_i),   p^A_λ += xlt(r_i)ᵀ p^a
 //! ```
 //! Pass 3, outward, from `a_0 = a_base − g`:
 //! ```text
-//! a' = a_λ + c_i,   q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),   a_i = a' + S_i q̈_i
+//! a' = xlt(r_i) a_λ + c_i,   q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),   a_i = a' + S_i q̈_i
 //! ```
 //! (`c_i` in the world frame: the world-frame `S` moves with the body, `d(⁰X_i S_i)/dt =
-//! v_i ×̂ ⁰X_i S_i + ⁰X_i S̊_i`.) The "world" frame `0` has the world's axes and its origin at
-//! the root body's (`kinematics::update_aligned_placements`): `q̈` does not depend on the origin,
-//! but an inertia about an origin `d` away carries `m d²` terms that cancel, so a robot far from
-//! the world's origin would lose digits; the root's motion (`a_base`, `v_0`) and gravity (the
-//! same about every point) move to that origin. Mimic joints tie coordinates across bodies, which the
+//! v_i ×̂ ⁰X_i S_i + ⁰X_i S̊_i`.) Mimic joints tie coordinates across bodies, which the
 //! recursion cannot express: models with them are refused (use the `crba` or `rnea_columns`
 //! method).
 
-use super::kinematics::{update_aligned_placements, update_joints};
+use super::kinematics::{
+    force_out_of_aligned, motion_into_aligned, update_aligned_placements, update_joints, Anchors,
+};
 use super::validate::{check_forward_inputs, check_result};
 use super::{pivot_is_sound, Externals};
 use crate::error::DynamicsError;
 use crate::model::Model;
-use crate::spatial::{Force, Matrix6, Motion};
+use crate::spatial::{Force, Matrix6, Motion, Translation};
 use crate::Workspace;
 
 /// `q̈ = FD(q, q̇, τ)` into `ws.qdd()`.
@@ -73,7 +79,7 @@ pub(crate) fn refuse_mimic(model: &Model) -> Result<(), DynamicsError> {
 /// articulated quantities (joints already updated). A mimic follower moves with `μ q̇_leader`
 /// (a 1-DOF joint: its `c_J` is zero), so these quantities are right for mimic models too.
 pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
-    update_aligned_placements(model, ws);
+    update_aligned_placements(model, ws, Anchors::Spaced);
     for (i, body) in model.bodies.iter().enumerate() {
         let x = &ws.x_aligned[i];
         let (s, s_world) = (&ws.s[i], &mut ws.s_world[i]);
@@ -84,10 +90,11 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
         let c = body.joint.coords;
         let rates = &v[c.v_index..c.v_index + s.nv];
         let v_joint = s_world.apply(rates, c.scale);
-        let v_parent = match body.parent {
-            Some(p) => ws.v_world[p],
-            None => ext.root_velocity.about(&ws.x_up[i].trans),
-        };
+        let v_parent = motion_into_aligned(
+            ws,
+            i,
+            body.parent.map_or(ext.root_velocity, |p| ws.v_world[p]),
+        );
         let v_i = v_parent + v_joint;
         let c_joint = body
             .joint
@@ -149,10 +156,14 @@ pub(crate) fn articulated_pass(
             }
             let bias = Force::from_vector(&(ws.ia[i] * ws.c[i].to_vector()));
             ws.pa[i] += bias;
+            // Into the parent's frame (a translation when body i anchors its own).
+            if ws.anchors[i] {
+                ws.ia[i] = Translation(ws.anchor_shift[i]).transpose_apply_matrix6(&ws.ia[i]);
+            }
+            let pa_i = force_out_of_aligned(ws, i, ws.pa[i]);
             // The parent comes before the child: split so both can be borrowed.
             let (before, from_i) = ws.ia.split_at_mut(i);
             before[p] += from_i[0];
-            let pa_i = ws.pa[i];
             ws.pa[p] += pa_i;
         }
     }
@@ -165,10 +176,7 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
     for (i, body) in model.bodies.iter().enumerate() {
         let nv = ws.s_world[i].nv;
         let c = body.joint.coords;
-        let a_parent = match body.parent {
-            Some(p) => ws.a_world[p],
-            None => a_root.about(&ws.x_up[i].trans),
-        };
+        let a_parent = motion_into_aligned(ws, i, body.parent.map_or(a_root, |p| ws.a_world[p]));
         let a_prime = a_parent + ws.c[i];
         let mut rhs = [0.0; 6];
         for k in 0..nv {

@@ -40,7 +40,7 @@
 //! `Jᵀ H_full J` for the coordinate map `J`.
 
 use super::flops;
-use super::kinematics::{update_aligned_placements, update_joints};
+use super::kinematics::{update_aligned_placements, update_joints, Anchors};
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model, MotionSubspace};
@@ -129,7 +129,7 @@ pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
 
 /// `ⁱX_0`, `⁰S_i = ⁰X_i S_i` and `⁰I_i = ⁱX_0ᵀ I_i ⁱX_0` for every body.
 fn world_axes_and_inertias(model: &Model, ws: &mut Workspace) {
-    update_aligned_placements(model, ws);
+    update_aligned_placements(model, ws, Anchors::Roots);
     for (i, body) in model.bodies.iter().enumerate() {
         let x = &ws.x_aligned[i];
         ws.ic[i] = x.transpose_apply_inertia(&body.inertia);

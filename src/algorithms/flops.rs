@@ -56,7 +56,9 @@
 //! by ABA for a joint with several degrees of freedom, is [`SPD_INVERSE6`].
 
 use super::crba::CrbaFrames;
+use super::kinematics::frame_anchors;
 use crate::model::{JointKind, Model};
+use crate::workspace::contiguous_subtrees;
 use std::ops::{Add, AddAssign, Mul};
 
 /// Operation counts.
@@ -134,6 +136,10 @@ pub const TRANSFORM_VECTOR: Flops = Flops::new(24, 18);
 pub const COMPOSE: Flops = Flops::new(36, 27);
 /// `Transform::transpose_apply_inertia`.
 pub const TRANSFORM_INERTIA: Flops = Flops::new(55, 58);
+/// `Translation::apply_motion` or `transpose_apply_force`: a cross product and three sums.
+pub const TRANSLATE_VECTOR: Flops = Flops::new(6, 6);
+/// `Translation::transpose_apply_matrix6`: nine cross products and 27 sums.
+pub const TRANSLATE_MATRIX6: Flops = Flops::new(54, 54);
 /// `Inertia::apply`.
 pub const INERTIA_APPLY: Flops = Flops::new(24, 18);
 /// Spatial cross product, motion or force.
@@ -353,7 +359,7 @@ pub fn crba_world(model: &Model) -> Flops {
     // One product per entry in the pattern (own block and one block per ancestor).
     let entries = pattern_entries(model);
     total += DOT6 * entries;
-    if model.dof_parent.is_none() {
+    if contiguous_subtrees(model).is_none() {
         // The general path scales every entry by μ_i μ_j (two multiplications) and adds it, an
         // entry off the diagonal to both of its places.
         let diagonal: u64 = model.bodies.iter().map(|b| b.joint.kind.nv() as u64).sum();
@@ -434,7 +440,8 @@ fn pattern_entries(model: &Model) -> u64 {
 fn aba_passes(model: &Model) -> Flops {
     // Pass 3's a_0 = a_base − [0; g] (as in `rnea_passes`).
     let mut total = placements(model) + Flops::new(0, 3);
-    for body in &model.bodies {
+    let anchors = frame_anchors(model);
+    for (i, body) in model.bodies.iter().enumerate() {
         let nv = body.joint.kind.nv() as u64;
         // Pass 1: ⁰S, v_J (`S q̇`, each rate scaled by the mimic factor), v_i, c_i, ⁰I (and as
         // a 6×6), p^A.
@@ -453,10 +460,15 @@ fn aba_passes(model: &Model) -> Flops {
             // nalgebra's Cholesky and inverse of the padded 6×6; each pivot `L_kk²` checked.
             SPD_INVERSE6 + Flops::new(2, 0) * nv
         };
-        if body.parent.is_none() {
-            // The root's velocity and acceleration moved to its root-aligned frame
-            // (`Motion::about`: a cross product and three subtractions each).
-            total += (CROSS3 + Flops::new(0, 3)) * 2;
+        if anchors[i] {
+            // The parent's (or the root's) velocity and acceleration moved into the body's
+            // aligned frame (`Translation::apply_motion`: a cross product and three
+            // subtractions each).
+            total += TRANSLATE_VECTOR * 2;
+            if body.parent.is_some() {
+                // I^a and p^a moved into the parent's frame.
+                total += TRANSLATE_MATRIX6 + TRANSLATE_VECTOR;
+            }
         }
         if body.parent.is_some() {
             // D⁻¹ u and the rows of D⁻¹ Uᵀ, the rank-nv update, p^a, I^a c, the parent sums.

@@ -16,7 +16,8 @@
 //!
 //! RNEA (handout eqs. 13–16) holds in any one frame; in the world frame a spatial vector needs
 //! no transform on its way between bodies, and the passes are (all quantities in world
-//! coordinates, which here, as in ABA, means the world's axes about the root body's origin):
+//! coordinates, which here, as in ABA, means the world's axes about an anchor body's origin;
+//! at an anchor, `a_λ` enters as `xlt(r_i) a_λ` and `f_i`, `f^g_i` leave as `xlt(r_i)ᵀ f`):
 //!
 //! ```text
 //! outward:  a_i   = a_λ + c_i + ⁰S_i q̈_i          a_0 = [0; −g] (gravity as a fictitious
@@ -34,7 +35,7 @@
 
 use super::aba::{acceleration_pass, articulated_pass, refuse_mimic, velocity_pass};
 use super::forward_dynamics::crba_solve_on_joints;
-use super::kinematics::update_joints;
+use super::kinematics::{force_out_of_aligned, motion_into_aligned, update_joints};
 use super::rnea_columns::rnea_columns;
 use super::validate::{check_q, check_result, check_v};
 use super::{Externals, ForwardDynamicsMethod};
@@ -168,7 +169,8 @@ fn world_rnea(model: &Model, ws: &mut Workspace, a: Option<&[f64]>, out: &mut Jo
         let f = match a {
             Some(a) => {
                 let (s, c) = (&ws.s_world[i], body.joint.coords);
-                let a_parent = body.parent.map_or(a_root, |p| ws.a_world[p]);
+                let a_parent =
+                    motion_into_aligned(ws, i, body.parent.map_or(a_root, |p| ws.a_world[p]));
                 let a_i = a_parent + ws.c[i] + s.apply(&a[c.v_index..c.v_index + s.nv], c.scale);
                 ws.a_world[i] = a_i;
                 Force::from_vector(&(inertia * a_i.to_vector())) + ws.pa[i]
@@ -187,6 +189,10 @@ fn world_rnea(model: &Model, ws: &mut Workspace, a: Option<&[f64]>, out: &mut Jo
             out.inverse_dynamics[c.v_index + k] += c.scale * s.project(k, &f);
         }
         if let Some(p) = body.parent {
+            let (f, f_gravity) = (
+                force_out_of_aligned(ws, i, f),
+                force_out_of_aligned(ws, i, f_gravity),
+            );
             ws.f_outputs[p][0] += f;
             ws.f_outputs[p][1] += f_gravity;
         }

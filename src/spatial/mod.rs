@@ -13,7 +13,7 @@ mod transform;
 mod vector;
 
 pub use inertia::Inertia;
-pub use transform::Transform;
+pub use transform::{Transform, Translation};
 pub use vector::{Force, Motion};
 
 /// Dense 6×6 matrix acting on `[angular; linear]` coordinates.

@@ -1,4 +1,4 @@
-//! Plücker coordinate transforms, stored as a rotation and a translation.
+//! Plücker coordinate transforms, stored as a rotation and a translation, and pure translations.
 
 use super::{skew, Force, Inertia, Matrix3, Matrix6, Motion, Vector3};
 
@@ -115,59 +115,27 @@ impl Transform {
     /// `Xᵀ I X`: a rigid-body inertia given in B coordinates, expressed in A coordinates.
     ///
     /// Rotate into A's axes (still about B's origin), `h' = Eᵀ h`, `Ī' = Eᵀ Ī E`, then move the
-    /// origin by `r`: `h_A = h' + m r` and
-    /// `Ī_A = Ī' − r× h'× − h'× r× − m r× r× = Ī' − h_A rᵀ − r h'ᵀ + (r·(h' + h_A)) 1`
-    /// (by `a× b× = b aᵀ − (a·b) 1`), a symmetric update of six entries.
+    /// origin by `r` ([`Translation::transpose_apply_inertia`]).
     pub fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia {
-        let h_rot = self.rot.tr_mul(&inertia.h);
-        let r = &self.trans;
-        let h_a = h_rot + r * inertia.mass;
-        let diag = r.dot(&(h_rot + h_a));
-        let i_rot = rotate_symmetric(&self.rot, &inertia.i_bar);
-        let entry = |j: usize, k: usize| i_rot[(j, k)] - h_a[j] * r[k] - r[j] * h_rot[k];
-        let (xy, xz, yz) = (entry(0, 1), entry(0, 2), entry(1, 2));
-        let i_bar = Matrix3::new(
-            entry(0, 0) + diag,
-            xy,
-            xz,
-            xy,
-            entry(1, 1) + diag,
-            yz,
-            xz,
-            yz,
-            entry(2, 2) + diag,
-        );
-        Inertia {
+        let rotated = Inertia {
             mass: inertia.mass,
-            h: h_a,
-            i_bar,
-        }
+            h: self.rot.tr_mul(&inertia.h),
+            i_bar: rotate_symmetric(&self.rot, &inertia.i_bar),
+        };
+        Translation(self.trans).transpose_apply_inertia(&rotated)
     }
 
     /// `Xᵀ M X` for a dense symmetric 6×6 inertia `M = [A B; Bᵀ C]` given in B coordinates
     /// (an articulated-body inertia), expressed in A coordinates; computed by blocks.
     ///
-    /// After the rotation (`a = Eᵀ A E`, `b = Eᵀ B E`, `c = Eᵀ C E`),
-    /// `xlt(r)ᵀ [a b; bᵀ c] xlt(r)` with `xlt(r) = [1 0; −r× 1]` is
-    /// `[a − b r× + r× bᵀ − r× c r×,  b + r× c;  (b + r× c)ᵀ,  c]`; with `b' = b + r× c` the
-    /// top-left block is `a + (r× bᵀ)ᵀ + r× b'ᵀ` (as `c` is symmetric), three columnwise cross
-    /// products in all.
+    /// Rotate the blocks (`a = Eᵀ A E`, `b = Eᵀ B E`, `c = Eᵀ C E`), then translate
+    /// ([`Translation::transpose_apply_matrix6`]).
     pub fn transpose_apply_matrix6(&self, m: &Matrix6) -> Matrix6 {
         let e = &self.rot;
         let a = rotate_symmetric(e, &m.fixed_view::<3, 3>(0, 0).into_owned());
         let b = e.tr_mul(&(m.fixed_view::<3, 3>(0, 3) * e));
         let c = rotate_symmetric(e, &m.fixed_view::<3, 3>(3, 3).into_owned());
-        let r = &self.trans;
-        let b_new = b + cross_columns(r, &c);
-        let a_new =
-            a + cross_columns(r, &b.transpose()).transpose() + cross_columns(r, &b_new.transpose());
-        let mut out = Matrix6::zeros();
-        out.fixed_view_mut::<3, 3>(0, 0).copy_from(&a_new);
-        out.fixed_view_mut::<3, 3>(0, 3).copy_from(&b_new);
-        out.fixed_view_mut::<3, 3>(3, 0)
-            .copy_from(&b_new.transpose());
-        out.fixed_view_mut::<3, 3>(3, 3).copy_from(&c);
-        out
+        Translation(self.trans).transpose_apply_blocks(&a, &b, &c)
     }
 
     /// The dense 6×6 motion transform `[E 0; −E r× E]` (for tests and edges, not hot paths).
@@ -210,6 +178,79 @@ fn rotate_symmetric(e: &Matrix3, s: &Matrix3) -> Matrix3 {
     let (m11, m22) = (p(y01, y11, 1), p(y02, y12, 2));
     let m00 = (a + c) - m11 - m22;
     Matrix3::new(m00 + f, m10, m20, m10, m11 + f, m21, m20, m21, m22 + f)
+}
+
+/// A pure translation `xlt(r)` (`Transform` with `E = 1`), kept apart so that moving a quantity
+/// between two frames with the same axes costs no rotation: B's origin is at `r` in A.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Translation(pub Vector3);
+
+impl Translation {
+    /// `xlt(r) m = [ω; v − r × ω]`: a motion from A coordinates into B coordinates (the
+    /// point at B's origin moves with `v + ω × r`).
+    pub fn apply_motion(&self, m: &Motion) -> Motion {
+        Motion::new(m.ang, m.lin - self.0.cross(&m.ang))
+    }
+
+    /// `xlt(r)ᵀ f = [n + r × f; f]`: a force from B coordinates back into A coordinates.
+    pub fn transpose_apply_force(&self, f: &Force) -> Force {
+        Force::new(f.ang + self.0.cross(&f.lin), f.lin)
+    }
+
+    /// `xlt(r)ᵀ I xlt(r)`: a rigid-body inertia about B's origin, about A's: `h_A = h + m r` and
+    /// `Ī_A = Ī − r× h× − h× r× − m r× r× = Ī − h_A rᵀ − r hᵀ + (r·(h + h_A)) 1`
+    /// (by `a× b× = b aᵀ − (a·b) 1`), a symmetric update of six entries.
+    pub fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia {
+        let (r, h) = (&self.0, &inertia.h);
+        let h_a = h + r * inertia.mass;
+        let diag = r.dot(&(h + h_a));
+        let entry = |j: usize, k: usize| inertia.i_bar[(j, k)] - h_a[j] * r[k] - r[j] * h[k];
+        let (xy, xz, yz) = (entry(0, 1), entry(0, 2), entry(1, 2));
+        let i_bar = Matrix3::new(
+            entry(0, 0) + diag,
+            xy,
+            xz,
+            xy,
+            entry(1, 1) + diag,
+            yz,
+            xz,
+            yz,
+            entry(2, 2) + diag,
+        );
+        Inertia {
+            mass: inertia.mass,
+            h: h_a,
+            i_bar,
+        }
+    }
+
+    /// `xlt(r)ᵀ M xlt(r)` for a dense symmetric 6×6 inertia `M = [A B; Bᵀ C]` (an
+    /// articulated-body inertia) about B's origin, about A's.
+    pub fn transpose_apply_matrix6(&self, m: &Matrix6) -> Matrix6 {
+        self.transpose_apply_blocks(
+            &m.fixed_view::<3, 3>(0, 0).into_owned(),
+            &m.fixed_view::<3, 3>(0, 3).into_owned(),
+            &m.fixed_view::<3, 3>(3, 3).into_owned(),
+        )
+    }
+
+    /// `xlt(r)ᵀ [a b; bᵀ c] xlt(r)` with `xlt(r) = [1 0; −r× 1]` is
+    /// `[a − b r× + r× bᵀ − r× c r×,  b + r× c;  (b + r× c)ᵀ,  c]`; with `b' = b + r× c` the
+    /// top-left block is `a + (r× bᵀ)ᵀ + r× b'ᵀ` (as `c` is symmetric), three columnwise cross
+    /// products in all.
+    fn transpose_apply_blocks(&self, a: &Matrix3, b: &Matrix3, c: &Matrix3) -> Matrix6 {
+        let r = &self.0;
+        let b_new = b + cross_columns(r, c);
+        let a_new =
+            a + cross_columns(r, &b.transpose()).transpose() + cross_columns(r, &b_new.transpose());
+        let mut out = Matrix6::zeros();
+        out.fixed_view_mut::<3, 3>(0, 0).copy_from(&a_new);
+        out.fixed_view_mut::<3, 3>(0, 3).copy_from(&b_new);
+        out.fixed_view_mut::<3, 3>(3, 0)
+            .copy_from(&b_new.transpose());
+        out.fixed_view_mut::<3, 3>(3, 3).copy_from(c);
+        out
+    }
 }
 
 /// `r× M`: the cross product of `r` with each column of `M`.
@@ -286,6 +327,17 @@ mod tests {
             let err = (rotate_symmetric(&e, &s) - e.transpose() * s * e).amax();
             assert!(err < 1e-14 * s.amax(), "seed {seed}: {err:e}");
         }
+        // A pure translation is the transform with E = 1.
+        let t = Translation(x.trans);
+        let xt = Transform::translation(x.trans);
+        let xtm = xt.to_matrix();
+        assert!((t.apply_motion(&m).to_vector() - xt.apply_motion(&m).to_vector()).norm() < 1e-14);
+        let moved = t.transpose_apply_force(&f).to_vector();
+        assert!((moved - xtm.transpose() * f.to_vector()).norm() < 1e-14);
+        let dense = xtm.transpose() * inertia.to_matrix() * xtm;
+        assert!((t.transpose_apply_inertia(&inertia).to_matrix() - dense).norm() < 1e-13);
+        let dense = xtm.transpose() * articulated * xtm;
+        assert!((t.transpose_apply_matrix6(&articulated) - dense).norm() < 1e-12);
         // Power is frame-invariant: (X m)·(X* f) = m·f.
         assert!((x.apply_motion(&m).dot(&x.apply_force(&f)) - m.dot(&f)).abs() < 1e-13);
         let _ = Vector6::<f64>::zeros();

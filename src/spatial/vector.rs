@@ -122,13 +122,6 @@ impl Motion {
         )
     }
 
-    /// The same motion about the point `p` (axes unchanged), `xlt(p) m = [ω; v − p × ω]`
-    /// (`v` is the velocity of the body point at the origin; the point at `p` moves with
-    /// `v + ω × p`).
-    pub fn about(&self, p: &Vector3) -> Motion {
-        Motion::new(self.ang, self.lin - p.cross(&self.ang))
-    }
-
     /// The scalar product with a force, `mᵀ f` (power when `m` is a velocity; the handout's
     /// spatial transpose `m^S f`). Both must be expressed in the same frame.
     pub fn dot(&self, f: &Force) -> f64 {
@@ -163,15 +156,5 @@ mod tests {
         // duality (v ×̂ m)·f = −m·(v ×* f).
         assert!(v.cross_motion(&v).to_vector().norm() < 1e-15);
         assert!((v.cross_motion(&m).dot(&f) + m.dot(&v.cross_force(&f))).abs() < 1e-13);
-    }
-
-    #[test]
-    fn a_motion_about_a_point_is_the_translated_motion() {
-        let m = Motion::new(Vector3::new(0.3, -1.2, 0.7), Vector3::new(2.0, 0.1, -0.4));
-        let p = Vector3::new(1.5, -0.25, 3.0);
-        let moved = crate::spatial::Transform::translation(p).apply_motion(&m);
-        assert!((m.about(&p).to_vector() - moved.to_vector()).norm() < 1e-14);
-        // The body point at p moves with v + ω × p.
-        assert!((m.about(&p).lin - (m.lin + m.ang.cross(&p))).norm() < 1e-14);
     }
 }
