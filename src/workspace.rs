@@ -133,7 +133,7 @@ impl Workspace {
             // with thousands of coordinates does not spend seconds writing zeros here.
             mass_matrix: DMatrix::from_vec(nv, nv, vec![0.0; nv * nv]),
             factor: DMatrix::from_vec(nv, nv, vec![0.0; nv * nv]),
-            dof_ancestors: model.dof_parent.as_deref().map(Ancestors::new),
+            dof_ancestors: model.dof_parent.as_deref().and_then(Ancestors::new),
             bias: DVector::zeros(nv),
             unit: DVector::zeros(nv),
         }

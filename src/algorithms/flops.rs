@@ -57,6 +57,7 @@
 
 use super::crba::CrbaFrames;
 use super::kinematics::frame_anchors;
+use super::ltl::Ancestors;
 use crate::model::{JointKind, Model};
 use crate::workspace::contiguous_subtrees;
 use std::ops::{Add, AddAssign, Mul};
@@ -201,8 +202,8 @@ pub fn kernel_flops(model: &Model, name: &str) -> Option<Flops> {
             check + joints(model) + aba_passes(model)
         }
         "fd_crba" => {
-            let solve = match &model.dof_parent {
-                Some(lambda) => ltl(lambda),
+            let solve = match model.dof_parent.as_deref().and_then(Ancestors::new) {
+                Some(ancestors) => ltl(&ancestors),
                 None => dense_cholesky(n),
             };
             check + joints(model) + rnea_passes(model, true, false) + crba_passes(model) + solve
@@ -484,17 +485,29 @@ fn aba_passes(model: &Model) -> Flops {
     total
 }
 
-/// `ltl_factor` and `ltl_solve` along the tree (`λ` over coordinates): for coordinate `k` with
-/// `d_k` ancestors, one square root, `d_k` divisions and `d_k (d_k + 1) / 2` multiply-subtracts;
-/// the two triangular solves, `2 d_k` multiply-subtracts and two divisions.
-fn ltl(lambda: &[Option<usize>]) -> Flops {
+/// `ltl_factor` and `ltl_solve` along the tree: for coordinate `k` with `d_k` ancestors and
+/// `s_k` descendants, `d_k + 1` products of two column segments of length `s_k` (none for a
+/// leaf; else `s_k` multiplications, `s_k` additions into four partial sums and three to join
+/// them), each subtracted from its entry of `H`, one square root and `d_k` divisions; the two
+/// triangular solves, `2 s_k` multiply-adds (the first addition of `Lᵀ y = b`'s sum, to −0, is
+/// folded, and a leaf's empty sum is subtracted) and two divisions. In all the
+/// multiplications and divisions are RBDA's (`d_k (d_k + 1) / 2` multiply-subtracts for `k`
+/// counted at each descendant instead).
+fn ltl(ancestors: &Ancestors) -> Flops {
     let mut total = Flops::default();
-    for k in 0..lambda.len() {
-        let d = std::iter::successors(lambda[k], |&i| lambda[i]).count() as u64;
+    for k in 0..ancestors.len() {
+        let d = ancestors.of(k).len() as u64;
+        let s = ancestors.below(k).len() as u64;
+        let dot = if s > 0 {
+            Flops::new(s, s + 3)
+        } else {
+            Flops::default()
+        };
+        total += (dot + Flops::new(0, 1)) * (d + 1);
         total += Flops {
             sqrt: 1,
             div: d + 2,
-            ..Flops::new(d * (d + 1) / 2 + 2 * d, d * (d + 1) / 2 + 2 * d)
+            ..Flops::new(2 * s, 2 * s + u64::from(s == 0))
         };
     }
     total
@@ -546,9 +559,9 @@ mod tests {
     fn ltl_on_a_chain_matches_the_dense_cholesky_count() {
         for n in [1usize, 2, 7, 30] {
             let model = chain(n);
-            let lambda = model.dof_parent.as_ref().unwrap();
+            let ancestors = Ancestors::new(model.dof_parent.as_ref().unwrap()).unwrap();
             let n = n as u64;
-            let count = ltl(lambda);
+            let count = ltl(&ancestors);
             let (solve_mul, solve_div) = (n * n - n, 2 * n);
             assert_eq!(
                 (count.mul - solve_mul) + (count.div - solve_div),
@@ -556,8 +569,19 @@ mod tests {
                 "n = {n}"
             );
             assert_eq!(count.div - solve_div, n * (n - 1) / 2, "n = {n}");
-            assert_eq!((count.add, count.sqrt), (count.mul, n), "n = {n}");
-            assert_eq!(dense_cholesky(n), count, "n = {n}");
+            assert_eq!(count.sqrt, n, "n = {n}");
+            let dense = dense_cholesky(n);
+            assert_eq!((count.mul, count.div), (dense.mul, dense.div), "n = {n}");
+            // The additions: one per multiplication, and for each of the n(n+1)/2 column
+            // products one subtraction from H, three more to join partial sums unless it is
+            // empty (the n products of the last coordinate), and the leaf's empty sum in the
+            // solve.
+            let products = n * (n + 1) / 2;
+            assert_eq!(
+                count.add,
+                count.mul + products + 3 * (products - n) + 1,
+                "n = {n}"
+            );
         }
     }
 
