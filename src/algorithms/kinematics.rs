@@ -143,9 +143,12 @@ pub(crate) fn force_out_of_aligned(ws: &Workspace, i: usize, f: Force) -> Force 
 }
 
 /// Distance along the tree (sum of joint-origin offsets `|r_tree|`) after which a body starts
-/// a new aligned frame, in multiples of the model's longest offset: a body is at most this far
-/// from its frame's origin (plus one offset), so an inertia carries at most `(d / ℓ)² ≈ 16` times
-/// its own size in terms that cancel.
+/// a new aligned frame, in multiples `s` of the model's longest offset `ℓ`: a body's origin is
+/// at most `(s + 1) ℓ` from its frame's (prismatic travel not counted), so its inertia carries
+/// terms up to about `(s + 1)² = 25` times those about its own origin. Measured on chains of
+/// 256 equal links (relative error of ABA's `q̈`): 3.7e-15 at `s = 1`, 1.0e-14 at 2, 3.8e-14
+/// at 4, 7.1e-14 at 8, 1.8e-12 without interior anchors; at 4 none of the benchmark robots
+/// (UR5 … TALOS) needs one, so they pay nothing for it.
 pub(crate) const ANCHOR_SPACING: f64 = 4.0;
 
 /// Which bodies anchor an aligned frame with [`Anchors::Spaced`]: every root and each body
