@@ -82,8 +82,10 @@ pub struct Workspace {
     pub(crate) mass_matrix: DMatrix<f64>,
     /// Factor of `H` (LTL or Cholesky), kept apart so `mass_matrix` stays readable.
     pub(crate) factor: DMatrix<f64>,
-    /// The ancestors of each coordinate, for the sparse factorisation; `None` when mimic joints
-    /// break the tree pattern ([`Model::dof_parent`](crate::Model)).
+    /// The ancestors of each coordinate and the range of its subtree, for the sparse
+    /// factorisation; `None` when mimic joints break the tree pattern
+    /// ([`Model::dof_parent`](crate::Model)) or the coordinates are not numbered depth-first
+    /// (then the dense Cholesky factorises `H`).
     pub(crate) dof_ancestors: Option<Ancestors>,
     /// `C(q, q̇)` for forward dynamics.
     pub(crate) bias: DVector<f64>,
@@ -96,7 +98,6 @@ impl Workspace {
     pub fn new(model: &Model) -> Self {
         let n = model.nbodies();
         let nv = model.nv;
-        let subtree_end = contiguous_subtrees(model);
         Workspace {
             q_joint: vec![[0.0; 7]; n],
             x_up: vec![Transform::identity(); n],
@@ -128,7 +129,7 @@ impl Workspace {
             tau: DVector::zeros(nv),
             qdd: DVector::zeros(nv),
             f_cols: vec![Force::zero(); nv],
-            subtree_end,
+            subtree_end: contiguous_subtrees(model),
             // From zeroed allocations (calloc): pages are only touched when used, so a model
             // with thousands of coordinates does not spend seconds writing zeros here.
             mass_matrix: DMatrix::from_vec(nv, nv, vec![0.0; nv * nv]),
