@@ -20,7 +20,9 @@ use nalgebra::{Matrix3, Rotation3, Vector6};
 use spatial_dynamics::algorithms::{crba, flops, forward_dynamics, gravity, rnea};
 use spatial_dynamics::model::{examples, JointKind, MotionSubspace};
 use spatial_dynamics::sampling::{random_q, Rng};
-use spatial_dynamics::spatial::{Force, Inertia, Matrix6, Motion, Transform, Vector3};
+use spatial_dynamics::spatial::{
+    AxisTransform, Force, Inertia, Matrix6, Motion, Transform, Translation, Vector3,
+};
 use spatial_dynamics::urdf::{model_from_file, model_from_str};
 use spatial_dynamics::{Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
 use std::hint::black_box;
@@ -134,6 +136,11 @@ fn operation(name: &str, calls: usize) -> Result<(), String> {
     let y = Transform::from_pose(&e.transpose(), &Vector3::new(-0.1, 0.4, 0.3));
     let a = Vector3::new(0.3, -1.2, 0.7);
     let b = Vector3::new(-0.5, 0.9, 1.1);
+    let turn = AxisTransform::<1> {
+        cos: 0.6,
+        sin: 0.8,
+        trans: b,
+    };
     let m = Motion::new(a, b);
     let n = Motion::new(b, a);
     let f = Force::new(b, a);
@@ -203,6 +210,22 @@ fn operation(name: &str, calls: usize) -> Result<(), String> {
         "transpose_apply_inertia" => {
             repeat!(black_box(&x).transpose_apply_inertia(black_box(&inertia)));
             flops::TRANSFORM_INERTIA
+        }
+        "translate_inertia" => {
+            repeat!(Translation(*black_box(&a)).transpose_apply_inertia(black_box(&inertia)));
+            flops::TRANSLATE_INERTIA
+        }
+        "axis_turn_motion" => {
+            repeat!(black_box(&turn).apply_motion(black_box(&m)));
+            flops::AXIS_TURN_VECTOR
+        }
+        "axis_turn_force" => {
+            repeat!(black_box(&turn).transpose_apply_force(black_box(&f)));
+            flops::AXIS_TURN_VECTOR
+        }
+        "axis_turn_inertia" => {
+            repeat!(black_box(&turn).transpose_apply_inertia(black_box(&inertia)));
+            flops::AXIS_TURN_INERTIA
         }
         "inertia_apply" => {
             repeat!(black_box(&inertia).apply(black_box(&m)));

@@ -4,7 +4,7 @@
 use crate::algorithms::crba::CrbaFrames;
 use crate::algorithms::kinematics::frame_anchors;
 use crate::algorithms::ltl::Ancestors;
-use crate::model::{Model, MotionSubspace};
+use crate::model::{Model, MotionSubspace, UpShape};
 use crate::spatial::{Force, Inertia, Matrix6, Motion, Transform, Vector3};
 use nalgebra::{DMatrix, DVector};
 
@@ -32,6 +32,9 @@ pub struct Workspace {
     /// For each body, the columns of `S_i` that are a signed unit vector of `[ω; v]` whatever
     /// `q` ([`JointKind::subspace_axes`](crate::model::JointKind::subspace_axes)).
     pub(crate) s_axes: Vec<[Option<(usize, f64)>; 6]>,
+    /// For each body, the form of `ⁱX_λ` whatever `q`
+    /// ([`JointKind::up_shape`](crate::model::JointKind::up_shape)).
+    pub(crate) up_shapes: Vec<UpShape>,
     /// The coordinates `crba`'s row blocks work in, chosen for the model.
     pub(crate) crba_frames: CrbaFrames,
     /// Motion subspace `⁰X_i S_i` of each body's joint in world (root) coordinates (CRBA).
@@ -110,6 +113,11 @@ impl Workspace {
                 .bodies
                 .iter()
                 .map(|b| b.joint.kind.subspace_axes())
+                .collect(),
+            up_shapes: model
+                .bodies
+                .iter()
+                .map(|b| b.joint.kind.up_shape(&b.x_tree))
                 .collect(),
             crba_frames: crate::algorithms::crba::crba_frames(model),
             s_world: vec![MotionSubspace::default(); n],

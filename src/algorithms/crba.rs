@@ -40,11 +40,11 @@
 //! `Jᵀ H_full J` for the coordinate map `J`.
 
 use super::flops;
-use super::kinematics::{update_aligned_placements, update_joints, Anchors};
+use super::kinematics::{update_aligned_placements, update_joints, with_up_transform, Anchors};
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model, MotionSubspace};
-use crate::spatial::{Force, Motion};
+use crate::spatial::{Force, Motion, SpatialTransform};
 use crate::Workspace;
 use nalgebra::DMatrix;
 
@@ -183,7 +183,10 @@ fn row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) -> bool 
 /// ```
 ///
 /// (RBDA Table 6.2's inward pass with its column forces kept). No world placements or world
-/// axes are needed; each force is transformed once per ancestor instead.
+/// axes are needed; each force is transformed once per ancestor instead, by `ⁱX_λ` in the
+/// cheapest form its joint allows (`with_up_transform`): for a revolute joint about a
+/// coordinate axis whose placement has no rotation (most joints of most robots), a turn after a
+/// translation, 24 flops a force and 71 the inertia instead of 42 and 113.
 fn local_row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) -> bool {
     let h = ws.mass_matrix.as_mut_slice();
     let mut probe = 0.0;
@@ -205,10 +208,12 @@ fn local_row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) ->
             _ => fill_rows(h, model.nv, v0, s_i, axes, &ws.f_cols[..end]),
         };
         if let Some(p) = body.parent {
-            let x = &ws.x_up[i];
-            x.transpose_apply_forces(&mut ws.f_cols[v0..end]);
-            let ic_i = x.transpose_apply_inertia(&ws.ic[i]);
-            ws.ic[p] += ic_i;
+            let (forces, ic) = (&mut ws.f_cols[v0..end], &ws.ic[i]);
+            let ic_up = with_up_transform!(ws, i, |x| {
+                x.transpose_apply_forces(forces);
+                x.transpose_apply_inertia(ic)
+            });
+            ws.ic[p] += ic_up;
         }
     }
     probe == 0.0

@@ -37,6 +37,10 @@
 //! | `X m`, `X* f`, `X⁻¹ m`, `Xᵀ f` | `Transform::apply_*` | 24 | 18 |
 //! | `X₁ X₂` | `Transform::compose` | 36 | 27 |
 //! | `Xᵀ I X` (rigid inertia) | `Transform::transpose_apply_inertia` | 55 | 58 |
+//! | `xlt(r) m`, `xlt(r)ᵀ f` | `Translation::apply_motion`, `transpose_apply_force` | 6 | 6 |
+//! | `xlt(r)ᵀ I xlt(r)` | `Translation::transpose_apply_inertia` | 18 | 23 |
+//! | `X m`, `Xᵀ f`, `X` a turn about a coordinate axis after a translation | `AxisTransform::*` | 14 | 10 |
+//! | `Xᵀ I X`, same `X` | `AxisTransform::transpose_apply_inertia` | 36 | 35 |
 //! | `I v` | `Inertia::apply` | 24 | 18 |
 //! | `v ×̂ m`, `v ×* f` | `Motion::cross_*` | 18 | 12 |
 //! | `mᵀ f` | `Motion::dot` | 6 | 5 |
@@ -52,13 +56,17 @@
 //! axis [`AXIS_ROTATION`] then `compose`; floating [`QUATERNION_ROTATION`] then `compose`;
 //! planar ([`AXIS_ROTATION`], then `E u`, `E w`, `u x + w y`: 24 m + 15 a more) then `compose`.
 //!
+//! A body's `ⁱX_λ` is priced in the form the passes use for it (`JointKind::up_shape`): a
+//! translation for a slide, a turn after a translation for a revolute joint about a coordinate
+//! axis, when the joint's placement has no rotation; a general transform otherwise.
+//!
 //! Dense factorisations count exactly their loops; nalgebra's 6×6 Cholesky and inverse, used
 //! by ABA for a joint with several degrees of freedom, is [`SPD_INVERSE6`].
 
 use super::crba::CrbaFrames;
 use super::kinematics::frame_anchors;
 use super::ltl::Ancestors;
-use crate::model::{JointKind, Model};
+use crate::model::{Body, JointKind, Model, UpShape};
 use crate::workspace::contiguous_subtrees;
 use std::ops::{Add, AddAssign, Mul};
 
@@ -139,6 +147,16 @@ pub const COMPOSE: Flops = Flops::new(36, 27);
 pub const TRANSFORM_INERTIA: Flops = Flops::new(55, 58);
 /// `Translation::apply_motion` or `transpose_apply_force`: a cross product and three sums.
 pub const TRANSLATE_VECTOR: Flops = Flops::new(6, 6);
+/// `Translation::transpose_apply_inertia`: `h + m r`, `r·(h + h_A)` and six entries
+/// `Ī_jk − h_A,j r_k − r_j h_k`, three of them plus the dot.
+pub const TRANSLATE_INERTIA: Flops = Flops::new(18, 23);
+/// `AxisTransform`'s actions on a motion or a force: two planar turns (4 m + 2 a each) and a
+/// translation ([`TRANSLATE_VECTOR`]).
+pub const AXIS_TURN_VECTOR: Flops = Flops::new(14, 10);
+/// `AxisTransform::transpose_apply_inertia`: the `(I, J)` block (10 m + 8 a: of the source's 12
+/// products, `b c` and `b s` each serve twice), the `(I, K)` and `(J, K)` entries and `h`
+/// turned (4 m + 2 a each), then [`TRANSLATE_INERTIA`].
+pub const AXIS_TURN_INERTIA: Flops = Flops::new(36, 35);
 /// `Translation::transpose_apply_matrix6`: nine cross products and 27 sums.
 pub const TRANSLATE_MATRIX6: Flops = Flops::new(54, 54);
 /// `Inertia::apply`.
@@ -302,8 +320,9 @@ fn rnea_passes(model: &Model, with_v: bool, with_a: bool) -> Flops {
             total += SUBSPACE_COLUMN * nv + joint_bias(&body.joint.kind);
         }
         // v_i = X v_λ + v_J;  a_i = X a_λ + c_J + v_i ×̂ v_J
-        total += TRANSFORM_VECTOR + ADD6;
-        total += TRANSFORM_VECTOR + ADD6 + CROSS6 + ADD6;
+        let (transform, _) = up_transform(body);
+        total += transform + ADD6;
+        total += transform + ADD6 + CROSS6 + ADD6;
         if with_a {
             total += SUBSPACE_COLUMN * nv + ADD6;
         }
@@ -319,10 +338,20 @@ fn inward_pass(model: &Model) -> Flops {
     for body in &model.bodies {
         total += (DOT6 + Flops::new(1, 1)) * body.joint.kind.nv() as u64;
         if body.parent.is_some() {
-            total += TRANSFORM_VECTOR + ADD6;
+            total += up_transform(body).0 + ADD6;
         }
     }
     total
+}
+
+/// What body `i`'s `ⁱX_λ` costs on a 6-vector and on a rigid inertia, in the form the passes use
+/// for its joint (`kinematics::with_up_transform`, [`JointKind::up_shape`]).
+fn up_transform(body: &Body) -> (Flops, Flops) {
+    match body.joint.kind.up_shape(&body.x_tree) {
+        UpShape::General => (TRANSFORM_VECTOR, TRANSFORM_INERTIA),
+        UpShape::Translation => (TRANSLATE_VECTOR, TRANSLATE_INERTIA),
+        UpShape::AxisTurn(_) => (AXIS_TURN_VECTOR, AXIS_TURN_INERTIA),
+    }
 }
 
 /// `gravity_passes`: `a_i = E a_λ`, `f_i = [h × a; m a]`, then the inward pass.
@@ -410,7 +439,8 @@ pub fn crba_local(model: &Model) -> Flops {
         // The body's probe added into the total.
         total += Flops::new(0, 1);
         if body.parent.is_some() {
-            total += TRANSFORM_VECTOR * subtree_nv[i] + TRANSFORM_INERTIA + INERTIA_ADD;
+            let (vector, inertia) = up_transform(body);
+            total += vector * subtree_nv[i] + inertia + INERTIA_ADD;
         }
     }
     total
@@ -629,16 +659,17 @@ mod tests {
 
     /// Per body of a revolute chain, RNEA costs what its passes do: the joint coordinate
     /// `scale · q + offset` (1 m + 1 a), jcalc (13 m + 6 a),
-    /// `S q̇`, `S q̈` (7 m + 6 a each), two transforms, a spatial cross product and four
-    /// 6-vector sums outward, two inertia products, a cross product and a sum for `f`, and
-    /// inward a projection (scaled, accumulated) and, below the root, a transform and a sum.
+    /// `S q̇`, `S q̈` (7 m + 6 a each), two transforms (each joint's placement has no rotation:
+    /// a turn about the joint axis after a translation, 14 m + 10 a), a spatial cross product
+    /// and four 6-vector sums outward, two inertia products, a cross product and a sum for `f`,
+    /// and inward a projection (scaled, accumulated) and, below the root, a transform and a sum.
     #[test]
     fn rnea_per_body_on_a_chain() {
         let per_body = Flops::new(
-            1 + 13 + 7 + 7 + 48 + 18 + 48 + 18 + 7,
-            1 + 6 + 6 + 6 + 36 + 12 + 24 + 36 + 12 + 6 + 6,
+            1 + 13 + 7 + 7 + 28 + 18 + 48 + 18 + 7,
+            1 + 6 + 6 + 6 + 20 + 12 + 24 + 36 + 12 + 6 + 6,
         );
-        let below_root = Flops::new(24, 24);
+        let below_root = Flops::new(14, 16);
         // a_0 = −[0; g]: three subtractions from zero.
         let root = Flops::new(0, 3);
         for n in [1usize, 4, 9] {

@@ -7,6 +7,45 @@ use crate::model::{Joint, Model};
 use crate::spatial::{Force, Motion, Transform, Translation};
 use crate::Workspace;
 
+/// Evaluates `$body` with `$x` bound to body `$i`'s `ⁱX_λ` (`ws.x_up[i]`, a `&Transform`) in
+/// the cheapest form its joint allows (`ws.up_shapes[i]`, [`JointKind::up_shape`]): the general
+/// [`Transform`], a [`Translation`] or an [`AxisTransform`](crate::spatial::AxisTransform) about
+/// its axis. `$body` uses [`SpatialTransform`](crate::spatial::SpatialTransform)'s actions and
+/// is compiled once for each form.
+///
+/// [`JointKind::up_shape`]: crate::model::JointKind::up_shape
+macro_rules! with_up_transform {
+    ($ws:expr, $i:expr, |$x:ident| $body:expr) => {{
+        use $crate::model::UpShape;
+        use $crate::spatial::{AxisTransform, Translation};
+        let (shape, x_up): (UpShape, &$crate::spatial::Transform) =
+            ($ws.up_shapes[$i], &$ws.x_up[$i]);
+        match shape {
+            UpShape::General => {
+                let $x = x_up;
+                $body
+            }
+            UpShape::Translation => {
+                let $x = &Translation(x_up.trans);
+                $body
+            }
+            UpShape::AxisTurn(0) => {
+                let $x = &AxisTransform::<0>::from_transform(x_up);
+                $body
+            }
+            UpShape::AxisTurn(1) => {
+                let $x = &AxisTransform::<1>::from_transform(x_up);
+                $body
+            }
+            UpShape::AxisTurn(_) => {
+                let $x = &AxisTransform::<2>::from_transform(x_up);
+                $body
+            }
+        }
+    }};
+}
+pub(crate) use with_up_transform;
+
 /// Fills `ws.q_joint`, `ws.x_up` and `ws.s` for configuration `q` (already validated).
 pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     for (i, body) in model.bodies.iter().enumerate() {

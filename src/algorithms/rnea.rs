@@ -19,8 +19,12 @@
 //!
 //! A mimic follower uses `q̇_i = μ q̇_leader`, `q̈_i = μ q̈_leader` and adds `μ S_iᵀ f_i` to the
 //! leader's `τ`. External wrenches `f^x_i` are given in body `i`'s own frame.
+//!
+//! `ⁱX_λ` acts in the cheapest form its joint allows (`kinematics::with_up_transform`): a turn
+//! about the joint axis after a translation costs 24 flops a vector where a general transform
+//! costs 42.
 
-use super::kinematics::update_joints;
+use super::kinematics::{update_joints, with_up_transform};
 use super::validate::{check_externals, check_q, check_result, check_v};
 use super::Externals;
 use crate::error::DynamicsError;
@@ -69,7 +73,7 @@ pub(crate) fn rnea_passes(
 ) {
     let a_root = ext.root_acceleration - Motion::new(nalgebra::Vector3::zeros(), model.gravity);
     for (i, body) in model.bodies.iter().enumerate() {
-        let (x, s, c) = (&ws.x_up[i], &ws.s[i], body.joint.coords);
+        let (s, c) = (&ws.s[i], body.joint.coords);
         let nv = s.nv;
         let (v_parent, a_parent) = match body.parent {
             Some(p) => (ws.v[p], ws.a[p]),
@@ -86,8 +90,12 @@ pub(crate) fn rnea_passes(
             }
             None => (Motion::zero(), Motion::zero()),
         };
-        let v_i = x.apply_motion(&v_parent) + v_joint;
-        let mut a_i = x.apply_motion(&a_parent) + c_joint + v_i.cross_motion(&v_joint);
+        let (v_up, a_up) = with_up_transform!(ws, i, |x| (
+            x.apply_motion(&v_parent),
+            x.apply_motion(&a_parent)
+        ));
+        let v_i = v_up + v_joint;
+        let mut a_i = a_up + c_joint + v_i.cross_motion(&v_joint);
         if let Some(a) = a {
             a_i += s.apply(&a[c.v_index..c.v_index + nv], c.scale);
         }
@@ -113,8 +121,70 @@ pub(crate) fn inward_pass(model: &Model, ws: &mut Workspace) {
             ws.tau[c.v_index + k] += c.scale * ws.s[i].project(k, &ws.f[i]);
         }
         if let Some(p) = body.parent {
-            let f_parent = ws.x_up[i].transpose_apply_force(&ws.f[i]);
+            let f_parent = with_up_transform!(ws, i, |x| x.transpose_apply_force(&ws.f[i]));
             ws.f[p] += f_parent;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::algorithms::crba::{crba, CrbaFrames};
+    use crate::model::examples::{self, pendulum_urdf};
+    use crate::model::UpShape;
+    use crate::sampling::{random_q, Rng};
+    use crate::{urdf, ModelOptions};
+
+    /// The cheaper forms of `ⁱX_λ` (a translation for a slide, a turn after a translation for a
+    /// revolute joint about a coordinate axis) give the general transform's `τ` and `H` (body
+    /// coordinates) to rounding, on models where each form occurs.
+    #[test]
+    fn cheaper_transform_forms_match_the_general_transform() {
+        let options = ModelOptions::default();
+        let models = [
+            include_str!("../../tests/models/turn_slide.urdf").to_string(),
+            // Axes x, −z, y, y, y.
+            pendulum_urdf(5, 0.5, 0.7)
+                .replacen(r#"<axis xyz="0 1 0"/>"#, r#"<axis xyz="1 0 0"/>"#, 1)
+                .replacen(r#"<axis xyz="0 1 0"/>"#, r#"<axis xyz="0 0 -1"/>"#, 1),
+            examples::DEFAULT_ARM_URDF.to_string(),
+        ]
+        .map(|text| urdf::model_from_str(&text, &options).unwrap());
+        let mut seen = Vec::new();
+        for model in &models {
+            let mut ws = Workspace::new(model);
+            ws.crba_frames = CrbaFrames::Local;
+            let shapes = ws.up_shapes.clone();
+            seen.extend_from_slice(&shapes);
+            let mut rng = Rng::new(5);
+            for _ in 0..4 {
+                let q = random_q(model, &mut rng);
+                let (v, a) = (rng.vector(model.nv, 2.0), rng.vector(model.nv, 3.0));
+                ws.up_shapes.clone_from(&shapes);
+                let tau = rnea(model, &mut ws, &q, &v, &a).unwrap().to_vec();
+                let h = crba(model, &mut ws, &q).unwrap().clone();
+                ws.up_shapes.fill(UpShape::General);
+                let tau_general = rnea(model, &mut ws, &q, &v, &a).unwrap();
+                let scale = tau.iter().fold(1.0, |m: f64, x| m.max(x.abs()));
+                for (x, y) in tau.iter().zip(tau_general) {
+                    assert!(
+                        (x - y).abs() < 1e-13 * scale,
+                        "{}: τ {x} vs {y}",
+                        model.name
+                    );
+                }
+                let h_general = crba(model, &mut ws, &q).unwrap();
+                assert!(
+                    (&h - h_general).amax() < 1e-13 * h.amax(),
+                    "{}: H",
+                    model.name
+                );
+            }
+        }
+        for shape in [0, 1, 2].map(UpShape::AxisTurn) {
+            assert!(seen.contains(&shape), "no body of form {shape:?}");
+        }
+        assert!(seen.contains(&UpShape::Translation));
     }
 }

@@ -186,6 +186,26 @@ impl JointKind {
         self.jcalc_then_compose(q, x_tree, s)
     }
 
+    /// What [`jcalc_up`](Self::jcalc_up)'s transform is made of for this joint under the
+    /// placement `x_tree`, whatever `q`: a placement without rotation (`E_tree = 1` exactly, a
+    /// URDF `rpy="0 0 0"`, the common case) leaves a revolute joint about `±e_k` a turn about
+    /// `e_k` after a translation and a prismatic joint a translation.
+    pub fn up_shape(&self, x_tree: &Transform) -> UpShape {
+        if x_tree.rot != Matrix3::identity() {
+            return UpShape::General;
+        }
+        match *self {
+            JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
+                match coordinate_axis(&axis) {
+                    Some((k, _)) => UpShape::AxisTurn(k),
+                    None => UpShape::General,
+                }
+            }
+            JointKind::Prismatic { .. } => UpShape::Translation,
+            _ => UpShape::General,
+        }
+    }
+
     /// The general case of [`jcalc_up`](Self::jcalc_up), kept out of line.
     #[inline(never)]
     fn jcalc_then_compose(
@@ -277,6 +297,19 @@ impl JointKind {
             }
         }
     }
+}
+
+/// The form of a body's `ⁱX_λ` known when the model is built ([`JointKind::up_shape`]), so that
+/// a pass can use the cheaper actions of [`Translation`](crate::spatial::Translation) and
+/// [`AxisTransform`](crate::spatial::AxisTransform) instead of a general transform's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UpShape {
+    /// Any rotation and translation.
+    General,
+    /// `xlt(r)`: no rotation.
+    Translation,
+    /// `rot(E_k(θ)) xlt(r)`: a turn about coordinate axis `k` after a translation.
+    AxisTurn(usize),
 }
 
 /// `E` with its rows `I` and `J` mixed by a rotation: `row_I ← c row_I + s row_J`,

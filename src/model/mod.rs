@@ -12,7 +12,7 @@ mod joint;
 mod reduction;
 
 pub use builder::{joint_position, BodySpec, JointSpec, ModelBuilder, ModelOptions};
-pub use joint::{axis_rotation, quaternion_rotation, JointKind, MotionSubspace};
+pub use joint::{axis_rotation, quaternion_rotation, JointKind, MotionSubspace, UpShape};
 
 use crate::error::ModelError;
 use crate::spatial::{Inertia, Transform, Vector3};

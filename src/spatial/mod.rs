@@ -8,10 +8,12 @@
 //! Transforms are stored as a rotation and a translation ([`Transform`]), never as dense 6×6
 //! matrices; dense 6×6 matrices appear only for articulated-body inertias ([`Matrix6`]).
 
+mod axis_transform;
 mod inertia;
 mod transform;
 mod vector;
 
+pub use axis_transform::AxisTransform;
 pub use inertia::Inertia;
 pub use transform::{Transform, Translation};
 pub use vector::{Force, Motion};
@@ -22,6 +24,74 @@ pub type Matrix6 = nalgebra::Matrix6<f64>;
 pub type Vector3 = nalgebra::Vector3<f64>;
 /// 3×3 matrix.
 pub type Matrix3 = nalgebra::Matrix3<f64>;
+
+/// The actions of a Plücker transform `rot(E) xlt(r)` the tree passes use, for each form one
+/// is stored in ([`Transform`], [`Translation`], [`AxisTransform`]): a pass is written once and
+/// compiled for each form (`algorithms::kinematics::with_up_transform`).
+pub trait SpatialTransform {
+    /// `X m`: a motion from A coordinates into B coordinates.
+    fn apply_motion(&self, m: &Motion) -> Motion;
+    /// `E u`: a free 3-vector from A's axes into B's.
+    fn rotate(&self, u: &Vector3) -> Vector3;
+    /// `Xᵀ f`: a force from B coordinates back into A coordinates.
+    fn transpose_apply_force(&self, f: &Force) -> Force;
+    /// `Xᵀ I X`: a rigid-body inertia from B coordinates into A coordinates.
+    fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia;
+    /// `Xᵀ f` for each force of `forces`, in place.
+    fn transpose_apply_forces(&self, forces: &mut [Force]) {
+        for f in forces {
+            *f = self.transpose_apply_force(f);
+        }
+    }
+}
+
+impl SpatialTransform for Transform {
+    fn apply_motion(&self, m: &Motion) -> Motion {
+        Transform::apply_motion(self, m)
+    }
+    fn rotate(&self, u: &Vector3) -> Vector3 {
+        self.rot * u
+    }
+    fn transpose_apply_force(&self, f: &Force) -> Force {
+        Transform::transpose_apply_force(self, f)
+    }
+    fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia {
+        Transform::transpose_apply_inertia(self, inertia)
+    }
+    fn transpose_apply_forces(&self, forces: &mut [Force]) {
+        Transform::transpose_apply_forces(self, forces)
+    }
+}
+
+impl SpatialTransform for Translation {
+    fn apply_motion(&self, m: &Motion) -> Motion {
+        Translation::apply_motion(self, m)
+    }
+    fn rotate(&self, u: &Vector3) -> Vector3 {
+        *u
+    }
+    fn transpose_apply_force(&self, f: &Force) -> Force {
+        Translation::transpose_apply_force(self, f)
+    }
+    fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia {
+        Translation::transpose_apply_inertia(self, inertia)
+    }
+}
+
+impl<const K: usize> SpatialTransform for AxisTransform<K> {
+    fn apply_motion(&self, m: &Motion) -> Motion {
+        AxisTransform::apply_motion(self, m)
+    }
+    fn rotate(&self, u: &Vector3) -> Vector3 {
+        self.turn(u)
+    }
+    fn transpose_apply_force(&self, f: &Force) -> Force {
+        AxisTransform::transpose_apply_force(self, f)
+    }
+    fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia {
+        AxisTransform::transpose_apply_inertia(self, inertia)
+    }
+}
 
 /// The cross-product matrix `a×`, such that `a× b = a × b`.
 pub fn skew(a: &Vector3) -> Matrix3 {
