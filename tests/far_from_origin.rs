@@ -1,7 +1,8 @@
 //! A robot a kilometre from the world origin has the joint-space dynamics it has at the origin:
 //! `τ`, `g`, `H` and `q̈` (by every method, alone and through `joint_state_outputs`) do not depend
 //! on where the robot stands. Fixed bases are moved by their root joint's `<origin>`, floating
-//! bases by the position coordinates of `q`. Spatial inertias about the world origin carry
+//! bases by the position coordinates of `q`, a pendulum on a rail by the rail's coordinate (a
+//! joint below the root: the frames of the world-frame passes must follow its travel). Spatial inertias about the world origin carry
 //! `m r²` terms that cancel in these quantities, so a pass that works about the world origin
 //! loses about `log₁₀(r² / ℓ²)` digits (ℓ the robot's size): 1e-7 relative error at 1 km.
 
@@ -67,6 +68,39 @@ fn moved_floating_base(q: &[f64]) -> Vec<f64> {
     q
 }
 
+/// An `n`-link pendulum hanging from a carriage on a 4 km rail (prismatic, ±2 km), the rail
+/// from a short slide: the carriage is not a root, so only its joint's travel takes it far.
+fn pendulum_on_a_rail(n: usize) -> String {
+    pendulum_urdf(n, 0.5, 0.7)
+        .replacen(
+            r#"<parent link="world"/>"#,
+            r#"<parent link="carriage"/>"#,
+            1,
+        )
+        .replacen(
+            "<link name=\"world\"/>\n",
+            r#"<link name="world"/>
+  <joint name="slide" type="prismatic"><parent link="world"/><child link="sled"/>
+    <axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <link name="sled"><inertial><mass value="2"/>
+    <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.3"/></inertial></link>
+  <joint name="rail" type="prismatic"><parent link="sled"/><child link="carriage"/>
+    <origin xyz="0.2 0 0"/><axis xyz="1 0 0"/>
+    <limit lower="-2000" upper="2000" effort="1" velocity="1"/></joint>
+  <link name="carriage"><inertial><mass value="3"/>
+    <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.3"/></inertial></link>
+"#,
+            1,
+        )
+}
+
+/// The rail coordinate (`q[1]`, after the slide's) moved 1.5 km.
+fn moved_carriage(q: &[f64]) -> Vec<f64> {
+    let mut q = q.to_vec();
+    q[1] += 1500.0;
+    q
+}
+
 fn cases() -> Vec<Case> {
     let fixed = |name, text: &str| Case {
         name,
@@ -82,6 +116,18 @@ fn cases() -> Vec<Case> {
         fixed("tree, floating joint", &tree_floating_joint),
         fixed("default arm", examples::DEFAULT_ARM_URDF),
         Case {
+            name: "16-link pendulum on a rail, 1.5 km along it",
+            near: load(&pendulum_on_a_rail(16), false),
+            far: load(&pendulum_on_a_rail(16), false),
+            move_q: moved_carriage,
+        },
+        Case {
+            name: "60-link pendulum on a rail, 1.5 km along it",
+            near: load(&pendulum_on_a_rail(60), false),
+            far: load(&pendulum_on_a_rail(60), false),
+            move_q: moved_carriage,
+        },
+        Case {
             name: "default arm, floating base",
             near: load(examples::DEFAULT_ARM_URDF, true),
             far: load(examples::DEFAULT_ARM_URDF, true),
@@ -95,7 +141,7 @@ fn assert_same(case: &str, quantity: &str, near: &[f64], far: &[f64]) {
     let err = max_diff(near, far);
     assert!(
         err <= 1e-12 * (1.0 + norm(near)),
-        "{case}: {quantity} at {FAR:?} differs from the origin's by {err:e} (|{quantity}| = {:e})",
+        "{case}: {quantity} far away differs from the origin's by {err:e} (|{quantity}| = {:e})",
         norm(near)
     );
 }

@@ -40,7 +40,9 @@
 //! `Jᵀ H_full J` for the coordinate map `J`.
 
 use super::flops;
-use super::kinematics::{update_aligned_placements, update_joints, with_up_transform, Anchors};
+use super::kinematics::{
+    travels_far, update_aligned_placements, update_joints, with_up_transform, Anchors,
+};
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model, MotionSubspace};
@@ -63,10 +65,17 @@ pub enum CrbaFrames {
 /// The frames with fewer operations for `model` by the counts of [`flops::crba_world`] and
 /// [`flops::crba_local`]: body coordinates for short branches (arms, legs, a floating root over
 /// them), world coordinates for long ones; world coordinates when mimic joints break the tree
-/// pattern (only the world pass handles them).
+/// pattern (only the world pass handles them); body coordinates when a slide below a root can
+/// carry its bodies farther than the aligned frames' anchor spacing (`kinematics::travels_far`:
+/// world rows keep one frame per tree).
 pub fn crba_frames(model: &Model) -> CrbaFrames {
     if model.dof_parent.is_none() {
         return CrbaFrames::World;
+    }
+    if travels_far(model) {
+        // World rows keep one frame per tree: a body a long slide carries far from its root
+        // would bring `m d²` terms that cancel. Body coordinates have no such distance.
+        return CrbaFrames::Local;
     }
     let (world, local) = (flops::crba_world(model), flops::crba_local(model));
     if local.total() < world.total() {

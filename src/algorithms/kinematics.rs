@@ -3,7 +3,7 @@
 
 use super::validate::check_q;
 use crate::error::DynamicsError;
-use crate::model::{Joint, Model};
+use crate::model::{Joint, JointKind, Model};
 use crate::spatial::{Force, Motion, Transform, Translation};
 use crate::Workspace;
 
@@ -181,9 +181,10 @@ pub(crate) fn force_out_of_aligned(ws: &Workspace, i: usize, f: Force) -> Force 
     }
 }
 
-/// Distance along the tree (sum of joint-origin offsets `|r_tree|`) after which a body starts
-/// a new aligned frame, in multiples `s` of the model's longest offset `ℓ`: a body's origin is
-/// at most `(s + 1) ℓ` from its frame's (prismatic travel not counted), so its inertia carries
+/// Distance along the tree (sum of joint-origin offsets `|r_tree|` and of prismatic joints'
+/// travel) after which a body starts a new aligned frame, in multiples `s` of the model's
+/// longest offset `ℓ`: a body's origin is at most `(s + 1) ℓ` from its frame's (a slide that
+/// can travel farther starts a frame at its body), so its inertia carries
 /// terms up to about `(s + 1)² = 25` times those about its own origin. Measured on chains of
 /// 256 equal links (relative error of ABA's `q̈`): 3.7e-15 at `s = 1`, 1.0e-14 at 2, 3.8e-14
 /// at 4, 7.1e-14 at 8, 1.8e-12 without interior anchors; at 4 none of the benchmark robots
@@ -191,20 +192,16 @@ pub(crate) fn force_out_of_aligned(ws: &Workspace, i: usize, f: Force) -> Force 
 pub(crate) const ANCHOR_SPACING: f64 = 4.0;
 
 /// Which bodies anchor an aligned frame with [`Anchors::Spaced`]: every root and each body
-/// whose joint origin is more than [`ANCHOR_SPACING`] longest offsets along the tree from the
-/// anchor above it.
+/// whose joint origin can be more than [`ANCHOR_SPACING`] longest offsets along the tree from
+/// the anchor above it, counting each prismatic joint's travel (its largest `|limit|`; a
+/// planar or floating joint below the root travels without bound).
 pub(crate) fn frame_anchors(model: &Model) -> Vec<bool> {
-    let longest = model
-        .bodies
-        .iter()
-        .map(|b| b.x_tree.trans.norm())
-        .fold(0.0, f64::max);
-    let spacing = ANCHOR_SPACING * longest;
+    let spacing = anchor_spacing(model);
     let mut along = vec![0.0; model.nbodies()];
     let mut anchors = vec![true; model.nbodies()];
     for (i, body) in model.bodies.iter().enumerate() {
         if let Some(p) = body.parent {
-            along[i] = along[p] + body.x_tree.trans.norm();
+            along[i] = along[p] + body.x_tree.trans.norm() + travel(&body.joint);
             anchors[i] = along[i] > spacing;
             if anchors[i] {
                 along[i] = 0.0;
@@ -212,6 +209,39 @@ pub(crate) fn frame_anchors(model: &Model) -> Vec<bool> {
         }
     }
     anchors
+}
+
+/// [`ANCHOR_SPACING`] times the model's longest joint offset `|r_tree|`.
+fn anchor_spacing(model: &Model) -> f64 {
+    let longest = model
+        .bodies
+        .iter()
+        .map(|b| b.x_tree.trans.norm())
+        .fold(0.0, f64::max);
+    ANCHOR_SPACING * longest
+}
+
+/// True when a joint below a root can travel farther than the anchor spacing (a long rail):
+/// a pass with one frame per tree ([`Anchors::Roots`]) would then hold inertias far from their
+/// bodies and lose digits in proportion to the travel squared.
+pub(crate) fn travels_far(model: &Model) -> bool {
+    let spacing = anchor_spacing(model);
+    model
+        .bodies
+        .iter()
+        .any(|b| b.parent.is_some() && travel(&b.joint) > spacing)
+}
+
+/// How far `joint` moves its body's origin from the joint origin within its limits: a slide's
+/// largest `|limit|` (unbounded without limits), without bound for a planar or floating joint,
+/// 0 for a turn. (A slide driven past its limits is not refused: its body's frame is then
+/// farther from its anchor, and digits go as described at [`ANCHOR_SPACING`].)
+fn travel(joint: &Joint) -> f64 {
+    match joint.kind {
+        JointKind::Prismatic { .. } => joint.limits.lower.abs().max(joint.limits.upper.abs()),
+        JointKind::Planar { .. } | JointKind::Floating => f64::INFINITY,
+        JointKind::Revolute { .. } | JointKind::Continuous { .. } => 0.0,
+    }
 }
 
 /// Body spatial velocities `v_i = ⁱX_λ v_λ + S_i q̇_i` into `ws.v` (joints already updated; base
