@@ -53,6 +53,7 @@ CATEGORIES = ("mul", "add", "div", "sqrt")
 OPS = ["cross3", "mat3_vec3", "mat3_tr_vec3", "apply_motion", "apply_force",
        "inverse_apply_motion", "transpose_apply_force", "compose", "transpose_apply_inertia",
        "translate_inertia", "axis_turn_motion", "axis_turn_force", "axis_turn_inertia",
+       "axis_turn_compose", "translate_compose",
        "inertia_apply", "cross_motion", "cross_force", "dot6", "add6", "inertia_add", "mat6_vec6",
        "subspace_column", "jcalc_revolute_z", "jcalc_revolute_axis", "jcalc_prismatic",
        "jcalc_planar", "jcalc_floating", "bias_planar"]

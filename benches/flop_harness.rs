@@ -223,6 +223,14 @@ fn operation(name: &str, calls: usize) -> Result<(), String> {
             repeat!(black_box(&turn).transpose_apply_force(black_box(&f)));
             flops::AXIS_TURN_VECTOR
         }
+        "axis_turn_compose" => {
+            repeat!(black_box(&turn).compose(black_box(&y)));
+            flops::AXIS_TURN_COMPOSE
+        }
+        "translate_compose" => {
+            repeat!(Translation(*black_box(&a)).compose(black_box(&y)));
+            flops::TRANSLATE_COMPOSE
+        }
         "axis_turn_inertia" => {
             repeat!(black_box(&turn).transpose_apply_inertia(black_box(&inertia)));
             flops::AXIS_TURN_INERTIA

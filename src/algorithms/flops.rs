@@ -41,6 +41,8 @@
 //! | `xlt(r)ᵀ I xlt(r)` | `Translation::transpose_apply_inertia` | 18 | 23 |
 //! | `X m`, `Xᵀ f`, `X` a turn about a coordinate axis after a translation | `AxisTransform::*` | 14 | 10 |
 //! | `Xᵀ I X`, same `X` | `AxisTransform::transpose_apply_inertia` | 36 | 35 |
+//! | `X₁ X₂`, `X₁` that turn | `AxisTransform::compose` | 21 | 15 |
+//! | `xlt(r) X₂` | `Translation::compose` | 9 | 9 |
 //! | `I v` | `Inertia::apply` | 24 | 18 |
 //! | `v ×̂ m`, `v ×* f` | `Motion::cross_*` | 18 | 12 |
 //! | `mᵀ f` | `Motion::dot` | 6 | 5 |
@@ -157,6 +159,10 @@ pub const AXIS_TURN_VECTOR: Flops = Flops::new(14, 10);
 /// products, `b c` and `b s` each serve twice), the `(I, K)` and `(J, K)` entries and `h`
 /// turned (4 m + 2 a each), then [`TRANSLATE_INERTIA`].
 pub const AXIS_TURN_INERTIA: Flops = Flops::new(36, 35);
+/// `Translation::compose`: the origin moved, `r_BA + E_BAᵀ r`.
+pub const TRANSLATE_COMPOSE: Flops = Flops::new(9, 9);
+/// `AxisTransform::compose`: two rows of `E_BA` mixed (12 m + 6 a) and the origin moved.
+pub const AXIS_TURN_COMPOSE: Flops = Flops::new(21, 15);
 /// `Translation::transpose_apply_matrix6`: nine cross products and 27 sums.
 pub const TRANSLATE_MATRIX6: Flops = Flops::new(54, 54);
 /// `Inertia::apply`.
@@ -361,7 +367,13 @@ fn gravity_passes(model: &Model) -> Flops {
 
 /// `update_placements`: one `compose` per body below the root.
 fn placements(model: &Model) -> Flops {
-    COMPOSE * model.bodies.iter().filter(|b| b.parent.is_some()).count() as u64
+    let compose = |body: &Body| match body.joint.kind.up_shape(&body.x_tree) {
+        UpShape::General => COMPOSE,
+        UpShape::Translation => TRANSLATE_COMPOSE,
+        UpShape::AxisTurn(_) => AXIS_TURN_COMPOSE,
+    };
+    let below_roots = model.bodies.iter().filter(|b| b.parent.is_some());
+    below_roots.map(compose).fold(Flops::default(), Add::add)
 }
 
 /// `crba_passes`: the row blocks in the frames [`crba_frames`](super::crba::crba_frames)

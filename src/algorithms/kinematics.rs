@@ -105,7 +105,7 @@ fn check_bodies(
 pub(crate) fn update_placements(model: &Model, ws: &mut Workspace) {
     for (i, body) in model.bodies.iter().enumerate() {
         ws.x_world[i] = match body.parent {
-            Some(p) => ws.x_up[i].compose(&ws.x_world[p]),
+            Some(p) => with_up_transform!(ws, i, |x| x.compose(&ws.x_world[p])),
             None => ws.x_up[i],
         };
     }
@@ -131,7 +131,7 @@ pub(crate) fn update_placements(model: &Model, ws: &mut Workspace) {
 pub(crate) fn update_aligned_placements(model: &Model, ws: &mut Workspace, anchors: Anchors) {
     for (i, body) in model.bodies.iter().enumerate() {
         let x = match body.parent {
-            Some(p) => ws.x_up[i].compose(&ws.x_aligned[p]),
+            Some(p) => with_up_transform!(ws, i, |x| x.compose(&ws.x_aligned[p])),
             None => ws.x_up[i],
         };
         let anchor = match anchors {

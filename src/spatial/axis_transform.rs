@@ -56,6 +56,22 @@ impl<const K: usize> AxisTransform<K> {
         out
     }
 
+    /// Composition `X · ᴮX_A` (`inner` is `ᴮX_A`): `E E_BA`, whose rows `I` and `J` are those of
+    /// `E_BA` mixed by the turn (the others kept), and `r_BA + E_BAᵀ r`.
+    #[inline(always)]
+    pub fn compose(&self, inner: &Transform) -> Transform {
+        let (c, s, e) = (self.cos, self.sin, &inner.rot);
+        let mut rot = *e;
+        for col in 0..3 {
+            rot[(Self::I, col)] = c * e[(Self::I, col)] + s * e[(Self::J, col)];
+            rot[(Self::J, col)] = c * e[(Self::J, col)] - s * e[(Self::I, col)];
+        }
+        Transform {
+            rot,
+            trans: inner.trans + inner.rot.tr_mul(&self.trans),
+        }
+    }
+
     /// `X m = [E ω; E (v − r × ω)]` (the translation, then the turn).
     #[inline(always)]
     pub fn apply_motion(&self, m: &Motion) -> Motion {
@@ -132,6 +148,13 @@ mod tests {
             ));
             let moved = x.transpose_apply_force(&f).to_vector();
             assert!(close(moved, general.transpose_apply_force(&f).to_vector()));
+            let inner = Transform::from_pose(
+                Rotation3::from_euler_angles(0.4, -1.1, 2.0).matrix(),
+                &Vector3::new(-0.6, 0.1, 0.9),
+            );
+            let (ours, reference) = (x.compose(&inner), general.compose(&inner));
+            assert!((ours.rot - reference.rot).amax() < 1e-15);
+            assert!((ours.trans - reference.trans).amax() < 1e-15);
             let u = Vector3::new(0.3, -0.8, 1.7);
             assert!((x.turn(&u) - general.rot * u).amax() < 1e-15);
             let mut forces = [f, f * 2.0];

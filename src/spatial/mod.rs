@@ -33,6 +33,8 @@ pub trait SpatialTransform {
     fn apply_motion(&self, m: &Motion) -> Motion;
     /// `E u`: a free 3-vector from A's axes into B's.
     fn rotate(&self, u: &Vector3) -> Vector3;
+    /// `X · inner`: with `inner = ᴬX_W`, the placement `ᴮX_W`.
+    fn compose(&self, inner: &Transform) -> Transform;
     /// `Xᵀ f`: a force from B coordinates back into A coordinates.
     fn transpose_apply_force(&self, f: &Force) -> Force;
     /// `Xᵀ I X`: a rigid-body inertia from B coordinates into A coordinates.
@@ -52,6 +54,9 @@ impl SpatialTransform for Transform {
     fn rotate(&self, u: &Vector3) -> Vector3 {
         self.rot * u
     }
+    fn compose(&self, inner: &Transform) -> Transform {
+        Transform::compose(self, inner)
+    }
     fn transpose_apply_force(&self, f: &Force) -> Force {
         Transform::transpose_apply_force(self, f)
     }
@@ -70,6 +75,9 @@ impl SpatialTransform for Translation {
     fn rotate(&self, u: &Vector3) -> Vector3 {
         *u
     }
+    fn compose(&self, inner: &Transform) -> Transform {
+        Translation::compose(self, inner)
+    }
     fn transpose_apply_force(&self, f: &Force) -> Force {
         Translation::transpose_apply_force(self, f)
     }
@@ -84,6 +92,9 @@ impl<const K: usize> SpatialTransform for AxisTransform<K> {
     }
     fn rotate(&self, u: &Vector3) -> Vector3 {
         self.turn(u)
+    }
+    fn compose(&self, inner: &Transform) -> Transform {
+        AxisTransform::compose(self, inner)
     }
     fn transpose_apply_force(&self, f: &Force) -> Force {
         AxisTransform::transpose_apply_force(self, f)

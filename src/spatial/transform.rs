@@ -192,6 +192,14 @@ impl Translation {
         Motion::new(m.ang, m.lin - self.0.cross(&m.ang))
     }
 
+    /// Composition `xlt(r) · ᴮX_A` (`inner` is `ᴮX_A`): `E_BA` kept, origin `r_BA + E_BAᵀ r`.
+    pub fn compose(&self, inner: &Transform) -> Transform {
+        Transform {
+            rot: inner.rot,
+            trans: inner.trans + inner.rot.tr_mul(&self.0),
+        }
+    }
+
     /// `xlt(r)ᵀ f = [n + r × f; f]`: a force from B coordinates back into A coordinates.
     pub fn transpose_apply_force(&self, f: &Force) -> Force {
         Force::new(f.ang + self.0.cross(&f.lin), f.lin)
@@ -338,6 +346,8 @@ mod tests {
         assert!((t.transpose_apply_inertia(&inertia).to_matrix() - dense).norm() < 1e-13);
         let dense = xtm.transpose() * articulated * xtm;
         assert!((t.transpose_apply_matrix6(&articulated) - dense).norm() < 1e-12);
+        let (composed, reference) = (t.compose(&y), xt.compose(&y));
+        assert!((composed.to_matrix() - reference.to_matrix()).norm() < 1e-15);
         // Power is frame-invariant: (X m)·(X* f) = m·f.
         assert!((x.apply_motion(&m).dot(&x.apply_force(&f)) - m.dot(&f)).abs() < 1e-13);
         let _ = Vector6::<f64>::zeros();
