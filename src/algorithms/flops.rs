@@ -413,8 +413,8 @@ pub fn crba_world(model: &Model) -> Flops {
 }
 
 /// `crba_passes` in body coordinates (row blocks only): for each body, `F = I^c S` per column
-/// (`σ I e_j` for a column that is an axis: a cross product and the sign, 12 m + 3 a, and
-/// `m e_j` for a linear one, 3 m more), its rows `S_kᵀ F_c` over its subtree's columns
+/// (`σ I e_j` for a column that is an axis: entries of `Ī`, `h` and `m` and the sign, 6 m),
+/// its rows `S_kᵀ F_c` over its subtree's columns
 /// (`σ F_j`, one multiplication, for an axis; a floating joint's six rows are the forces as
 /// they are, its diagonal block written in full) and their finiteness probe, then each of those
 /// forces `Xᵀ F` and its composite inertia `Xᵀ I X` moved to the parent and added.
@@ -435,8 +435,7 @@ pub fn crba_local(model: &Model) -> Flops {
         let axes = body.joint.kind.subspace_axes();
         for (k, axis) in axes[..body.joint.kind.nv()].iter().enumerate() {
             let (force, entry) = match axis {
-                Some((j, _)) if *j < 3 => (Flops::new(12, 3), Flops::new(1, 0)),
-                Some(_) => (Flops::new(15, 3), Flops::new(1, 0)),
+                Some(_) => (Flops::new(6, 0), Flops::new(1, 0)),
                 None => (INERTIA_APPLY, DOT6),
             };
             total += force;

@@ -46,15 +46,19 @@ impl Inertia {
     }
 
     /// `I e_j`, column `j` of [`to_matrix`](Self::to_matrix): for an angular unit vector
-    /// (`j < 3`) `[Ī e_j; e_j × h]`, for a linear one (`j = 3 + k`) `[h × e_k; m e_k]`.
+    /// (`j < 3`) `[Ī e_j; e_j × h]`, for a linear one (`j = 3 + k`) `[h × e_k; m e_k]`, each
+    /// cross product with a unit vector written out (two components of `h`, one negated).
     #[inline]
     pub fn column(&self, j: usize) -> Force {
-        if j < 3 {
-            let e = Vector3::ith(j, 1.0);
-            Force::new(self.i_bar.column(j).into(), e.cross(&self.h))
-        } else {
-            let e = Vector3::ith(j - 3, 1.0);
-            Force::new(self.h.cross(&e), e * self.mass)
+        let (h, m) = (&self.h, self.mass);
+        let z = 0.0;
+        match j {
+            0 => Force::new(self.i_bar.column(0).into(), Vector3::new(z, -h.z, h.y)),
+            1 => Force::new(self.i_bar.column(1).into(), Vector3::new(h.z, z, -h.x)),
+            2 => Force::new(self.i_bar.column(2).into(), Vector3::new(-h.y, h.x, z)),
+            3 => Force::new(Vector3::new(z, h.z, -h.y), Vector3::new(m, z, z)),
+            4 => Force::new(Vector3::new(-h.z, z, h.x), Vector3::new(z, m, z)),
+            _ => Force::new(Vector3::new(h.y, -h.x, z), Vector3::new(z, z, m)),
         }
     }
 
