@@ -280,3 +280,84 @@ pub fn body_motion(
             .all(|e| e.is_finite())
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::algorithms::crba::{crba, CrbaFrames};
+    use crate::algorithms::{forward_dynamics, rnea, Externals, ForwardDynamicsMethod};
+    use crate::model::examples::{self, pendulum_urdf};
+    use crate::model::UpShape;
+    use crate::sampling::{random_q, Rng};
+    use crate::{urdf, ModelOptions};
+
+    /// The cheaper forms of `ⁱX_λ` that [`with_up_transform`] picks (a translation for a slide, a
+    /// turn after a translation for a revolute joint about a coordinate axis) give the general
+    /// transform's `τ` (RNEA), `H` (body coordinates) and `q̈` (ABA, whose aligned placements
+    /// compose through them) to rounding, on models where each form occurs.
+    #[test]
+    fn cheaper_transform_forms_match_the_general_transform() {
+        let options = ModelOptions::default();
+        let models = [
+            include_str!("../../tests/models/turn_slide.urdf").to_string(),
+            // Axes x, −z, y, y, y.
+            pendulum_urdf(5, 0.5, 0.7)
+                .replacen(r#"<axis xyz="0 1 0"/>"#, r#"<axis xyz="1 0 0"/>"#, 1)
+                .replacen(r#"<axis xyz="0 1 0"/>"#, r#"<axis xyz="0 0 -1"/>"#, 1),
+            examples::DEFAULT_ARM_URDF.to_string(),
+        ]
+        .map(|text| urdf::model_from_str(&text, &options).unwrap());
+        let mut seen = Vec::new();
+        for model in &models {
+            let mut ws = Workspace::new(model);
+            ws.crba_frames = CrbaFrames::Local;
+            let shapes = ws.up_shapes.clone();
+            seen.extend_from_slice(&shapes);
+            let mut rng = Rng::new(5);
+            let aba = |ws: &mut Workspace, q: &[f64], v: &[f64], tau: &[f64]| {
+                let (method, none) = (ForwardDynamicsMethod::Aba, Externals::none());
+                forward_dynamics(model, ws, q, v, tau, method, &none)
+                    .unwrap()
+                    .to_vec()
+            };
+            for _ in 0..4 {
+                let q = random_q(model, &mut rng);
+                let (v, a) = (rng.vector(model.nv, 2.0), rng.vector(model.nv, 3.0));
+                let effort = rng.vector(model.nv, 10.0);
+                ws.up_shapes.clone_from(&shapes);
+                let tau = rnea(model, &mut ws, &q, &v, &a).unwrap().to_vec();
+                let h = crba(model, &mut ws, &q).unwrap().clone();
+                let qdd = aba(&mut ws, &q, &v, &effort);
+                ws.up_shapes.fill(UpShape::General);
+                let tau_general = rnea(model, &mut ws, &q, &v, &a).unwrap();
+                let scale = tau.iter().fold(1.0, |m: f64, x| m.max(x.abs()));
+                for (x, y) in tau.iter().zip(tau_general) {
+                    assert!(
+                        (x - y).abs() < 1e-13 * scale,
+                        "{}: τ {x} vs {y}",
+                        model.name
+                    );
+                }
+                let h_general = crba(model, &mut ws, &q).unwrap();
+                assert!(
+                    (&h - h_general).amax() < 1e-13 * h.amax(),
+                    "{}: H",
+                    model.name
+                );
+                let qdd_general = aba(&mut ws, &q, &v, &effort);
+                let scale = qdd.iter().fold(1.0, |m: f64, x| m.max(x.abs()));
+                for (x, y) in qdd.iter().zip(&qdd_general) {
+                    assert!(
+                        (x - y).abs() < 1e-12 * scale,
+                        "{}: q̈ {x} vs {y}",
+                        model.name
+                    );
+                }
+            }
+        }
+        for shape in [0, 1, 2].map(UpShape::AxisTurn) {
+            assert!(seen.contains(&shape), "no body of form {shape:?}");
+        }
+        assert!(seen.contains(&UpShape::Translation));
+    }
+}
