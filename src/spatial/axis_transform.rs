@@ -48,7 +48,7 @@ impl<const K: usize> AxisTransform<K> {
 
     /// `E u`: `(c u_I + s u_J, c u_J − s u_I, u_K)` in the `(I, J, K)` slots.
     #[inline(always)]
-    pub fn turn(&self, u: &Vector3) -> Vector3 {
+    fn turn(&self, u: &Vector3) -> Vector3 {
         let (c, s) = (self.cos, self.sin);
         let mut out = *u;
         out[Self::I] = c * u[Self::I] + s * u[Self::J];

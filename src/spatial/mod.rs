@@ -31,8 +31,6 @@ pub type Matrix3 = nalgebra::Matrix3<f64>;
 pub trait SpatialTransform {
     /// `X m`: a motion from A coordinates into B coordinates.
     fn apply_motion(&self, m: &Motion) -> Motion;
-    /// `E u`: a free 3-vector from A's axes into B's.
-    fn rotate(&self, u: &Vector3) -> Vector3;
     /// `X · inner`: with `inner = ᴬX_W`, the placement `ᴮX_W`.
     fn compose(&self, inner: &Transform) -> Transform;
     /// `Xᵀ f`: a force from B coordinates back into A coordinates.
@@ -50,9 +48,6 @@ pub trait SpatialTransform {
 impl SpatialTransform for Transform {
     fn apply_motion(&self, m: &Motion) -> Motion {
         Transform::apply_motion(self, m)
-    }
-    fn rotate(&self, u: &Vector3) -> Vector3 {
-        self.rot * u
     }
     fn compose(&self, inner: &Transform) -> Transform {
         Transform::compose(self, inner)
@@ -72,9 +67,6 @@ impl SpatialTransform for Translation {
     fn apply_motion(&self, m: &Motion) -> Motion {
         Translation::apply_motion(self, m)
     }
-    fn rotate(&self, u: &Vector3) -> Vector3 {
-        *u
-    }
     fn compose(&self, inner: &Transform) -> Transform {
         Translation::compose(self, inner)
     }
@@ -89,9 +81,6 @@ impl SpatialTransform for Translation {
 impl<const K: usize> SpatialTransform for AxisTransform<K> {
     fn apply_motion(&self, m: &Motion) -> Motion {
         AxisTransform::apply_motion(self, m)
-    }
-    fn rotate(&self, u: &Vector3) -> Vector3 {
-        self.turn(u)
     }
     fn compose(&self, inner: &Transform) -> Transform {
         AxisTransform::compose(self, inner)
