@@ -326,7 +326,7 @@ fn rnea_passes(model: &Model, with_v: bool, with_a: bool) -> Flops {
             total += SUBSPACE_COLUMN * nv + joint_bias(&body.joint.kind);
         }
         // v_i = X v_λ + v_J;  a_i = X a_λ + c_J + v_i ×̂ v_J
-        let (transform, _) = up_transform(body);
+        let (transform, _, _) = up_transform(body);
         total += transform + ADD6;
         total += transform + ADD6 + CROSS6 + ADD6;
         if with_a {
@@ -350,13 +350,14 @@ fn inward_pass(model: &Model) -> Flops {
     total
 }
 
-/// What body `i`'s `ⁱX_λ` costs on a 6-vector and on a rigid inertia, in the form the passes use
-/// for its joint (`kinematics::with_up_transform`, [`JointKind::up_shape`]).
-fn up_transform(body: &Body) -> (Flops, Flops) {
+/// What body `i`'s `ⁱX_λ` costs on a 6-vector, on a rigid inertia and composed with a placement,
+/// in the form the passes use for its joint (`kinematics::with_up_transform`,
+/// [`JointKind::up_shape`]).
+fn up_transform(body: &Body) -> (Flops, Flops, Flops) {
     match body.joint.kind.up_shape(&body.x_tree) {
-        UpShape::General => (TRANSFORM_VECTOR, TRANSFORM_INERTIA),
-        UpShape::Translation => (TRANSLATE_VECTOR, TRANSLATE_INERTIA),
-        UpShape::AxisTurn(_) => (AXIS_TURN_VECTOR, AXIS_TURN_INERTIA),
+        UpShape::General => (TRANSFORM_VECTOR, TRANSFORM_INERTIA, COMPOSE),
+        UpShape::Translation => (TRANSLATE_VECTOR, TRANSLATE_INERTIA, TRANSLATE_COMPOSE),
+        UpShape::AxisTurn(_) => (AXIS_TURN_VECTOR, AXIS_TURN_INERTIA, AXIS_TURN_COMPOSE),
     }
 }
 
@@ -367,13 +368,10 @@ fn gravity_passes(model: &Model) -> Flops {
 
 /// `update_placements`: one `compose` per body below the root.
 fn placements(model: &Model) -> Flops {
-    let compose = |body: &Body| match body.joint.kind.up_shape(&body.x_tree) {
-        UpShape::General => COMPOSE,
-        UpShape::Translation => TRANSLATE_COMPOSE,
-        UpShape::AxisTurn(_) => AXIS_TURN_COMPOSE,
-    };
     let below_roots = model.bodies.iter().filter(|b| b.parent.is_some());
-    below_roots.map(compose).fold(Flops::default(), Add::add)
+    below_roots
+        .map(|b| up_transform(b).2)
+        .fold(Flops::default(), Add::add)
 }
 
 /// `crba_passes`: the row blocks in the frames [`crba_frames`](super::crba::crba_frames)
@@ -450,7 +448,7 @@ pub fn crba_local(model: &Model) -> Flops {
         // The body's probe added into the total.
         total += Flops::new(0, 1);
         if body.parent.is_some() {
-            let (vector, inertia) = up_transform(body);
+            let (vector, inertia, _) = up_transform(body);
             total += vector * subtree_nv[i] + inertia + INERTIA_ADD;
         }
     }
