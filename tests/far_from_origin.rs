@@ -2,9 +2,9 @@
 //! `τ`, `g`, `H` and `q̈` (by every method, alone and through `joint_state_outputs`) do not depend
 //! on where the robot stands. Fixed bases are moved by their root joint's `<origin>`, floating
 //! bases by the position coordinates of `q`, a pendulum on a rail by the rail's coordinate (a
-//! joint below the root: the frames of the world-frame passes must follow its travel). Spatial inertias about the world origin carry
-//! `m r²` terms that cancel in these quantities, so a pass that works about the world origin
-//! loses about `log₁₀(r² / ℓ²)` digits (ℓ the robot's size): 1e-7 relative error at 1 km.
+//! joint below the root: the frames of the world-frame passes must follow its travel).
+//! Spatial inertias about the world origin carry `m r²` terms that cancel in these quantities,
+//! so a pass that works about the world origin loses about `log₁₀(r² / ℓ²)` digits (ℓ the robot's size): 1e-7 relative error at 1 km.
 
 mod common;
 
@@ -108,6 +108,12 @@ fn cases() -> Vec<Case> {
         far: load(&moved_root_origin(text), false),
         move_q: same_q,
     };
+    let on_a_rail = |name, n| Case {
+        name,
+        near: load(&pendulum_on_a_rail(n), false),
+        far: load(&pendulum_on_a_rail(n), false),
+        move_q: moved_carriage,
+    };
     let pendulum = pendulum_urdf(16, 0.5, 0.7);
     let tree_floating_joint = TREE.replace(r#"type="planar""#, r#"type="floating""#);
     vec![
@@ -115,18 +121,8 @@ fn cases() -> Vec<Case> {
         fixed("tree (planar base joint)", TREE),
         fixed("tree, floating joint", &tree_floating_joint),
         fixed("default arm", examples::DEFAULT_ARM_URDF),
-        Case {
-            name: "16-link pendulum on a rail, 1.5 km along it",
-            near: load(&pendulum_on_a_rail(16), false),
-            far: load(&pendulum_on_a_rail(16), false),
-            move_q: moved_carriage,
-        },
-        Case {
-            name: "60-link pendulum on a rail, 1.5 km along it",
-            near: load(&pendulum_on_a_rail(60), false),
-            far: load(&pendulum_on_a_rail(60), false),
-            move_q: moved_carriage,
-        },
+        on_a_rail("16-link pendulum on a rail, 1.5 km along it", 16),
+        on_a_rail("60-link pendulum on a rail, 1.5 km along it", 60),
         Case {
             name: "default arm, floating base",
             near: load(examples::DEFAULT_ARM_URDF, true),
