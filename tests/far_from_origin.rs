@@ -4,7 +4,8 @@
 //! bases by the position coordinates of `q`, a pendulum on a rail by the rail's coordinate (a
 //! joint below the root: the frames of the world-frame passes must follow its travel).
 //! Spatial inertias about the world origin carry `m r²` terms that cancel in these quantities,
-//! so a pass that works about the world origin loses about `log₁₀(r² / ℓ²)` digits (ℓ the robot's size): 1e-7 relative error at 1 km.
+//! so a pass that works about the world origin loses about `log₁₀(r² / ℓ²)` digits (ℓ the
+//! robot's size): 1e-7 relative error at 1 km.
 
 mod common;
 
