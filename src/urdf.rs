@@ -21,6 +21,19 @@ const IGNORED_ELEMENTS: [&str; 5] = ["visual", "collision", "material", "gazebo"
 
 /// Builds a model from URDF text.
 pub fn model_from_str(text: &str, options: &ModelOptions) -> Result<Model, ModelError> {
+    let model = builder_from_str(text)?.build(options)?;
+    if model.nv > MAX_COORDINATES {
+        return Err(ModelError::Invalid(format!(
+            "the model has {} coordinates, more than {MAX_COORDINATES}: its mass matrix alone would take {:.1} GB",
+            model.nv,
+            (model.nv * model.nv * 8) as f64 / 1e9
+        )));
+    }
+    Ok(model)
+}
+
+/// The links and joints of URDF text, ready to build.
+pub(crate) fn builder_from_str(text: &str) -> Result<ModelBuilder, ModelError> {
     let robot = parse(text)?;
     let mut builder = ModelBuilder::new(&robot.name);
     for link in &robot.links {
@@ -32,15 +45,7 @@ pub fn model_from_str(text: &str, options: &ModelOptions) -> Result<Model, Model
     for joint in &robot.joints {
         builder.joint(joint_spec(joint)?);
     }
-    let model = builder.build(options)?;
-    if model.nv > MAX_COORDINATES {
-        return Err(ModelError::Invalid(format!(
-            "the model has {} coordinates, more than {MAX_COORDINATES}: its mass matrix alone would take {:.1} GB",
-            model.nv,
-            (model.nv * model.nv * 8) as f64 / 1e9
-        )));
-    }
-    Ok(model)
+    Ok(builder)
 }
 
 /// Builds a model from a URDF file.

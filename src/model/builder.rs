@@ -1,6 +1,7 @@
 //! Building a [`Model`] from links and joints, whatever file format they came from: the tree is
 //! ordered, fixed joints are fused, mimic joints are resolved and coordinates are numbered.
 
+use super::orientation::orient_bodies;
 use super::reduction::{neutral_position, Plan, Topology};
 use super::{
     Body, CoordinateMap, Joint, JointKind, JointLimits, LinkFrame, Model, MotionSubspace, Reduction,
@@ -115,8 +116,16 @@ impl ModelBuilder {
         self
     }
 
-    /// Checks the tree and builds the model.
+    /// Checks the tree and builds the model, with body frames turned so that quarter-turn joint
+    /// placements lose their rotation (see [`Body::name`](super::Body::name)).
     pub fn build(&self, options: &ModelOptions) -> Result<Model, ModelError> {
+        let mut model = self.build_in_link_frames(options)?;
+        orient_bodies(&mut model);
+        Ok(model)
+    }
+
+    /// The model with each body's frame its link's frame (before [`orient_bodies`]).
+    pub(crate) fn build_in_link_frames(&self, options: &ModelOptions) -> Result<Model, ModelError> {
         let topo = self.topology()?;
         let plan = Plan::new(&topo, options)?;
         let root_link = &self.links[topo.root];

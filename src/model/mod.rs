@@ -3,12 +3,16 @@
 //!
 //! Bodies are numbered `0..n` in topological order (a parent always comes before its children).
 //! Body `i` hangs from its parent (`None`: the fixed root link, i.e. the world) by joint `i`;
-//! its frame is the frame of the URDF link it was made from, and every link joined to it by
-//! fixed joints is fused into it (their inertias added, their frames kept in [`LinkFrame`]s).
+//! its frame has the origin of the URDF link it was made from and that link's axes, or those
+//! axes turned by quarter turns where that removes the rotation from the joint's placement (the
+//! `orientation` module), and every link joined to it by fixed joints is fused into it (their
+//! inertias added, their frames kept in [`LinkFrame`]s, which place every link, the body's own
+//! included, in the body frame).
 
 mod builder;
 pub mod examples;
 mod joint;
+mod orientation;
 mod reduction;
 
 pub use builder::{joint_position, BodySpec, JointSpec, ModelBuilder, ModelOptions};
@@ -85,7 +89,8 @@ impl Joint {
 /// A rigid body of the tree.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Body {
-    /// Name of the URDF link whose frame is the body frame.
+    /// Name of the URDF link the body was made from; the body frame is that link's frame,
+    /// possibly turned (its [`LinkFrame`] says how).
     pub name: String,
     /// Parent body, or `None` when the parent is the fixed root link (the world).
     pub parent: Option<usize>,

@@ -155,6 +155,8 @@ _TALOS = ("talos_data/robots/talos_full_v2.urdf", "talos_data/robots/talos_full.
 _SOLO12 = ("solo_description/robots/solo12.urdf",)
 _ANYMAL = ("anymal_b_simple_description/robots/anymal.urdf", "anymal_description/robots/anymal.urdf")
 _KINOVA = ("kinova_description/robots/kinova.urdf",)
+# Ours: joints placed by quarter turns, whose bodies our model turns (src/model/orientation.rs).
+_QUARTER_TURNS = (str(REPO / "tests" / "models" / "quarter_turns.urdf"),)
 
 CASES = (
     Case("ur5", _UR5),
@@ -164,6 +166,8 @@ CASES = (
     Case("solo12", _SOLO12, floating=True),
     Case("anymal", _ANYMAL, floating=True),
     Case("kinova", _KINOVA),  # extra: the only one with continuous joints
+    Case("quarter_turns", _QUARTER_TURNS),
+    Case("quarter_turns_floating", _QUARTER_TURNS, floating=True),
     Case("panda_mimic", _PANDA, mimic="native"),
     Case("baxter_mimic", _BAXTER, mimic="native"),
     Case("talos_mimic", _TALOS, mimic="projected"),
@@ -230,6 +234,8 @@ def robots_dir() -> Path:
 
 
 def urdf_path(case: Case) -> Path:
+    if all(Path(rel).is_absolute() for rel in case.urdf):
+        return Path(case.urdf[0])
     base = robots_dir()
     for rel in case.urdf:
         if (base / rel).is_file():
