@@ -50,7 +50,9 @@ use crate::spatial::{Force, Motion};
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Externals<'a> {
     /// External wrench on each body (one per body, in model body order), expressed in that
-    /// body's own frame (about the body frame origin). `None`: no external forces.
+    /// body's own frame (about the body frame origin; a wrench `f` in the frame of a link `l`
+    /// on the body is `l.x_body_link.transpose_apply_force(&f)` there, see
+    /// [`LinkFrame`](crate::model::LinkFrame)). `None`: no external forces.
     pub wrenches: Option<&'a [Force]>,
     /// Spatial velocity of the root (world) frame, in root coordinates. Zero for a base fixed in
     /// an inertial frame.
