@@ -134,12 +134,12 @@ pub(crate) fn articulated_pass(
             }
             u[k] = tau[c.v_index + k] - s.project(k, &ws.pa[i]);
         }
-        *d_inv = invert_spd(&d, nv, &ws.ia[i]).ok_or_else(|| {
-            DynamicsError::SingularArticulatedInertia {
+        if !invert_spd(&d, nv, &ws.ia[i], d_inv) {
+            return Err(DynamicsError::SingularArticulatedInertia {
                 joint: body.joint.name.clone(),
                 pivot: smallest_pivot(&d, nv),
-            }
-        })?;
+            });
+        }
         if let Some(p) = body.parent {
             // I^a = I^A − U D⁻¹ Uᵀ,  p^a = p^A + I^a c + U D⁻¹ u  (I^a and p^a overwrite I^A, p^A,
             // which body i no longer needs).
@@ -192,10 +192,11 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
     }
 }
 
-/// Inverse of the symmetric positive definite top-left `nv × nv` block of `d` (the rest of `d`
-/// is the identity), or `None` when a Cholesky pivot is not clearly positive relative to the
-/// scale of the articulated inertia `ia`.
-fn invert_spd(d: &Matrix6, nv: usize, ia: &Matrix6) -> Option<Matrix6> {
+/// Writes into the top-left `nv × nv` block of `d_inv` the inverse of the symmetric positive
+/// definite top-left `nv × nv` block of `d` (the rest of `d` is the identity; the rest of
+/// `d_inv` is not read, and for one degree of freedom not written), in place: false when a
+/// Cholesky pivot is not clearly positive relative to the scale of the articulated inertia `ia`.
+fn invert_spd(d: &Matrix6, nv: usize, ia: &Matrix6, d_inv: &mut Matrix6) -> bool {
     // D's scale is that of the articulated inertia; a pivot within a few ulps of it is zero,
     // and a subnormal one has no finite inverse (D⁻¹ would overflow). For a positive
     // semi-definite `ia` the largest entry is on the diagonal (|a_jk| ≤ √(a_jj a_kk)).
@@ -203,19 +204,18 @@ fn invert_spd(d: &Matrix6, nv: usize, ia: &Matrix6) -> Option<Matrix6> {
     let sound = |pivot: f64| pivot_is_sound(pivot, reference) && pivot >= f64::MIN_POSITIVE;
     if nv == 1 {
         let pivot = d[(0, 0)];
-        if !sound(pivot) {
-            return None;
-        }
-        let mut inv = Matrix6::identity();
-        inv[(0, 0)] = 1.0 / pivot;
-        return Some(inv);
+        d_inv[(0, 0)] = 1.0 / pivot;
+        return sound(pivot);
     }
-    let chol = d.cholesky()?;
+    let Some(chol) = d.cholesky() else {
+        return false;
+    };
     let l = chol.l_dirty();
     if (0..nv).any(|k| !sound(l[(k, k)] * l[(k, k)])) {
-        return None;
+        return false;
     }
-    Some(chol.inverse())
+    *d_inv = chol.inverse();
+    true
 }
 
 fn smallest_pivot(d: &Matrix6, nv: usize) -> f64 {
