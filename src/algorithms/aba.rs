@@ -96,13 +96,13 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
             body.parent.map_or(ext.root_velocity, |p| ws.v_world[p]),
         );
         let v_i = v_parent + v_joint;
-        let c_joint = body
-            .joint
-            .kind
-            .bias(&ws.q_joint[i][..body.joint.kind.nq()], rates);
         let inertia = x.transpose_apply_inertia(&body.inertia);
         ws.v_world[i] = v_i;
-        ws.c[i] = x.inverse_apply_motion(&c_joint) + v_i.cross_motion(&v_joint);
+        ws.c[i] = v_i.cross_motion(&v_joint);
+        let q_joint = &ws.q_joint[i][..body.joint.kind.nq()];
+        if let Some(c_joint) = body.joint.kind.bias(q_joint, rates) {
+            ws.c[i] += x.inverse_apply_motion(&c_joint);
+        }
         ws.ia[i] = inertia.to_matrix();
         ws.pa[i] = v_i.cross_force(&inertia.apply(&v_i));
         if let Some(w) = ext.wrenches {

@@ -304,13 +304,21 @@ fn is_coordinate_axis(axis: &crate::spatial::Vector3) -> bool {
     zeros == 2 && axis.iter().any(|x| x.abs() == 1.0)
 }
 
-/// `JointKind::bias`, `c_J`; non-zero only for a planar joint: rotation, `E (u ẋ + w ẏ)`,
-/// cross product and scale.
+/// `JointKind::bias`, `c_J`; computed (and then added where it is used) only for a planar
+/// joint: rotation, `E (u ẋ + w ẏ)`, cross product and scale.
 pub fn joint_bias(kind: &JointKind) -> Flops {
     match kind {
         JointKind::Planar { .. } => {
             SINCOS + AXIS_ROTATION + Flops::new(6, 3) + MAT3_VEC3 + CROSS3 + Flops::new(3, 0)
         }
+        _ => Flops::default(),
+    }
+}
+
+/// `c_J` computed, moved by `moved` and added to a 6-vector, for the kinds that have one.
+fn bias_added(kind: &JointKind, moved: Flops) -> Flops {
+    match kind {
+        JointKind::Planar { .. } => joint_bias(kind) + moved + ADD6,
         _ => Flops::default(),
     }
 }
@@ -322,13 +330,13 @@ fn rnea_passes(model: &Model, with_v: bool, with_a: bool) -> Flops {
     let mut total = Flops::new(0, 3);
     for body in &model.bodies {
         let nv = body.joint.kind.nv() as u64;
+        // v_i = X v_λ + v_J;  a_i = X a_λ + v_i ×̂ v_J (+ c_J, planar only)
         if with_v {
-            total += SUBSPACE_COLUMN * nv + joint_bias(&body.joint.kind);
+            total += SUBSPACE_COLUMN * nv + bias_added(&body.joint.kind, Flops::default());
         }
-        // v_i = X v_λ + v_J;  a_i = X a_λ + c_J + v_i ×̂ v_J
         let (transform, _, _) = up_transform(body);
         total += transform + ADD6;
-        total += transform + ADD6 + CROSS6 + ADD6;
+        total += transform + CROSS6 + ADD6;
         if with_a {
             total += SUBSPACE_COLUMN * nv + ADD6;
         }
@@ -486,7 +494,7 @@ fn aba_passes(model: &Model) -> Flops {
         // Pass 1: ⁰S, v_J (`S q̇`, each rate scaled by the mimic factor), v_i, c_i, ⁰I (and as
         // a 6×6), p^A.
         total += TRANSFORM_VECTOR * nv + SUBSPACE_COLUMN * nv + ADD6;
-        total += joint_bias(&body.joint.kind) + TRANSFORM_VECTOR + CROSS6 + ADD6;
+        total += CROSS6 + bias_added(&body.joint.kind, TRANSFORM_VECTOR);
         total += TRANSFORM_INERTIA + INERTIA_TO_MATRIX + INERTIA_APPLY + CROSS6;
         // Pass 2: U, D, u, D⁻¹ (its pivot check scales `64 · max diag I^A` by ε).
         total += MAT6_VEC6 * nv + DOT6 * (nv * nv) + (DOT6 + Flops::new(0, 1)) * nv;
@@ -670,13 +678,14 @@ mod tests {
     /// `scale · q + offset` (1 m + 1 a), jcalc (13 m + 6 a),
     /// `S q̇`, `S q̈` (7 m + 6 a each), two transforms (each joint's placement has no rotation:
     /// a turn about the joint axis after a translation, 14 m + 10 a), a spatial cross product
-    /// and four 6-vector sums outward, two inertia products, a cross product and a sum for `f`,
-    /// and inward a projection (scaled, accumulated) and, below the root, a transform and a sum.
+    /// and three 6-vector sums outward (a revolute joint has no `c_J` to add), two inertia
+    /// products, a cross product and a sum for `f`, and inward a projection (scaled,
+    /// accumulated) and, below the root, a transform and a sum.
     #[test]
     fn rnea_per_body_on_a_chain() {
         let per_body = Flops::new(
             1 + 13 + 7 + 7 + 28 + 18 + 48 + 18 + 7,
-            1 + 6 + 6 + 6 + 20 + 12 + 24 + 36 + 12 + 6 + 6,
+            1 + 6 + 6 + 6 + 20 + 12 + 18 + 36 + 12 + 6 + 6,
         );
         let below_root = Flops::new(14, 16);
         // a_0 = −[0; g]: three subtractions from zero.

@@ -88,14 +88,17 @@ pub(crate) fn rnea_passes(
                     body.joint.kind.bias(q_joint, rates),
                 )
             }
-            None => (Motion::zero(), Motion::zero()),
+            None => (Motion::zero(), None),
         };
         let (v_up, a_up) = with_up_transform!(ws, i, |x| (
             x.apply_motion(&v_parent),
             x.apply_motion(&a_parent)
         ));
         let v_i = v_up + v_joint;
-        let mut a_i = a_up + c_joint + v_i.cross_motion(&v_joint);
+        let mut a_i = a_up + v_i.cross_motion(&v_joint);
+        if let Some(c_joint) = c_joint {
+            a_i += c_joint;
+        }
         if let Some(a) = a {
             a_i += s.apply(&a[c.v_index..c.v_index + nv], c.scale);
         }

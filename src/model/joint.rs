@@ -243,18 +243,21 @@ impl JointKind {
     }
 
     /// The velocity-product term `c_J = S̊(q) q̇` (the apparent derivative of `S` in the child
-    /// frame times `q̇`), zero for every kind whose `S` is constant in the child frame.
-    /// `qd` holds the joint's velocity coordinates, already scaled.
-    pub fn bias(&self, q: &[f64], qd: &[f64]) -> Motion {
+    /// frame times `q̇`); `None` (zero) for every kind whose `S` is constant in the child frame,
+    /// so that a pass adds nothing. `qd` holds the joint's velocity coordinates, already scaled.
+    pub fn bias(&self, q: &[f64], qd: &[f64]) -> Option<Motion> {
         match *self {
             JointKind::Planar { normal, u, w } => {
                 // S = [0 0 n; E u  E w  0] with E = R(θ)ᵀ; d(E)/dt = −θ̇ n× E, so
                 // c_J = [0; −θ̇ n × E (ẋ u + ẏ w)].
                 let e = axis_rotation(&normal, q[2]).transpose();
                 let planar_velocity = e * (u * qd[0] + w * qd[1]);
-                Motion::new(Vector3::zeros(), -normal.cross(&planar_velocity) * qd[2])
+                Some(Motion::new(
+                    Vector3::zeros(),
+                    -normal.cross(&planar_velocity) * qd[2],
+                ))
             }
-            _ => Motion::zero(),
+            _ => None,
         }
     }
 }
