@@ -199,6 +199,14 @@ fn operation(name: &str, calls: usize) -> Result<(), String> {
             repeat!(black_box(&x).inverse_apply_motion(black_box(&m)));
             flops::TRANSFORM_VECTOR
         }
+        "world_turn_axis" => {
+            repeat!(black_box(&x).inverse_apply_axis(black_box(1), black_box(-1.0)));
+            flops::WORLD_TURN_AXIS
+        }
+        "world_slide_axis" => {
+            repeat!(black_box(&x).inverse_apply_axis(black_box(5), black_box(-1.0)));
+            flops::WORLD_SLIDE_AXIS
+        }
         "transpose_apply_force" => {
             repeat!(black_box(&x).transpose_apply_force(black_box(&f)));
             flops::TRANSFORM_VECTOR

@@ -33,7 +33,8 @@
 //! method).
 
 use super::kinematics::{
-    force_out_of_aligned, motion_into_aligned, update_aligned_placements, update_joints, Anchors,
+    force_out_of_aligned, motion_into_aligned, update_aligned_placements, update_joints,
+    update_world_axes, Anchors,
 };
 use super::validate::{check_forward_inputs, check_result};
 use super::{pivot_is_sound, Externals};
@@ -81,14 +82,10 @@ pub(crate) fn refuse_mimic(model: &Model) -> Result<(), DynamicsError> {
 pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
     update_aligned_placements(model, ws, Anchors::Spaced);
     for (i, body) in model.bodies.iter().enumerate() {
-        let x = &ws.x_aligned[i];
-        let (s, s_world) = (&ws.s[i], &mut ws.s_world[i]);
-        s_world.nv = s.nv;
-        for k in 0..s.nv {
-            s_world.cols[k] = x.inverse_apply_motion(&s.cols[k]);
-        }
+        update_world_axes(ws, i);
+        let (x, s_world) = (&ws.x_aligned[i], &ws.s_world[i]);
         let c = body.joint.coords;
-        let rates = &v[c.v_index..c.v_index + s.nv];
+        let rates = &v[c.v_index..c.v_index + s_world.nv];
         let v_joint = s_world.apply(rates, c.scale);
         let v_parent = motion_into_aligned(
             ws,

@@ -41,7 +41,8 @@
 
 use super::flops;
 use super::kinematics::{
-    travels_far, update_aligned_placements, update_joints, with_up_transform, Anchors,
+    travels_far, update_aligned_placements, update_joints, update_world_axes, with_up_transform,
+    Anchors,
 };
 use super::validate::check_q;
 use crate::error::DynamicsError;
@@ -140,13 +141,8 @@ pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
 fn world_axes_and_inertias(model: &Model, ws: &mut Workspace) {
     update_aligned_placements(model, ws, Anchors::Roots);
     for (i, body) in model.bodies.iter().enumerate() {
-        let x = &ws.x_aligned[i];
-        ws.ic[i] = x.transpose_apply_inertia(&body.inertia);
-        let (s, s_world) = (&ws.s[i], &mut ws.s_world[i]);
-        s_world.nv = s.nv;
-        for k in 0..s.nv {
-            s_world.cols[k] = x.inverse_apply_motion(&s.cols[k]);
-        }
+        ws.ic[i] = ws.x_aligned[i].transpose_apply_inertia(&body.inertia);
+        update_world_axes(ws, i);
     }
 }
 

@@ -163,6 +163,10 @@ pub const AXIS_TURN_INERTIA: Flops = Flops::new(36, 35);
 pub const TRANSLATE_COMPOSE: Flops = Flops::new(9, 9);
 /// `AxisTransform::compose`: two rows of `E_BA` mixed (12 m + 6 a) and the origin moved.
 pub const AXIS_TURN_COMPOSE: Flops = Flops::new(21, 15);
+/// `Transform::inverse_apply_axis` for a turn: a row of `E` signed (3 m) and its moment `r ×`.
+pub const WORLD_TURN_AXIS: Flops = Flops::new(9, 3);
+/// `Transform::inverse_apply_axis` for a slide: a row of `E` signed.
+pub const WORLD_SLIDE_AXIS: Flops = Flops::new(3, 0);
 /// `Translation::transpose_apply_matrix6`: nine cross products and 27 sums.
 pub const TRANSLATE_MATRIX6: Flops = Flops::new(54, 54);
 /// `Inertia::apply`.
@@ -315,6 +319,21 @@ pub fn joint_bias(kind: &JointKind) -> Flops {
     }
 }
 
+/// `kinematics::update_world_axes`: each column of `S` into world coordinates, a row of the
+/// rotation for a coordinate axis, a general transform otherwise.
+fn world_axes(kind: &JointKind) -> Flops {
+    let axes = kind.subspace_axes();
+    let mut total = Flops::default();
+    for axis in &axes[..kind.nv()] {
+        total += match axis {
+            Some((j, _)) if *j < 3 => WORLD_TURN_AXIS,
+            Some(_) => WORLD_SLIDE_AXIS,
+            None => TRANSFORM_VECTOR,
+        };
+    }
+    total
+}
+
 /// `c_J` computed, moved by `moved` and added to a 6-vector, for the kinds that have one.
 fn bias_added(kind: &JointKind, moved: Flops) -> Flops {
     match kind {
@@ -399,7 +418,7 @@ pub fn crba_world(model: &Model) -> Flops {
     let mut total = placements(model);
     for body in &model.bodies {
         let nv = body.joint.kind.nv() as u64;
-        total += TRANSFORM_INERTIA + TRANSFORM_VECTOR * nv + INERTIA_APPLY * nv;
+        total += TRANSFORM_INERTIA + world_axes(&body.joint.kind) + INERTIA_APPLY * nv;
         if body.parent.is_some() {
             total += INERTIA_ADD;
         }
@@ -493,7 +512,7 @@ fn aba_passes(model: &Model) -> Flops {
         let nv = body.joint.kind.nv() as u64;
         // Pass 1: ⁰S, v_J (`S q̇`, each rate scaled by the mimic factor), v_i, c_i, ⁰I (and as
         // a 6×6), p^A.
-        total += TRANSFORM_VECTOR * nv + SUBSPACE_COLUMN * nv + ADD6;
+        total += world_axes(&body.joint.kind) + SUBSPACE_COLUMN * nv + ADD6;
         total += CROSS6 + bias_added(&body.joint.kind, TRANSFORM_VECTOR);
         total += TRANSFORM_INERTIA + INERTIA_TO_MATRIX + INERTIA_APPLY + CROSS6;
         // Pass 2: U, D, u, D⁻¹ (its pivot check scales `64 · max diag I^A` by ε).

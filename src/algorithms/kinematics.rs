@@ -163,6 +163,22 @@ pub(crate) enum Anchors {
 /// A motion in the aligned frame of body `i`'s parent (about the world origin for a root) into
 /// body `i`'s aligned frame ([`Anchors::Spaced`]): moved by `xlt(anchor_shift)` when `i`
 /// anchors a frame.
+/// `⁰S_i = ⁰X_i S_i` into `ws.s_world[i]` from the aligned placement `ws.x_aligned[i]`: a column
+/// along a coordinate axis (`ws.s_axes`) is a row of the rotation
+/// ([`Transform::inverse_apply_axis`]), any other a general inverse transform.
+#[inline(always)]
+pub(crate) fn update_world_axes(ws: &mut Workspace, i: usize) {
+    let (x, s, axes) = (&ws.x_aligned[i], &ws.s[i], &ws.s_axes[i]);
+    let s_world = &mut ws.s_world[i];
+    s_world.nv = s.nv;
+    for k in 0..s.nv {
+        s_world.cols[k] = match axes[k] {
+            Some((j, sign)) => x.inverse_apply_axis(j, sign),
+            None => x.inverse_apply_motion(&s.cols[k]),
+        };
+    }
+}
+
 pub(crate) fn motion_into_aligned(ws: &Workspace, i: usize, m: Motion) -> Motion {
     if ws.anchors[i] {
         Translation(ws.anchor_shift[i]).apply_motion(&m)

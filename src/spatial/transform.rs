@@ -80,6 +80,19 @@ impl Transform {
         Motion::new(ang, self.rot.tr_mul(&m.lin) + self.trans.cross(&ang))
     }
 
+    /// `X⁻¹ (σ e_j)`, a unit motion along coordinate `j` of B (`0..3` angular, `3..6` linear),
+    /// signed, in A coordinates: `Eᵀ e_j` is row `j` of `E`, so a turn is `[σ E_j; r × σ E_j]`
+    /// and a slide `[0; σ E_(j−3)]`, with no product for the rotation.
+    #[inline(always)]
+    pub fn inverse_apply_axis(&self, j: usize, sign: f64) -> Motion {
+        if j < 3 {
+            let ang = self.rot.row(j).transpose() * sign;
+            Motion::new(ang, self.trans.cross(&ang))
+        } else {
+            Motion::new(Vector3::zeros(), self.rot.row(j - 3).transpose() * sign)
+        }
+    }
+
     /// `Xᵀ f = [Eᵀ n + r × Eᵀ f; Eᵀ f]`: a force from B coordinates back into A coordinates.
     pub fn transpose_apply_force(&self, f: &Force) -> Force {
         let lin = self.rot.tr_mul(&f.lin);
@@ -291,6 +304,20 @@ mod tests {
         let lower_left = m.fixed_view::<3, 3>(3, 0).clone_owned();
         let expected = Matrix3::new(0.0, 0.0, 0.0, 0.0, 0.0, -q0, 0.0, q0, 0.0);
         assert!((lower_left - expected).norm() < 1e-15);
+    }
+
+    /// `X⁻¹ (σ e_j)` read off rows of `E` equals the column `σ X⁻¹ e_j` of the dense inverse.
+    #[test]
+    fn axis_moved_back_is_a_column_of_the_inverse() {
+        let x = sample(0.7);
+        let inverse = x.to_matrix().try_inverse().unwrap();
+        for j in 0..6 {
+            for sign in [1.0, -1.0] {
+                let column = inverse.column(j) * sign;
+                let err = (x.inverse_apply_axis(j, sign).to_vector() - column).amax();
+                assert!(err < 1e-15, "axis {j}, sign {sign}: {err}");
+            }
+        }
     }
 
     #[test]
