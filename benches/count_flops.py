@@ -51,7 +51,8 @@ MODELS = ["arm", "arm+floating", "tests/models/tree.urdf", "pendulum12", "grippe
 CATEGORIES = ("mul", "add", "div", "sqrt")
 # The building blocks the table prices (benches/flop_harness.rs `op:NAME`), each measured alone.
 OPS = ["cross3", "mat3_vec3", "mat3_tr_vec3", "apply_motion", "apply_force",
-       "inverse_apply_motion", "world_turn_axis", "world_slide_axis", "transpose_apply_force", "compose", "transpose_apply_inertia",
+       "inverse_apply_motion", "world_turn_axis", "world_slide_axis", "transpose_apply_force",
+       "compose", "transpose_apply_inertia",
        "translate_inertia", "axis_turn_motion", "axis_turn_force", "axis_turn_inertia",
        "axis_turn_compose", "translate_compose",
        "inertia_apply", "cross_motion", "cross_force", "dot6", "add6", "inertia_add", "mat6_vec6",

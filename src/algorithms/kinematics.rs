@@ -160,9 +160,6 @@ pub(crate) enum Anchors {
     Spaced,
 }
 
-/// A motion in the aligned frame of body `i`'s parent (about the world origin for a root) into
-/// body `i`'s aligned frame ([`Anchors::Spaced`]): moved by `xlt(anchor_shift)` when `i`
-/// anchors a frame.
 /// `⁰S_i = ⁰X_i S_i` into `ws.s_world[i]` from the aligned placement `ws.x_aligned[i]`: a column
 /// along a coordinate axis (`ws.s_axes`) is a row of the rotation
 /// ([`Transform::inverse_apply_axis`]), any other a general inverse transform.
@@ -179,6 +176,9 @@ pub(crate) fn update_world_axes(ws: &mut Workspace, i: usize) {
     }
 }
 
+/// A motion in the aligned frame of body `i`'s parent (about the world origin for a root) into
+/// body `i`'s aligned frame ([`Anchors::Spaced`]): moved by `xlt(anchor_shift)` when `i`
+/// anchors a frame.
 pub(crate) fn motion_into_aligned(ws: &Workspace, i: usize, m: Motion) -> Motion {
     if ws.anchors[i] {
         Translation(ws.anchor_shift[i]).apply_motion(&m)
