@@ -53,15 +53,13 @@ pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
             j.nv
         );
     }
-    for b in model.bodies.iter().filter(|b| b.joint.is_mimic()) {
-        let c = b.joint.coords;
-        println!(
-            "mimic: '{}' = {} × '{}' + {}",
-            b.joint.name,
-            c.scale,
-            b.joint.mimics.as_deref().unwrap_or(""),
-            c.offset
-        );
+    for b in &model.bodies {
+        if let Some(m) = &b.joint.mimics {
+            println!(
+                "mimic: '{}' = {} × '{}' + {}",
+                b.joint.name, m.multiplier, m.leader, m.offset
+            );
+        }
     }
     for (name, value) in &model.locked_joints {
         println!("locked: '{name}' at {value}");

@@ -4,7 +4,8 @@
 use super::orientation::orient_bodies;
 use super::reduction::{neutral_position, Plan, Topology};
 use super::{
-    Body, CoordinateMap, Joint, JointKind, JointLimits, LinkFrame, Model, MotionSubspace, Reduction,
+    Body, CoordinateMap, Joint, JointKind, JointLimits, LinkFrame, Mimic, Model, MotionSubspace,
+    Reduction,
 };
 use crate::error::ModelError;
 use crate::spatial::{Inertia, Transform, Vector3};
@@ -496,7 +497,11 @@ impl TreeState {
                 scale: multiplier,
                 offset,
             };
-            joint.mimics = Some(leader);
+            joint.mimics = Some(Mimic {
+                leader,
+                multiplier,
+                offset,
+            });
         }
         self.model.dof_parent = (!self.model.has_mimic()).then(|| dof_parents(&self.model));
         Ok(())

@@ -23,10 +23,13 @@ use crate::spatial::{Inertia, Transform, Vector3};
 
 /// How a joint's coordinates are found in the model's `q` and `v` vectors.
 ///
-/// An ordinary joint owns `q[q_index..q_index+nq]` and `v[v_index..v_index+nv]` with
-/// `scale = 1`, `offset = 0`. A mimic follower owns nothing: it reads its leader's coordinate,
+/// The joint's own position is `scale · q[q_index] + offset` (what `jcalc` turns by or slides
+/// along). An ordinary joint owns `q[q_index..q_index+nq]` and `v[v_index..v_index+nv]` with
+/// `scale = 1`. A mimic follower owns nothing: it reads its leader's coordinate,
 /// `q = scale · q_leader + offset`, `q̇ = scale · q̇_leader`, and its effort is projected onto the
-/// leader, `τ_leader += scale · Sᵀ f`.
+/// leader, `τ_leader += scale · Sᵀ f`. The offset is the mimic's (zero for other joints) plus,
+/// for a revolute joint, the turn about its own axis that the `orientation` module took out of
+/// its placement.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CoordinateMap {
     /// First position coordinate read by this joint.
@@ -36,6 +39,15 @@ pub struct CoordinateMap {
     /// Multiplier applied to the coordinates read.
     pub scale: f64,
     /// Offset added to the (single) position coordinate read.
+    pub offset: f64,
+}
+
+/// A URDF `<mimic>`: the joint's position is `multiplier · q_leader + offset`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mimic {
+    /// The leader joint's name.
+    pub leader: String,
+    pub multiplier: f64,
     pub offset: f64,
 }
 
@@ -73,8 +85,8 @@ pub struct Joint {
     pub kind: JointKind,
     /// Where its coordinates live.
     pub coords: CoordinateMap,
-    /// Name of the leader joint if this joint mimics one.
-    pub mimics: Option<String>,
+    /// The `<mimic>` this joint follows, if any (as described; `coords` holds how it reads `q`).
+    pub mimics: Option<Mimic>,
     /// Limits and friction from URDF.
     pub limits: JointLimits,
 }

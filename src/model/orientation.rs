@@ -1,11 +1,11 @@
-//! Body frames turned so that quarter-turn joint placements lose their rotation.
+//! Body frames turned so that joint placements lose their rotation.
 //!
 //! Many descriptions place each joint by quarter turns about the parent's axes (Denavit–Hartenberg
 //! style, `rpy="±π/2 0 0"`: Panda, KUKA iiwa, Kinova), so `E_tree` is a signed permutation `P`
 //! and every move between bodies pays for a general rotation. A body's frame may be any frame
 //! fixed to it, so the model turns it: body `i`'s frame `i'` has the link frame's origin and
-//! axes `Q_i` (`v_{i'} = Q_i v_i`, `Q_i` a signed permutation). With the parent turned by
-//! `Q_λ`, the transform from the parent's turned frame is
+//! axes `Q_i` (`v_{i'} = Q_i v_i`). With the parent turned by `Q_λ`, the transform from the
+//! parent's turned frame is
 //!
 //! ```text
 //! ⁱ'X_λ' = rot(Q_i) · X_J(q; a) · rot(E) xlt(r) · rot(Q_λ)ᵀ = rot(Q_i E_J(q; a) M) xlt(Q_λ r),
@@ -15,31 +15,40 @@
 //! and with `Q_i = Mᵀ` (a signed permutation when `E` is one), `Mᵀ E_J(q; a) M = E_J(q; Mᵀ a)`:
 //! the placement becomes `xlt(Q_λ r)` and the joint turns about (or slides along) `a' = Q_i a`,
 //! a coordinate axis when `a` is one ([`UpShape`](super::UpShape)`::AxisTurn` and
-//! `Translation`). The body's inertia is expressed in the turned frame, `I' = ⁱX_i'ᵀ I ⁱX_i'` with
-//! `ⁱX_i' = rot(Q_iᵀ)`, and
-//! every link frame carried by the body is placed from it, `ˡX_i' = ˡX_i rot(Q_i)ᵀ`, so nothing
-//! a user names (link frames, joint coordinates, efforts) changes.
+//! `Translation`). A revolute joint can also absorb a turn about its own axis into its angle,
+//! `E_J(q; a) E_J(γ; a) = E_J(q + γ; a)`: whenever `Mᵀ a` is a coordinate axis `a'`, a signed
+//! permutation `Q_i = P` with `P a = a'` leaves `P M = E_J(γ; a')`, and the joint's coordinate
+//! map adds `γ` to its angle (`CoordinateMap::offset`). UR5 places its shoulder-lift and
+//! wrist-1 joints turned by `1.57079632679` about their own `y` axes: no rotation is left.
+//!
+//! The body's inertia is expressed in the turned frame, `I' = ⁱX_i'ᵀ I ⁱX_i'` with
+//! `ⁱX_i' = rot(Q_iᵀ)`, and every link frame carried by the body is placed from it,
+//! `ˡX_i' = ˡX_i rot(Q_i)ᵀ`, so nothing a user names (link frames, joint coordinates, efforts)
+//! changes.
 //!
 //! A placement is taken as a quarter-turn composition when each entry of `E` is within
 //! [`QUARTER_TURN_TOLERANCE`] of 0 or ±1: `rpy="1.5707963267948966 0 0"` (π/2 rounded to a
 //! double) gives `cos = 6.1e-17`, which becomes 0 (a turn changed by 6e-17 rad, below the unit
 //! roundoff of the model's own numbers); `1.57079632679` (entries 5e-12) stays a general
-//! rotation. A slide no body hangs from (a gripper's finger) turns by `Q_i = Mᵀ` whatever `M`:
-//! its `E_J = 1`, so `Mᵀ E_J M = 1` exactly in arithmetic, and only its axis `a' = Mᵀ a` and
-//! inertia carry the turn (to rounding). Only revolute, continuous and prismatic joints turn
-//! their body: a planar joint's and the floating base's coordinates are expressed in their own
-//! frames (their placements still absorb the parent's `Q_λ`).
+//! rotation (unless it turns about the joint's own axis). A slide no body hangs from (a
+//! gripper's finger) turns by `Q_i = Mᵀ` whatever `M`: its `E_J = 1`, so `Mᵀ E_J M = 1` exactly
+//! in arithmetic, and only its axis `a' = Mᵀ a` and inertia carry the turn (to rounding). Only
+//! revolute, continuous and prismatic joints turn their body: a planar joint's and the floating
+//! base's coordinates are expressed in their own frames (their placements still absorb the
+//! parent's `Q_λ`).
 
 use super::{JointKind, Model};
-use crate::spatial::{Matrix3, Transform};
+use crate::spatial::{Matrix3, Transform, Vector3};
 
 /// How far an entry of a placement's rotation may be from 0 or ±1 for the rotation to be taken
 /// as a composition of quarter turns (eight unit roundoffs).
 const QUARTER_TURN_TOLERANCE: f64 = 4.0 * f64::EPSILON;
 
 /// Turns each body's frame by `Q_i` (module doc) so that quarter-turn placements of joints
-/// along coordinate axes, and any placement of a slide nothing hangs from, become pure
-/// translations; the model's dynamics, joint coordinates and link frames are unchanged.
+/// along coordinate axes, placements of revolute joints that turn about the joint's axis after
+/// quarter turns (the turn moved into the joint's angle), and any placement of a slide nothing
+/// hangs from, become pure translations; the model's dynamics, joint coordinates and link
+/// frames are unchanged.
 pub(super) fn orient_bodies(model: &mut Model) {
     let mut is_leaf = vec![true; model.bodies.len()];
     for body in &model.bodies {
@@ -50,26 +59,19 @@ pub(super) fn orient_bodies(model: &mut Model) {
     let mut turns: Vec<Matrix3> = Vec::with_capacity(model.bodies.len());
     for (i, body) in model.bodies.iter_mut().enumerate() {
         let q_parent = body.parent.map_or(Matrix3::identity(), |p| turns[p]);
-        let e = body.x_tree.rot;
-        let snapped = quarter_turns(&e).filter(|_| turns_along_axis(&body.joint.kind));
-        // ⁱ'X_λ' = rot(Q_i E_J M) xlt(Q_λ r), M = E Q_λᵀ: with Q_i = Mᵀ no rotation is left.
-        // A slide's E_J = 1, so any M leaves with Q_i = Mᵀ (its axis a' = Mᵀ a need then be no
-        // coordinate axis); only a leaf takes a general turn, which a body below would inherit.
-        let turn = match (snapped, body.joint.kind) {
-            (Some(p), _) => Some((p * q_parent.transpose()).transpose()),
-            (None, JointKind::Prismatic { .. }) if is_leaf[i] => {
-                Some((e * q_parent.transpose()).transpose())
-            }
-            _ => None,
-        };
+        // ⁱ'X_λ' = rot(Q_i E_J M) xlt(Q_λ r), M = E Q_λᵀ: the turn `Q_i` and the angle `γ` it
+        // leaves to the joint, if any, take all the rotation out of the placement.
+        let m = body.x_tree.rot * q_parent.transpose();
+        let turn = body_turn(&body.joint.kind, &m, is_leaf[i]);
         body.x_tree = Transform {
             rot: match turn {
                 Some(_) => Matrix3::identity(),
-                None => e * q_parent.transpose(),
+                None => m,
             },
             trans: q_parent * body.x_tree.trans,
         };
-        let q_i = turn.unwrap_or_else(Matrix3::identity);
+        let (q_i, angle) = turn.unwrap_or((Matrix3::identity(), 0.0));
+        body.joint.coords.offset += angle;
         body.joint.kind = turned_kind(&body.joint.kind, &q_i);
         // Inertia in the turned frame: ⁱX_i' = rot(Q_iᵀ), I' = (ⁱX_i')ᵀ I ⁱX_i'.
         body.inertia = Transform::rotation(q_i.transpose()).transpose_apply_inertia(&body.inertia);
@@ -84,15 +86,71 @@ pub(super) fn orient_bodies(model: &mut Model) {
     }
 }
 
-/// The joints whose placement may snap to quarter turns: one coordinate about or along a
-/// coordinate axis (which the turned frame keeps a coordinate axis).
-fn turns_along_axis(kind: &JointKind) -> bool {
-    match kind {
-        JointKind::Revolute { .. } | JointKind::Continuous { .. } | JointKind::Prismatic { .. } => {
-            kind.subspace_axes()[0].is_some()
+/// The turn `Q_i` of a body whose joint is placed by `M` (seen from the parent's turned frame),
+/// and the angle `γ` it adds to a revolute joint's coordinate, when they leave the placement no
+/// rotation: for a joint about or along a coordinate axis, `Q_i = Mᵀ` when `M` is a composition
+/// of quarter turns; for a revolute joint, also whenever `Mᵀ a` is a coordinate axis
+/// ([`turn_about_axis`]); for a slide nothing hangs from, `Q_i = Mᵀ` whatever `M` (its `E_J = 1`;
+/// a body below would inherit a general turn).
+fn body_turn(kind: &JointKind, m: &Matrix3, is_leaf: bool) -> Option<(Matrix3, f64)> {
+    let quarter = || quarter_turns(m).map(|p| (p.transpose(), 0.0));
+    match *kind {
+        JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
+            kind.subspace_axes()[0]?;
+            quarter().or_else(|| turn_about_axis(m, &axis))
         }
-        JointKind::Planar { .. } | JointKind::Floating => false,
+        JointKind::Prismatic { .. } => match quarter() {
+            Some(turn) if kind.subspace_axes()[0].is_some() => Some(turn),
+            _ => is_leaf.then(|| (m.transpose(), 0.0)),
+        },
+        JointKind::Planar { .. } | JointKind::Floating => None,
     }
+}
+
+/// `Some((P, γ))` for a revolute joint about the coordinate axis `a` placed by `M` when
+/// `Mᵀ a` is within [`QUARTER_TURN_TOLERANCE`] of a coordinate axis `a'`: `P` is the composition
+/// of quarter turns with `P a = a'` that leaves the smallest angle `γ`, `M P = E_J(γ; a)` (to
+/// rounding). With `Q_i = P`, `Q_i E_J(q; a) M = E_J(q; a') P M = E_J(q; a') E_J(γ; a') =
+/// E_J(q + γ; a')`: the placement keeps its translation only and the joint turns by `q + γ`. A
+/// placement turned about the joint's own axis (UR5's shoulder and wrist, `rpy="0 1.57079632679
+/// 0"` about `y`) is the case `P = 1`.
+fn turn_about_axis(m: &Matrix3, axis: &Vector3) -> Option<(Matrix3, f64)> {
+    let turned = m.tr_mul(axis);
+    let a_turned = turned.map(|x| x.round());
+    if (turned - a_turned).amax() > QUARTER_TURN_TOLERANCE || a_turned.abs().sum() != 1.0 {
+        return None;
+    }
+    let p = rotations_by_quarter_turns()
+        .filter(|p| p * axis == a_turned)
+        .max_by(|p, r| (m * p).trace().total_cmp(&(m * r).trace()))?;
+    // `E_J(γ; a) = rot(a, γ)ᵀ`, so `R = (M P)ᵀ = rot(a, γ)`: `R − Rᵀ = 2 sin γ [a]×` and
+    // `tr R = 1 + 2 cos γ`.
+    let r = (m * p).transpose();
+    let skew = r - r.transpose();
+    let sin = axis.dot(&Vector3::new(skew[(2, 1)], skew[(0, 2)], skew[(1, 0)])) / 2.0;
+    let cos = (r.trace() - 1.0) / 2.0;
+    Some((p, sin.atan2(cos)))
+}
+
+/// The 24 rotations that are signed permutations (the quarter-turn compositions).
+fn rotations_by_quarter_turns() -> impl Iterator<Item = Matrix3> {
+    const ORDERS: [[usize; 3]; 6] = [
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ];
+    ORDERS.into_iter().flat_map(|order| {
+        (0..8).filter_map(move |signs: u32| {
+            let mut p = Matrix3::zeros();
+            for (row, col) in order.into_iter().enumerate() {
+                p[(row, col)] = if signs >> row & 1 == 1 { -1.0 } else { 1.0 };
+            }
+            (p.determinant() == 1.0).then_some(p)
+        })
+    })
 }
 
 /// The joint seen from the turned frame: its axis `a' = Q a`.
@@ -159,7 +217,9 @@ mod tests {
                     .map(|(n, _)| n)
                     .collect()
             };
-            // j7 turns by 1.57079632679 (not a quarter turn), j8 about a non-coordinate axis.
+            // j7 turns by 1.57079632679 (not a quarter turn, not about its own axis), j8 about a
+            // non-coordinate axis; j9 and j10 turn about their own axes (the angle moves into the
+            // joint's coordinate), j11 below them keeps a coordinate axis.
             let mut expected = vec!["j7".to_string(), "j8".to_string()];
             if floating_base {
                 expected.insert(0, "root_joint".to_string());
