@@ -213,12 +213,15 @@ fn local_row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) ->
             _ => fill_rows(h, model.nv, v0, s_i, axes, &ws.f_cols[..end]),
         };
         if let Some(p) = body.parent {
-            let (forces, ic) = (&mut ws.f_cols[v0..end], &ws.ic[i]);
-            let ic_up = with_up_transform!(ws, i, |x| {
+            // The parent's sum is taken where the moved inertia is made, so that it stays in
+            // registers (one form per arm) rather than passing through memory.
+            let forces = &mut ws.f_cols[v0..end];
+            let (ic_above, ic_from) = ws.ic.split_at_mut(i);
+            let (ic_p, ic) = (&mut ic_above[p], &ic_from[0]);
+            with_up_transform!(ws, i, |x| {
                 x.transpose_apply_forces(forces);
-                x.transpose_apply_inertia(ic)
+                *ic_p += x.transpose_apply_inertia(ic);
             });
-            ws.ic[p] += ic_up;
         }
     }
     probe == 0.0

@@ -93,7 +93,9 @@ impl<const K: usize> AxisTransform<K> {
     /// `Ī_II = a`, `Ī_IJ = b`, `Ī_JJ = d`, `(Ī_IK, Ī_JK) = (g, k)` and `R = [c s; −s c]` (the
     /// `(I, J)` block of `E`), the block becomes `Rᵀ [a b; b d] R`, whose `JJ` entry follows
     /// from the trace `a + d`, and `(g, k)` becomes `Rᵀ (g, k)` (10 m + 8 a and 4 m + 2 a, where
-    /// a general rotation takes 28 m + 29 a).
+    /// a general rotation takes 28 m + 29 a). Inlined (see
+    /// [`Transform::transpose_apply_inertia`]).
+    #[inline(always)]
     pub fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia {
         let (c, s) = (self.cos, self.sin);
         let (i, j) = (Self::I, Self::J);

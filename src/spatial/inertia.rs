@@ -48,14 +48,17 @@ impl Inertia {
     /// `I e_j`, column `j` of [`to_matrix`](Self::to_matrix): for an angular unit vector
     /// (`j < 3`) `[Ī e_j; e_j × h]`, for a linear one (`j = 3 + k`) `[h × e_k; m e_k]`, each
     /// cross product with a unit vector written out (two components of `h`, one negated).
+    /// `Ī e_j` is read along row `j` (the same numbers: `Ī` is symmetric), three separate
+    /// loads: a column's two adjacent entries can straddle two of the 16-byte stores that wrote
+    /// the inertia (`+=`), which the processor cannot forward to one load.
     #[inline]
     pub fn column(&self, j: usize) -> Force {
         let (h, m) = (&self.h, self.mass);
         let z = 0.0;
         match j {
-            0 => Force::new(self.i_bar.column(0).into(), Vector3::new(z, -h.z, h.y)),
-            1 => Force::new(self.i_bar.column(1).into(), Vector3::new(h.z, z, -h.x)),
-            2 => Force::new(self.i_bar.column(2).into(), Vector3::new(-h.y, h.x, z)),
+            0 => Force::new(self.i_bar.row(0).transpose(), Vector3::new(z, -h.z, h.y)),
+            1 => Force::new(self.i_bar.row(1).transpose(), Vector3::new(h.z, z, -h.x)),
+            2 => Force::new(self.i_bar.row(2).transpose(), Vector3::new(-h.y, h.x, z)),
             3 => Force::new(Vector3::new(z, h.z, -h.y), Vector3::new(m, z, z)),
             4 => Force::new(Vector3::new(-h.z, z, h.x), Vector3::new(z, m, z)),
             _ => Force::new(Vector3::new(h.y, -h.x, z), Vector3::new(z, z, m)),

@@ -55,6 +55,7 @@ impl SpatialTransform for Transform {
     fn transpose_apply_force(&self, f: &Force) -> Force {
         Transform::transpose_apply_force(self, f)
     }
+    #[inline(always)]
     fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia {
         Transform::transpose_apply_inertia(self, inertia)
     }
@@ -73,6 +74,7 @@ impl SpatialTransform for Translation {
     fn transpose_apply_force(&self, f: &Force) -> Force {
         Translation::transpose_apply_force(self, f)
     }
+    #[inline(always)]
     fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia {
         Translation::transpose_apply_inertia(self, inertia)
     }
@@ -88,6 +90,7 @@ impl<const K: usize> SpatialTransform for AxisTransform<K> {
     fn transpose_apply_force(&self, f: &Force) -> Force {
         AxisTransform::transpose_apply_force(self, f)
     }
+    #[inline(always)]
     fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia {
         AxisTransform::transpose_apply_inertia(self, inertia)
     }

@@ -128,7 +128,10 @@ impl Transform {
     /// `Xᵀ I X`: a rigid-body inertia given in B coordinates, expressed in A coordinates.
     ///
     /// Rotate into A's axes (still about B's origin), `h' = Eᵀ h`, `Ī' = Eᵀ Ī E`, then move the
-    /// origin by `r` ([`Translation::transpose_apply_inertia`]).
+    /// origin by `r` ([`Translation::transpose_apply_inertia`]). Inlined, as every action that
+    /// returns an [`Inertia`] is: returned through memory, its 8-byte stores would reach the
+    /// caller's 16-byte loads (`+=`) only after the store buffer drains, a stall per body.
+    #[inline(always)]
     pub fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia {
         let rotated = Inertia {
             mass: inertia.mass,
@@ -220,7 +223,9 @@ impl Translation {
 
     /// `xlt(r)ᵀ I xlt(r)`: a rigid-body inertia about B's origin, about A's: `h_A = h + m r` and
     /// `Ī_A = Ī − r× h× − h× r× − m r× r× = Ī − h_A rᵀ − r hᵀ + (r·(h + h_A)) 1`
-    /// (by `a× b× = b aᵀ − (a·b) 1`), a symmetric update of six entries.
+    /// (by `a× b× = b aᵀ − (a·b) 1`), a symmetric update of six entries. Inlined (see
+    /// [`Transform::transpose_apply_inertia`]).
+    #[inline(always)]
     pub fn transpose_apply_inertia(&self, inertia: &Inertia) -> Inertia {
         let (r, h) = (&self.0, &inertia.h);
         let h_a = h + r * inertia.mass;
