@@ -51,10 +51,12 @@ pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     for (i, body) in model.bodies.iter().enumerate() {
         let nq = body.joint.kind.nq();
         joint_positions(&body.joint, q, &mut ws.q_joint[i]);
-        ws.x_up[i] = body
-            .joint
-            .kind
-            .jcalc_up(&ws.q_joint[i][..nq], &body.x_tree, &mut ws.s[i]);
+        body.joint.kind.jcalc_up(
+            &ws.q_joint[i][..nq],
+            &body.x_tree,
+            &mut ws.s[i],
+            &mut ws.x_up[i],
+        );
     }
 }
 

@@ -72,10 +72,15 @@ pub(crate) fn rnea_passes(
     ext: &Externals<'_>,
 ) {
     let a_root = ext.root_acceleration - Motion::new(nalgebra::Vector3::zeros(), model.gravity);
+    // The previous body's motion, kept in registers: along a chain it is the parent's, and
+    // reading it back from `ws` just after writing it would load across the stores that wrote
+    // it, which the processor cannot forward (a stall per body).
+    let mut last = (Motion::zero(), Motion::zero());
     for (i, body) in model.bodies.iter().enumerate() {
         let (s, c) = (&ws.s[i], body.joint.coords);
         let nv = s.nv;
         let (v_parent, a_parent) = match body.parent {
+            Some(p) if p + 1 == i => last,
             Some(p) => (ws.v[p], ws.a[p]),
             None => (ext.root_velocity, a_root),
         };
@@ -110,6 +115,7 @@ pub(crate) fn rnea_passes(
         ws.v[i] = v_i;
         ws.a[i] = a_i;
         ws.f[i] = f_i;
+        last = (v_i, a_i);
     }
     inward_pass(model, ws);
 }

@@ -143,17 +143,26 @@ impl JointKind {
         }
     }
 
-    /// `ⁱX_λ = X_J(q) X_tree`: `jcalc` composed with the joint placement `x_tree` (parent body
-    /// frame → joint frame), writing `S(q)` into `s` as [`jcalc`](Self::jcalc) does.
+    /// `ⁱX_λ = X_J(q) X_tree` into `x_up`: `jcalc` composed with the joint placement `x_tree`
+    /// (parent body frame → joint frame), writing `S(q)` into `s` as [`jcalc`](Self::jcalc)
+    /// does.
     ///
     /// Fast paths, same result as `jcalc(q, s).compose(x_tree)`: a revolute joint about a
     /// coordinate axis `±e_k` has `E_J = rot_k(±q)ᵀ`, which mixes only the two rows `i, j` of
     /// `E_tree` other than `k` (`(i, j, k)` cyclic): `row_i ← c row_i + s row_j`,
     /// `row_j ← c row_j − s row_i`; it does not move the origin. A prismatic joint keeps
-    /// `E_tree` and moves the origin by `E_treeᵀ (axis q)`. Inlined, so the fast paths write
-    /// straight into the caller's transform.
+    /// `E_tree` and moves the origin by `E_treeᵀ (axis q)`. Inlined, and written in place by
+    /// each path: a transform returned from the paths would be assembled in a temporary and
+    /// copied with loads that straddle its stores, which the processor cannot forward (a stall
+    /// per joint).
     #[inline]
-    pub fn jcalc_up(&self, q: &[f64], x_tree: &Transform, s: &mut MotionSubspace) -> Transform {
+    pub fn jcalc_up(
+        &self,
+        q: &[f64],
+        x_tree: &Transform,
+        s: &mut MotionSubspace,
+        x_up: &mut Transform,
+    ) {
         match *self {
             JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
                 if let Some((k, sign)) = coordinate_axis(&axis) {
@@ -162,28 +171,25 @@ impl JointKind {
                     let (sin, cos) = (sign * q[0]).sin_cos();
                     let e = &x_tree.rot;
                     // One arm per axis, so that the rows are known at compile time.
-                    let rot = match k {
-                        0 => mix_rows::<1, 2>(e, cos, sin),
-                        1 => mix_rows::<2, 0>(e, cos, sin),
-                        _ => mix_rows::<0, 1>(e, cos, sin),
+                    match k {
+                        0 => mix_rows::<1, 2>(e, cos, sin, &mut x_up.rot),
+                        1 => mix_rows::<2, 0>(e, cos, sin, &mut x_up.rot),
+                        _ => mix_rows::<0, 1>(e, cos, sin, &mut x_up.rot),
                     };
-                    return Transform {
-                        rot,
-                        trans: x_tree.trans,
-                    };
+                    x_up.trans = x_tree.trans;
+                    return;
                 }
             }
             JointKind::Prismatic { axis } => {
                 s.nv = 1;
                 s.cols[0] = Motion::new(Vector3::zeros(), axis);
-                return Transform {
-                    rot: x_tree.rot,
-                    trans: x_tree.trans + x_tree.rot.tr_mul(&(axis * q[0])),
-                };
+                x_up.rot = x_tree.rot;
+                x_up.trans = x_tree.trans + x_tree.rot.tr_mul(&(axis * q[0]));
+                return;
             }
             _ => {}
         }
-        self.jcalc_then_compose(q, x_tree, s)
+        *x_up = self.jcalc_then_compose(q, x_tree, s);
     }
 
     /// What [`jcalc_up`](Self::jcalc_up)'s transform is made of for this joint under the
@@ -315,19 +321,21 @@ pub enum UpShape {
     AxisTurn(usize),
 }
 
-/// `E` with its rows `I` and `J` mixed by a rotation: `row_I ← c row_I + s row_J`,
+/// `E` with its rows `I` and `J` mixed by a rotation, into `out`: `row_I ← c row_I + s row_J`,
 /// `row_J ← c row_J − s row_I`, the others kept.
 #[inline(always)]
-fn mix_rows<const I: usize, const J: usize>(e: &Matrix3, c: f64, s: f64) -> Matrix3 {
-    Matrix3::from_fn(|r, col| {
-        if r == I {
-            c * e[(I, col)] + s * e[(J, col)]
-        } else if r == J {
-            c * e[(J, col)] - s * e[(I, col)]
-        } else {
-            e[(r, col)]
+fn mix_rows<const I: usize, const J: usize>(e: &Matrix3, c: f64, s: f64, out: &mut Matrix3) {
+    for col in 0..3 {
+        for r in 0..3 {
+            out[(r, col)] = if r == I {
+                c * e[(I, col)] + s * e[(J, col)]
+            } else if r == J {
+                c * e[(J, col)] - s * e[(I, col)]
+            } else {
+                e[(r, col)]
+            };
         }
-    })
+    }
 }
 
 /// `Some((k, ±1))` when the unit `axis` is `±e_k`, a coordinate axis.
@@ -378,7 +386,8 @@ mod tests {
         for kind in kinds {
             let q = [0.83];
             let (mut s_fast, mut s_ref) = (MotionSubspace::default(), MotionSubspace::default());
-            let fast = kind.jcalc_up(&q, &x_tree, &mut s_fast);
+            let mut fast = Transform::identity();
+            kind.jcalc_up(&q, &x_tree, &mut s_fast, &mut fast);
             let reference = kind.jcalc(&q, &mut s_ref).compose(&x_tree);
             assert!((fast.rot - reference.rot).norm() < 1e-15, "{kind:?}");
             assert!((fast.trans - reference.trans).norm() < 1e-15, "{kind:?}");
