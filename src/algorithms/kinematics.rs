@@ -4,7 +4,7 @@
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::{Joint, JointKind, Model};
-use crate::spatial::{Force, Motion, Transform, Translation};
+use crate::spatial::{Force, Motion, Transform, Translation, Vector3};
 use crate::Workspace;
 
 /// Evaluates `$body` with `$x` bound to body `$i`'s `ⁱX_λ` (`ws.x_up[i]`, a `&Transform`) in
@@ -106,10 +106,34 @@ fn check_bodies(
 /// `ws.x_world` from `ws.x_up` (joints already updated): `ⁱX_0 = ⁱX_λ ᵏX_0`.
 pub(crate) fn update_placements(model: &Model, ws: &mut Workspace) {
     for (i, body) in model.bodies.iter().enumerate() {
-        ws.x_world[i] = match body.parent {
-            Some(p) => with_up_transform!(ws, i, |x| x.compose(&ws.x_world[p])),
-            None => ws.x_up[i],
-        };
+        place_below_parent(ws, Placements::World, i, body.parent);
+    }
+}
+
+/// Which placements [`place_below_parent`] writes.
+#[derive(Clone, Copy)]
+enum Placements {
+    /// `ws.x_world`.
+    World,
+    /// `ws.x_aligned`.
+    Aligned,
+}
+
+/// `X[i] = ⁱX_λ X[λ]` (`ⁱX_λ` for a root) in the placements `which`, written in place by each
+/// form of `ⁱX_λ`: a product returned from the forms would be assembled in a temporary and
+/// copied with loads that straddle its stores, which the processor cannot forward (a stall
+/// per body).
+#[inline(always)]
+fn place_below_parent(ws: &mut Workspace, which: Placements, i: usize, parent: Option<usize>) {
+    let placements = match which {
+        Placements::World => &mut ws.x_world,
+        Placements::Aligned => &mut ws.x_aligned,
+    };
+    let (above, from_i) = placements.split_at_mut(i);
+    let x_i = &mut from_i[0];
+    match parent {
+        Some(p) => with_up_transform!(ws, i, |x| *x_i = x.compose(&above[p])),
+        None => *x_i = ws.x_up[i],
     }
 }
 
@@ -132,20 +156,17 @@ pub(crate) fn update_placements(model: &Model, ws: &mut Workspace) {
 /// `xlt(anchor_shift)` ([`Translation`](crate::spatial::Translation)).
 pub(crate) fn update_aligned_placements(model: &Model, ws: &mut Workspace, anchors: Anchors) {
     for (i, body) in model.bodies.iter().enumerate() {
-        let x = match body.parent {
-            Some(p) => with_up_transform!(ws, i, |x| x.compose(&ws.x_aligned[p])),
-            None => ws.x_up[i],
-        };
+        place_below_parent(ws, Placements::Aligned, i, body.parent);
         let anchor = match anchors {
             Anchors::Roots => body.parent.is_none(),
             Anchors::Spaced => ws.anchors[i],
         };
-        ws.x_aligned[i] = if anchor {
+        if anchor {
+            // `rot(E_a)`: the placement without its translation, which is recorded.
+            let x = &mut ws.x_aligned[i];
             ws.anchor_shift[i] = x.trans;
-            Transform::rotation(x.rot)
-        } else {
-            x
-        };
+            x.trans = Vector3::zeros();
+        }
     }
 }
 

@@ -176,7 +176,9 @@ impl Transform {
 /// columns, `ε_jᵀ` row `j` of `E`), `P_pq = y₀_p E_0q + y₁_p E_1q` with `y_l = Eᵀ n_l`: only
 /// the entries below the diagonal and rows 1 and 2 of the diagonal are needed, as the result
 /// is symmetric (`t×` is zero on the diagonal) and its first diagonal entry follows from the
-/// trace, `tr(Eᵀ S' E) = tr S' = (a − f) + (c − f)`.
+/// trace, `tr(Eᵀ S' E) = tr S' = (a − f) + (c − f)`. Inlined (see
+/// [`Transform::transpose_apply_inertia`]).
+#[inline(always)]
 fn rotate_symmetric(e: &Matrix3, s: &Matrix3) -> Matrix3 {
     let f = s[(2, 2)];
     let (a, c) = (s[(0, 0)] - f, s[(1, 1)] - f);
