@@ -82,11 +82,10 @@ pub(crate) fn refuse_mimic(model: &Model) -> Result<(), DynamicsError> {
 pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
     update_aligned_placements(model, ws, Anchors::Spaced);
     for (i, body) in model.bodies.iter().enumerate() {
-        update_world_axes(ws, i);
-        let (x, s_world) = (&ws.x_aligned[i], &ws.s_world[i]);
         let c = body.joint.coords;
-        let rates = &v[c.v_index..c.v_index + s_world.nv];
-        let v_joint = s_world.apply(rates, c.scale);
+        let rates = &v[c.v_index..c.v_index + ws.s[i].nv];
+        let v_joint = update_world_axes(ws, i, rates, c.scale);
+        let x = &ws.x_aligned[i];
         let v_parent = motion_into_aligned(
             ws,
             i,

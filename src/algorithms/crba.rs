@@ -142,7 +142,7 @@ fn world_axes_and_inertias(model: &Model, ws: &mut Workspace) {
     update_aligned_placements(model, ws, Anchors::Roots);
     for (i, body) in model.bodies.iter().enumerate() {
         ws.ic[i] = ws.x_aligned[i].transpose_apply_inertia(&body.inertia);
-        update_world_axes(ws, i);
+        update_world_axes(ws, i, &[], 0.0);
     }
 }
 

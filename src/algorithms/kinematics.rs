@@ -185,18 +185,27 @@ pub(crate) enum Anchors {
 
 /// `⁰S_i = ⁰X_i S_i` into `ws.s_world[i]` from the aligned placement `ws.x_aligned[i]`: a column
 /// along a coordinate axis (`ws.s_axes`) is a row of the rotation
-/// ([`Transform::inverse_apply_axis`]), any other a general inverse transform.
+/// ([`Transform::inverse_apply_axis`]), any other a general inverse transform. Returns
+/// `⁰S_i q̇_i` for the joint's `rates` scaled by `scale` (zero for no rates), summed as the
+/// columns are made: read back from `ws` just after they are written, the columns would be
+/// loaded across the stores that wrote them, which the processor cannot forward.
 #[inline(always)]
-pub(crate) fn update_world_axes(ws: &mut Workspace, i: usize) {
+pub(crate) fn update_world_axes(ws: &mut Workspace, i: usize, rates: &[f64], scale: f64) -> Motion {
     let (x, s, axes) = (&ws.x_aligned[i], &ws.s[i], &ws.s_axes[i]);
     let s_world = &mut ws.s_world[i];
     s_world.nv = s.nv;
+    let mut v = Motion::zero();
     for k in 0..s.nv {
-        s_world.cols[k] = match axes[k] {
+        let col = match axes[k] {
             Some((j, sign)) => x.inverse_apply_axis(j, sign),
             None => x.inverse_apply_motion(&s.cols[k]),
         };
+        s_world.cols[k] = col;
+        if let Some(r) = rates.get(k) {
+            v += col * (r * scale);
+        }
     }
+    v
 }
 
 /// A motion in the aligned frame of body `i`'s parent (about the world origin for a root) into

@@ -171,10 +171,10 @@ impl JointKind {
                     let (sin, cos) = (sign * q[0]).sin_cos();
                     let e = &x_tree.rot;
                     // One arm per axis, so that the rows are known at compile time.
-                    match k {
-                        0 => mix_rows::<1, 2>(e, cos, sin, &mut x_up.rot),
-                        1 => mix_rows::<2, 0>(e, cos, sin, &mut x_up.rot),
-                        _ => mix_rows::<0, 1>(e, cos, sin, &mut x_up.rot),
+                    x_up.rot = match k {
+                        0 => mix_rows::<1, 2>(e, cos, sin),
+                        1 => mix_rows::<2, 0>(e, cos, sin),
+                        _ => mix_rows::<0, 1>(e, cos, sin),
                     };
                     x_up.trans = x_tree.trans;
                     return;
@@ -321,21 +321,19 @@ pub enum UpShape {
     AxisTurn(usize),
 }
 
-/// `E` with its rows `I` and `J` mixed by a rotation, into `out`: `row_I ← c row_I + s row_J`,
+/// `E` with its rows `I` and `J` mixed by a rotation: `row_I ← c row_I + s row_J`,
 /// `row_J ← c row_J − s row_I`, the others kept.
 #[inline(always)]
-fn mix_rows<const I: usize, const J: usize>(e: &Matrix3, c: f64, s: f64, out: &mut Matrix3) {
-    for col in 0..3 {
-        for r in 0..3 {
-            out[(r, col)] = if r == I {
-                c * e[(I, col)] + s * e[(J, col)]
-            } else if r == J {
-                c * e[(J, col)] - s * e[(I, col)]
-            } else {
-                e[(r, col)]
-            };
+fn mix_rows<const I: usize, const J: usize>(e: &Matrix3, c: f64, s: f64) -> Matrix3 {
+    Matrix3::from_fn(|r, col| {
+        if r == I {
+            c * e[(I, col)] + s * e[(J, col)]
+        } else if r == J {
+            c * e[(J, col)] - s * e[(I, col)]
+        } else {
+            e[(r, col)]
         }
-    }
+    })
 }
 
 /// `Some((k, ±1))` when the unit `axis` is `±e_k`, a coordinate axis.
