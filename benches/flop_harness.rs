@@ -17,6 +17,7 @@
 //! (`algorithms::flops::kernel_flops`) is printed as JSON, so the script needs no other binary.
 
 use nalgebra::{Matrix3, Rotation3, Vector6};
+use spatial_dynamics::algorithms::cholesky::spd_inverse;
 use spatial_dynamics::algorithms::{crba, flops, forward_dynamics, gravity, rnea};
 use spatial_dynamics::model::{examples, JointKind, MotionSubspace};
 use spatial_dynamics::sampling::{random_q, Rng};
@@ -284,8 +285,9 @@ fn operation(name: &str, calls: usize) -> Result<(), String> {
         }
         "spd_inverse6" => {
             let spd = m6.transpose() * m6 + Matrix6::identity();
-            repeat!(black_box(&spd).cholesky().map(|c| c.inverse()));
-            flops::SPD_INVERSE6
+            let mut inv = Matrix6::zeros();
+            repeat!(spd_inverse(black_box(&spd), 6, |p| p > 0.0, &mut inv));
+            flops::spd_inverse(6)
         }
         "inertia_to_matrix" => {
             repeat!(black_box(&inertia).to_matrix());

@@ -32,6 +32,7 @@
 //! recursion cannot express: models with them are refused (use the `crba` or `rnea_columns`
 //! method).
 
+use super::cholesky::spd_inverse;
 use super::kinematics::{
     force_out_of_aligned, motion_into_aligned, update_aligned_placements, update_joints,
     update_world_axes, Anchors,
@@ -189,9 +190,9 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
 }
 
 /// Writes into the top-left `nv × nv` block of `d_inv` the inverse of the symmetric positive
-/// definite top-left `nv × nv` block of `d` (the rest of `d` is the identity; the rest of
-/// `d_inv` is not read, and for one degree of freedom not written), in place: false when a
-/// Cholesky pivot is not clearly positive relative to the scale of the articulated inertia `ia`.
+/// definite top-left `nv × nv` block of `d` ([`spd_inverse`]; for one degree of freedom, one
+/// division), in place: false when a Cholesky pivot is not clearly positive relative to the
+/// scale of the articulated inertia `ia`.
 fn invert_spd(d: &Matrix6, nv: usize, ia: &Matrix6, d_inv: &mut Matrix6) -> bool {
     // D's scale is that of the articulated inertia; a pivot within a few ulps of it is zero,
     // and a subnormal one has no finite inverse (D⁻¹ would overflow). For a positive
@@ -203,15 +204,7 @@ fn invert_spd(d: &Matrix6, nv: usize, ia: &Matrix6, d_inv: &mut Matrix6) -> bool
         d_inv[(0, 0)] = 1.0 / pivot;
         return sound(pivot);
     }
-    let Some(chol) = d.cholesky() else {
-        return false;
-    };
-    let l = chol.l_dirty();
-    if (0..nv).any(|k| !sound(l[(k, k)] * l[(k, k)])) {
-        return false;
-    }
-    *d_inv = chol.inverse();
-    true
+    spd_inverse(d, nv, sound, d_inv)
 }
 
 fn smallest_pivot(d: &Matrix6, nv: usize) -> f64 {

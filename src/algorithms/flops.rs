@@ -21,8 +21,7 @@
 //! without LLVM's vectorisers (`--scalar`, one operation per instruction), the measurement
 //! equals this table exactly for every building block below and for every kernel on the
 //! default arm (fixed and floating), a 12-link chain, `tests/models/tree.urdf` and the mimic
-//! gripper (ABA with a planar joint: 3 multiplications apart; its nalgebra 6×6 inverse is a
-//! measured constant, [`SPD_INVERSE6`]). The release build as shipped executes more: its
+//! gripper (ABA with a planar joint: 3 multiplications apart). The release build as shipped executes more: its
 //! packed instructions waste lanes (RNEA and the n+1 RNEA method about +15 %, gravity +10 %,
 //! CRBA with `LᵀL` +7 to +9 %, ABA +6 %, CRBA alone under +2.5 %).
 //!
@@ -62,8 +61,8 @@
 //! translation for a slide, a turn after a translation for a revolute joint about a coordinate
 //! axis, when the joint's placement has no rotation; a general transform otherwise.
 //!
-//! Dense factorisations count exactly their loops; nalgebra's 6×6 Cholesky and inverse, used
-//! by ABA for a joint with several degrees of freedom, is [`SPD_INVERSE6`].
+//! Dense factorisations and ABA's inverse of a joint's `D` ([`spd_inverse`]) count exactly their
+//! loops.
 
 use super::crba::CrbaFrames;
 use super::kinematics::frame_anchors;
@@ -186,19 +185,30 @@ pub const SUBSPACE_COLUMN: Flops = Flops::new(7, 6);
 /// `Inertia::to_matrix`: skew matrices are negations and `1 m` is folded to copies of `m` (the
 /// source's `Matrix3::identity() * m` is 9 m; one multiplication is left in the code).
 pub const INERTIA_TO_MATRIX: Flops = Flops::new(1, 0);
-/// nalgebra's `Cholesky::new` and `inverse` of a 6×6 symmetric positive definite matrix (ABA
-/// pads a joint's `D` with the identity to 6×6): library code (generic `axpy` with β = 1,
-/// triangular solves on the six columns of the identity), so this entry is measured, not read
-/// off the source: what `fd_aba` executes for it (`benches/count_flops.py`, a model with a
-/// floating or planar joint). The same calls alone (`op:spd_inverse6`) execute 215 m + 245 a,
-/// 87 divisions and 7 square roots: how inlining into ABA saves the difference is not known.
-pub const SPD_INVERSE6: Flops = Flops {
-    mul: 170,
-    add: 219,
-    div: 77,
-    sqrt: 6,
-    sincos: 0,
-};
+/// `cholesky::spd_inverse` of an `n × n` block: the factor `L` (`n` square roots and
+/// reciprocals), `W = L⁻¹` and the lower triangle of `Wᵀ W`, loop by loop.
+pub fn spd_inverse(n: usize) -> Flops {
+    let mut total = Flops::new(0, 0);
+    for j in 0..n as u64 {
+        // The pivot, its root's reciprocal, the column of `L` below it.
+        total += Flops::new(j, j)
+            + Flops {
+                div: 1,
+                sqrt: 1,
+                ..Flops::new(0, 0)
+            };
+        total += Flops::new(j + 1, j) * (n as u64 - 1 - j);
+        // Column `j` of `W` below the diagonal: row `i` sums `i − j` products, then scales.
+        for i in j + 1..n as u64 {
+            total += Flops::new(i - j + 1, i - j - 1);
+        }
+        // Row `i ≥ j` of `Wᵀ W`'s column `j`: `n − i` products.
+        for i in j..n as u64 {
+            total += Flops::new(n as u64 - i, n as u64 - i - 1);
+        }
+    }
+    total
+}
 /// `axis_rotation` (nalgebra's `Rotation3::from_axis_angle`), without its `sin_cos`: as written
 /// 24 m + 13 a, but the repeated products `u_i u_j (1 − c)` and `u_k s` are computed once.
 pub const AXIS_ROTATION: Flops = Flops::new(15, 13);
@@ -524,8 +534,8 @@ fn aba_passes(model: &Model) -> Flops {
                 ..Flops::new(1, 0)
             }
         } else {
-            // nalgebra's Cholesky and inverse of the padded 6×6; each pivot `L_kk²` checked.
-            SPD_INVERSE6 + Flops::new(2, 0) * nv
+            // Each pivot checked against the scale (`pivot_is_sound`).
+            spd_inverse(nv as usize) + Flops::new(1, 0) * nv
         };
         if anchors[i] {
             // The parent's (or the root's) velocity and acceleration moved into the body's
