@@ -120,8 +120,8 @@ pub(crate) fn articulated_pass(
         let nv = s.nv;
         let c = body.joint.coords;
         let (u_cols, d_inv, u) = (&mut ws.u[i], &mut ws.d_inv[i], &mut ws.u_bias[i]);
-        // U = I^A S, D = Sᵀ U, u = τ − Sᵀ p^A.
-        let mut d = Matrix6::identity();
+        // U = I^A S, D = Sᵀ U, u = τ − Sᵀ p^A (only D's top-left nv × nv block is used).
+        let mut d = Matrix6::zeros();
         for k in 0..nv {
             u_cols[k] = Force::from_vector(&(ws.ia[i] * s.cols[k].to_vector()));
         }

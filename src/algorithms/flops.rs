@@ -22,9 +22,9 @@
 //! equals this table exactly for every building block below and for every kernel on the
 //! default arm (fixed and floating), a 12-link chain, `tests/models/tree.urdf` and the mimic
 //! gripper, but for `fd_crba` on `tree.urdf` (6 additions apart, not chased). The release
-//! build as shipped executes more: its
-//! packed instructions waste lanes (RNEA and the n+1 RNEA method about +15 %, gravity +10 %,
-//! CRBA with `LᵀL` +7 to +9 %, ABA +6 %, CRBA alone under +2.5 %).
+//! build as shipped executes more: its packed instructions waste lanes (RNEA and the n+1 RNEA
+//! method about +15 %, gravity +10 %, CRBA with `LᵀL` +7 to +9 %, ABA +6 %, CRBA alone under
+//! +2.5 %).
 //!
 //! Costs of the building blocks (multiplications m, additions a), each measured alone too
 //! (`count_flops.py --ops`):

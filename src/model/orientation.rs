@@ -253,6 +253,48 @@ mod tests {
         }
     }
 
+    /// A mimic follower whose placement turns about its own axis: the turn goes into its
+    /// coordinate map's offset (after the mimic's own), the description's `<mimic>` is kept as
+    /// written, the placement loses its rotation, and `τ` equals the unturned model's.
+    #[test]
+    fn a_mimic_follower_turned_about_its_axis_keeps_its_mimic() {
+        let urdf = r#"<robot name="m">
+  <link name="a"><inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>
+  <joint name="lead" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0 0 0.3"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <link name="b"><inertial><origin xyz="0.1 0.02 0"/><mass value="0.8"/><inertia ixx="0.01" ixy="0.001" ixz="0" iyy="0.02" iyz="0" izz="0.015"/></inertial></link>
+  <joint name="follow" type="revolute"><parent link="b"/><child link="c"/><origin xyz="0.2 0 0" rpy="0 0.9 0"/><axis xyz="0 1 0"/><mimic joint="lead" multiplier="-0.5" offset="0.25"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <link name="c"><inertial><origin xyz="0 0.03 0.1"/><mass value="0.5"/><inertia ixx="0.004" ixy="0" ixz="0.0005" iyy="0.005" iyz="0" izz="0.003"/></inertial></link>
+</robot>"#;
+        let options = ModelOptions::default();
+        let builder = builder_from_str(urdf).unwrap();
+        let (turned, plain) = (
+            builder.build(&options).unwrap(),
+            builder.build_in_link_frames(&options).unwrap(),
+        );
+        let follower = &turned.bodies[1];
+        let mimic = follower.joint.mimics.as_ref().unwrap();
+        assert_eq!(
+            (mimic.leader.as_str(), mimic.multiplier, mimic.offset),
+            ("lead", -0.5, 0.25)
+        );
+        assert_eq!(follower.joint.coords.scale, -0.5);
+        // The placement turns by 0.9 about y; the quarter turn about y leaves the smaller
+        // angle, 0.9 − π/2, to the joint.
+        let offset = follower.joint.coords.offset;
+        let expected = 0.25 + (0.9 - std::f64::consts::FRAC_PI_2);
+        assert!((offset - expected).abs() < 1e-15, "offset {offset}");
+        assert_eq!(follower.x_tree.rot, Matrix3::identity());
+        let (mut ws_t, mut ws_p) = (Workspace::new(&turned), Workspace::new(&plain));
+        for q in [0.0, 0.7, -1.3] {
+            let tau_t = rnea(&turned, &mut ws_t, &[q], &[0.4], &[-1.1]).unwrap()[0];
+            let tau_p = rnea(&plain, &mut ws_p, &[q], &[0.4], &[-1.1]).unwrap()[0];
+            assert!(
+                (tau_t - tau_p).abs() < 1e-13 * (1.0 + tau_p.abs()),
+                "τ {tau_t} vs {tau_p}"
+            );
+        }
+    }
+
     /// π/2 rounded to a double turns by exactly a quarter; π/2 to 11 digits does not.
     #[test]
     fn only_rounded_quarter_turns_snap() {
