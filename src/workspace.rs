@@ -14,6 +14,11 @@ use nalgebra::{DMatrix, DVector};
 pub struct Workspace {
     /// The joint's own position coordinates (a mimic follower's computed from its leader).
     pub(crate) q_joint: Vec<[f64; 7]>,
+    /// Each joint's turn angle (`JointKind::turn_angle`: `σ q` for a revolute joint about a
+    /// coordinate axis `σ e_k`, else 0), its sine and its cosine.
+    pub(crate) turn_angles: Vec<f64>,
+    pub(crate) turn_sines: Vec<f64>,
+    pub(crate) turn_cosines: Vec<f64>,
     /// `ⁱX_λ(i) = X_J(q_i) X_tree,i`: parent body frame → body frame.
     pub(crate) x_up: Vec<Transform>,
     /// `ⁱX_0`: world frame → body frame, from [`body_placements`](crate::algorithms::kinematics::body_placements).
@@ -103,6 +108,9 @@ impl Workspace {
         let nv = model.nv;
         Workspace {
             q_joint: vec![[0.0; 7]; n],
+            turn_angles: vec![0.0; n],
+            turn_sines: vec![0.0; n],
+            turn_cosines: vec![0.0; n],
             x_up: vec![Transform::identity(); n],
             x_world: vec![Transform::identity(); n],
             x_aligned: vec![Transform::identity(); n],

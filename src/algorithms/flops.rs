@@ -3,8 +3,9 @@
 //! factorisation, over the mass matrix's sparsity pattern).
 //!
 //! A FLOP is one scalar multiplication, addition or subtraction, division or square root
-//! ([`Flops::total`]); a joint angle's `sin_cos` is a library call, counted apart
-//! ([`Flops::sincos`]). No fused multiply-add: Rust does not contract `a * b + c`. Negations,
+//! ([`Flops::total`]); a joint angle's sine and cosine are ours (`spatial::sin_cos`, counted
+//! like the rest), but an axis rotation's (nalgebra's, for a revolute joint about another axis
+//! or a planar joint) is a library call, counted apart ([`Flops::sincos`]). No fused multiply-add: Rust does not contract `a * b + c`. Negations,
 //! comparisons, absolute values, copies and index arithmetic are not FLOPs.
 //!
 //! **What is counted: the operations the compiled code performs, one per scalar result.** That
@@ -21,7 +22,8 @@
 //! without LLVM's vectorisers (`--scalar`, one operation per instruction), the measurement
 //! equals this table exactly for every building block below and for every kernel on the
 //! default arm (fixed and floating), a 12-link chain, `tests/models/tree.urdf` and the mimic
-//! gripper, but for `fd_crba` on `tree.urdf` (6 additions apart, not chased). The release
+//! gripper, but for `fd_crba` on `tree.urdf` (6 additions apart; 12 and 24 on
+//! `tests/models/quarter_turns.urdf`, fixed and floating; not chased). The release
 //! build as shipped executes more: its packed instructions waste lanes (RNEA and the n+1 RNEA
 //! method about +15 %, gravity +10 %, CRBA with `LᵀL` +7 to +9 %, ABA +6 %, CRBA alone under
 //! +2.5 %).
@@ -286,21 +288,39 @@ fn joints(model: &Model) -> Flops {
     total
 }
 
-/// One `sin_cos` call.
+/// One call of libm's `sin_cos` (in nalgebra's axis rotation), counted apart.
 const SINCOS: Flops = Flops {
     sincos: 1,
     ..Flops::new(0, 0)
 };
 
-/// `JointKind::jcalc_up` for a joint of kind `kind` (its `sin_cos`, if any, in `sincos`).
+/// `spatial::sin_cos` for one angle: the reduction (4 m + 13 a with its two-sum and tail),
+/// `y²`, `y²/2`, `z²`, `z⁴` (4 m), the two kernels by Estrin's scheme (7 m + 7 a each) and
+/// their assembly with the tail (`1 − z/2` once, 1 a; 3 m + 2 a for `sin`, 2 m + 5 a for
+/// `cos`). `update_joints` runs it for every joint, on a turn angle of 0 where the joint has
+/// none.
+pub const SIN_COS: Flops = Flops::new(27, 35);
+
+/// `JointKind::jcalc_up` for a joint of kind `kind`: its turn angle, `spatial::sin_cos` of it,
+/// and `jcalc_up_turned` (libm's `sin_cos` for an axis rotation in `sincos`).
 pub fn jcalc_up(kind: &JointKind) -> Flops {
+    let turn_angle = match kind {
+        JointKind::Revolute { axis } | JointKind::Continuous { axis }
+            if is_coordinate_axis(axis) =>
+        {
+            Flops::new(1, 0) // σ q
+        }
+        _ => Flops::default(),
+    };
+    turn_angle + SIN_COS + jcalc_up_turned(kind)
+}
+
+/// `JointKind::jcalc_up_turned` given the turn's sine and cosine.
+fn jcalc_up_turned(kind: &JointKind) -> Flops {
     match kind {
         JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
             if is_coordinate_axis(axis) {
-                Flops {
-                    sincos: 1,
-                    ..Flops::new(13, 6)
-                }
+                Flops::new(12, 6) // two rows of E_tree mixed
             } else {
                 SINCOS + AXIS_ROTATION + COMPOSE
             }
@@ -705,7 +725,8 @@ mod tests {
     }
 
     /// Per body of a revolute chain, RNEA costs what its passes do: the joint coordinate
-    /// `scale · q + offset` (1 m + 1 a), jcalc (13 m + 6 a),
+    /// `scale · q + offset` (1 m + 1 a), jcalc (`σ q`, `spatial::sin_cos`, two rows mixed:
+    /// 1 + 27 + 12 m, 35 + 6 a),
     /// `S q̇`, `S q̈` (7 m + 6 a each), two transforms (each joint's placement has no rotation:
     /// a turn about the joint axis after a translation, 14 m + 10 a), a spatial cross product
     /// and three 6-vector sums outward (a revolute joint has no `c_J` to add), two inertia
@@ -714,16 +735,15 @@ mod tests {
     #[test]
     fn rnea_per_body_on_a_chain() {
         let per_body = Flops::new(
-            1 + 13 + 7 + 7 + 28 + 18 + 48 + 18 + 7,
-            1 + 6 + 6 + 6 + 20 + 12 + 18 + 36 + 12 + 6 + 6,
+            1 + 40 + 7 + 7 + 28 + 18 + 48 + 18 + 7,
+            1 + 41 + 6 + 6 + 20 + 12 + 18 + 36 + 12 + 6 + 6,
         );
         let below_root = Flops::new(14, 16);
         // a_0 = −[0; g]: three subtractions from zero.
         let root = Flops::new(0, 3);
         for n in [1usize, 4, 9] {
             let model = chain(n);
-            let mut expected = root + per_body * n as u64 + below_root * (n as u64 - 1);
-            expected.sincos = n as u64;
+            let expected = root + per_body * n as u64 + below_root * (n as u64 - 1);
             assert_eq!(kernel_flops(&model, "rnea"), Some(expected), "n = {n}");
         }
     }

@@ -4,7 +4,7 @@
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::{Joint, JointKind, Model};
-use crate::spatial::{Force, Motion, Transform, Translation, Vector3};
+use crate::spatial::{sin_cos_all, Force, Motion, Transform, Translation, Vector3};
 use crate::Workspace;
 
 /// Evaluates `$body` with `$x` bound to body `$i`'s `ⁱX_λ` (`ws.x_up[i]`, a `&Transform`) in
@@ -46,13 +46,20 @@ macro_rules! with_up_transform {
 }
 pub(crate) use with_up_transform;
 
-/// Fills `ws.q_joint`, `ws.x_up` and `ws.s` for configuration `q` (already validated).
+/// Fills `ws.q_joint`, `ws.x_up` and `ws.s` for configuration `q` (already validated): the
+/// joints' own coordinates, then the sines and cosines of every joint's turn angle at once
+/// (`spatial::sin_cos_all`, two angles at a time), then each joint's `ⁱX_λ` and `S`.
 pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     for (i, body) in model.bodies.iter().enumerate() {
-        let nq = body.joint.kind.nq();
         joint_positions(&body.joint, q, &mut ws.q_joint[i]);
-        body.joint.kind.jcalc_up(
+        ws.turn_angles[i] = body.joint.kind.turn_angle(&ws.q_joint[i]);
+    }
+    sin_cos_all(&ws.turn_angles, &mut ws.turn_sines, &mut ws.turn_cosines);
+    for (i, body) in model.bodies.iter().enumerate() {
+        let nq = body.joint.kind.nq();
+        body.joint.kind.jcalc_up_turned(
             &ws.q_joint[i][..nq],
+            (ws.turn_sines[i], ws.turn_cosines[i]),
             &body.x_tree,
             &mut ws.s[i],
             &mut ws.x_up[i],

@@ -1,6 +1,6 @@
 //! Joint kinds and `jcalc`: the only place that knows what each kind of joint does.
 
-use crate::spatial::{Force, Matrix3, Motion, Transform, Vector3};
+use crate::spatial::{sin_cos, Force, Matrix3, Motion, Transform, Vector3};
 use nalgebra::{Quaternion, Rotation3, Unit, UnitQuaternion};
 
 /// The kinds of joint a body can hang from. Fixed joints never appear here: their child links
@@ -163,12 +163,40 @@ impl JointKind {
         s: &mut MotionSubspace,
         x_up: &mut Transform,
     ) {
+        let turn = sin_cos(self.turn_angle(q));
+        self.jcalc_up_turned(q, turn, x_tree, s, x_up);
+    }
+
+    /// The angle a revolute joint about a coordinate axis `σ e_k` turns its body's axes by,
+    /// `σ q` (the sine and cosine [`jcalc_up_turned`](Self::jcalc_up_turned) takes); 0 for any
+    /// other joint.
+    #[inline]
+    pub fn turn_angle(&self, q: &[f64]) -> f64 {
         match *self {
             JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
-                if let Some((k, sign)) = coordinate_axis(&axis) {
+                coordinate_axis(&axis).map_or(0.0, |(_, sign)| sign * q[0])
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// [`jcalc_up`](Self::jcalc_up) given `(sin, cos)` of [`turn_angle`](Self::turn_angle)
+    /// (which other joints ignore): `kinematics::update_joints` computes them for all joints
+    /// at once (`spatial::sin_cos_all`).
+    #[inline]
+    pub fn jcalc_up_turned(
+        &self,
+        q: &[f64],
+        (sin, cos): (f64, f64),
+        x_tree: &Transform,
+        s: &mut MotionSubspace,
+        x_up: &mut Transform,
+    ) {
+        match *self {
+            JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
+                if let Some((k, _)) = coordinate_axis(&axis) {
                     s.nv = 1;
                     s.cols[0] = Motion::new(axis, Vector3::zeros());
-                    let (sin, cos) = (sign * q[0]).sin_cos();
                     let e = &x_tree.rot;
                     // One arm per axis, so that the rows are known at compile time.
                     x_up.rot = match k {

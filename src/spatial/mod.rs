@@ -10,11 +10,13 @@
 
 mod axis_transform;
 mod inertia;
+mod sincos;
 mod transform;
 mod vector;
 
 pub use axis_transform::AxisTransform;
 pub use inertia::Inertia;
+pub use sincos::{sin_cos, sin_cos_all};
 pub use transform::{Transform, Translation};
 pub use vector::{Force, Motion};
 
