@@ -14,8 +14,11 @@ use nalgebra::{DMatrix, DVector};
 pub struct Workspace {
     /// The joint's own position coordinates (a mimic follower's computed from its leader).
     pub(crate) q_joint: Vec<[f64; 7]>,
-    /// Each joint's turn angle (`JointKind::turn_angle`: `σ q` for a revolute joint about a
-    /// coordinate axis `σ e_k`, else 0), its sine and its cosine.
+    /// `Some((k, σ))` for a revolute joint about a coordinate axis `σ e_k`
+    /// (`JointKind::turn_axis`), fixed by the model.
+    pub(crate) turn_axes: Vec<Option<(usize, f64)>>,
+    /// Each joint's turn angle (`σ q` for a revolute joint about a coordinate axis `σ e_k`,
+    /// else 0), its sine and its cosine.
     pub(crate) turn_angles: Vec<f64>,
     pub(crate) turn_sines: Vec<f64>,
     pub(crate) turn_cosines: Vec<f64>,
@@ -108,6 +111,11 @@ impl Workspace {
         let nv = model.nv;
         Workspace {
             q_joint: vec![[0.0; 7]; n],
+            turn_axes: model
+                .bodies
+                .iter()
+                .map(|b| b.joint.kind.turn_axis())
+                .collect(),
             turn_angles: vec![0.0; n],
             turn_sines: vec![0.0; n],
             turn_cosines: vec![0.0; n],
@@ -116,7 +124,18 @@ impl Workspace {
             x_aligned: vec![Transform::identity(); n],
             anchors: frame_anchors(model),
             anchor_shift: vec![Vector3::zeros(); n],
-            s: vec![MotionSubspace::default(); n],
+            // A turning joint's S is constant, and `update_joints` leaves it as set here.
+            s: model
+                .bodies
+                .iter()
+                .map(|b| {
+                    let mut s = MotionSubspace::default();
+                    if b.joint.kind.turn_axis().is_some() {
+                        b.joint.kind.jcalc(&[0.0], &mut s);
+                    }
+                    s
+                })
+                .collect(),
             s_axes: model
                 .bodies
                 .iter()

@@ -3,7 +3,7 @@
 
 use super::validate::check_q;
 use crate::error::DynamicsError;
-use crate::model::{Joint, JointKind, Model};
+use crate::model::{turn_up, Joint, JointKind, Model};
 use crate::spatial::{sin_cos_all, Force, Motion, Transform, Translation, Vector3};
 use crate::Workspace;
 
@@ -48,22 +48,27 @@ pub(crate) use with_up_transform;
 
 /// Fills `ws.q_joint`, `ws.x_up` and `ws.s` for configuration `q` (already validated): the
 /// joints' own coordinates, then the sines and cosines of every joint's turn angle at once
-/// (`spatial::sin_cos_all`, two angles at a time), then each joint's `ⁱX_λ` and `S`.
+/// (`spatial::sin_cos_all`, two angles at a time), then each joint's `ⁱX_λ` and `S`. A
+/// revolute joint about a coordinate axis (`ws.turn_axes`, most joints) mixes two rows of its
+/// placement ([`turn_up`]); its `S` is constant, set when the workspace was made.
 pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     for (i, body) in model.bodies.iter().enumerate() {
         joint_positions(&body.joint, q, &mut ws.q_joint[i]);
-        ws.turn_angles[i] = body.joint.kind.turn_angle(&ws.q_joint[i]);
+        ws.turn_angles[i] = ws.turn_axes[i].map_or(0.0, |(_, sign)| sign * ws.q_joint[i][0]);
     }
     sin_cos_all(&ws.turn_angles, &mut ws.turn_sines, &mut ws.turn_cosines);
     for (i, body) in model.bodies.iter().enumerate() {
-        let nq = body.joint.kind.nq();
-        body.joint.kind.jcalc_up_turned(
-            &ws.q_joint[i][..nq],
-            (ws.turn_sines[i], ws.turn_cosines[i]),
-            &body.x_tree,
-            &mut ws.s[i],
-            &mut ws.x_up[i],
-        );
+        let turn = (ws.turn_sines[i], ws.turn_cosines[i]);
+        match ws.turn_axes[i] {
+            Some((k, _)) => turn_up(k, turn, &body.x_tree, &mut ws.x_up[i]),
+            None => body.joint.kind.jcalc_up_turned(
+                &ws.q_joint[i][..body.joint.kind.nq()],
+                turn,
+                &body.x_tree,
+                &mut ws.s[i],
+                &mut ws.x_up[i],
+            ),
+        }
     }
 }
 

@@ -167,17 +167,22 @@ impl JointKind {
         self.jcalc_up_turned(q, turn, x_tree, s, x_up);
     }
 
+    /// `Some((k, σ))` for a revolute joint about a coordinate axis `σ e_k`: a joint whose
+    /// `ⁱX_λ` [`turn_up`] gives from the sine and cosine of its turn angle `σ q`, and whose `S`
+    /// is constant.
+    pub fn turn_axis(&self) -> Option<(usize, f64)> {
+        match *self {
+            JointKind::Revolute { axis } | JointKind::Continuous { axis } => coordinate_axis(&axis),
+            _ => None,
+        }
+    }
+
     /// The angle a revolute joint about a coordinate axis `σ e_k` turns its body's axes by,
     /// `σ q` (the sine and cosine [`jcalc_up_turned`](Self::jcalc_up_turned) takes); 0 for any
     /// other joint.
     #[inline]
     pub fn turn_angle(&self, q: &[f64]) -> f64 {
-        match *self {
-            JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
-                coordinate_axis(&axis).map_or(0.0, |(_, sign)| sign * q[0])
-            }
-            _ => 0.0,
-        }
+        self.turn_axis().map_or(0.0, |(_, sign)| sign * q[0])
     }
 
     /// [`jcalc_up`](Self::jcalc_up) given `(sin, cos)` of [`turn_angle`](Self::turn_angle)
@@ -197,14 +202,7 @@ impl JointKind {
                 if let Some((k, _)) = coordinate_axis(&axis) {
                     s.nv = 1;
                     s.cols[0] = Motion::new(axis, Vector3::zeros());
-                    let e = &x_tree.rot;
-                    // One arm per axis, so that the rows are known at compile time.
-                    x_up.rot = match k {
-                        0 => mix_rows::<1, 2>(e, cos, sin),
-                        1 => mix_rows::<2, 0>(e, cos, sin),
-                        _ => mix_rows::<0, 1>(e, cos, sin),
-                    };
-                    x_up.trans = x_tree.trans;
+                    turn_up(k, (sin, cos), x_tree, x_up);
                     return;
                 }
             }
@@ -347,6 +345,21 @@ pub enum UpShape {
     Translation,
     /// `rot(E_k(θ)) xlt(r)`: a turn about coordinate axis `k` after a translation.
     AxisTurn(usize),
+}
+
+/// `ⁱX_λ = X_J X_tree` of a revolute joint about `σ e_k` ([`JointKind::turn_axis`]), given
+/// `(sin, cos)` of its turn angle `σ q`: `E_J = rot_k(σ q)ᵀ` mixes the two rows of `E_tree`
+/// other than `k`, and the origin stays (see [`JointKind::jcalc_up`]). Written in place.
+#[inline(always)]
+pub fn turn_up(k: usize, (sin, cos): (f64, f64), x_tree: &Transform, x_up: &mut Transform) {
+    let e = &x_tree.rot;
+    // One arm per axis, so that the rows are known at compile time.
+    x_up.rot = match k {
+        0 => mix_rows::<1, 2>(e, cos, sin),
+        1 => mix_rows::<2, 0>(e, cos, sin),
+        _ => mix_rows::<0, 1>(e, cos, sin),
+    };
+    x_up.trans = x_tree.trans;
 }
 
 /// `E` with its rows `I` and `J` mixed by a rotation: `row_I ← c row_I + s row_J`,
