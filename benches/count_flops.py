@@ -12,8 +12,10 @@ multiply-add 1 mul + 1 add per lane. Moves, shuffles, negations (`xorpd`), absol
 the table. Two runs, CALLS = C1 and C2, differ only by the calls (the model and the states are
 the same), so (count(C2) − count(C1)) / (C2 − C1) is the count of one call, exactly.
 
-Instructions executed inside libm (`sin`, `cos` for the joint angles) are reported apart,
-per call, as the table counts `sin_cos` apart too.
+Instructions executed inside libm (`sin`, `cos` in nalgebra's axis rotation, for a revolute
+joint about a non-coordinate axis or a planar joint) are reported apart, per call, as the table
+counts those `sin_cos` apart too; the other joint angles' sines and cosines are ours
+(`spatial::sin_cos`) and counted as FLOPs.
 
 Calibration (`--calibrate`, also run by the test): a length-64 dot product (64 m + 63 a) and a
 nalgebra 3×3 matrix product (27 m + 18 a, which the compiler vectorises with packed
