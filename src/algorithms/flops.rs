@@ -5,8 +5,9 @@
 //! A FLOP is one scalar multiplication, addition or subtraction, division or square root
 //! ([`Flops::total`]); a joint angle's sine and cosine are ours (`spatial::sin_cos`, counted
 //! like the rest), but an axis rotation's (nalgebra's, for a revolute joint about another axis
-//! or a planar joint) is a library call, counted apart ([`Flops::sincos`]). No fused multiply-add: Rust does not contract `a * b + c`. Negations,
-//! comparisons, absolute values, copies and index arithmetic are not FLOPs.
+//! or a planar joint) is a library call, counted apart ([`Flops::sincos`]). No fused
+//! multiply-add: Rust does not contract `a * b + c`. Negations, comparisons, absolute values,
+//! copies and index arithmetic are not FLOPs.
 //!
 //! **What is counted: the operations the compiled code performs, one per scalar result.** That
 //! is the source's arithmetic after the simplifications the compiler makes without changing any
