@@ -12,7 +12,8 @@ use nalgebra::{DMatrix, DVector};
 /// body are expressed in that body's frame.
 #[derive(Clone, Debug)]
 pub struct Workspace {
-    /// The joint's own position coordinates (a mimic follower's computed from its leader).
+    /// The joint's own position coordinates (a mimic follower's computed from its leader), for
+    /// every joint but those of `turn_axes`, whose one coordinate is read into its turn angle.
     pub(crate) q_joint: Vec<[f64; 7]>,
     /// `Some((k, σ))` for a revolute joint about a coordinate axis `σ e_k`
     /// (`JointKind::turn_axis`), fixed by the model.

@@ -57,9 +57,11 @@
 //!
 //! and `jcalc_up` (`JointKind::jcalc_up`, [`jcalc_up`]) per joint kind, after the joint's
 //! coordinates `scale · q + offset` (1 m + 1 a each, for every joint): revolute about a
-//! coordinate axis 13 m + 6 a and one `sin_cos`; prismatic 12 m + 9 a; revolute about another
-//! axis [`AXIS_ROTATION`] then `compose`; floating [`QUATERNION_ROTATION`] then `compose`;
-//! planar ([`AXIS_ROTATION`], then `E u`, `E w`, `u x + w y`: 24 m + 15 a more) then `compose`.
+//! coordinate axis 13 m + 6 a and one `sin_cos` (1 m and `sin_cos` when its placement has no
+//! rotation: `update_joints` writes the turn itself); prismatic 12 m + 9 a; revolute about
+//! another axis [`AXIS_ROTATION`] then `compose`; floating [`QUATERNION_ROTATION`] then
+//! `compose`; planar ([`AXIS_ROTATION`], then `E u`, `E w`, `u x + w y`: 24 m + 15 a more) then
+//! `compose`.
 //!
 //! A body's `ⁱX_λ` is priced in the form the passes use for it (`JointKind::up_shape`): a
 //! translation for a slide, a turn after a translation for a revolute joint about a coordinate
@@ -277,14 +279,21 @@ fn check_q(model: &Model) -> Flops {
     } * floating
 }
 
-/// `update_joints`: `jcalc_up` for every body.
+/// `update_joints`: `jcalc_up` for every body, but for a revolute joint about a coordinate
+/// axis whose placement has no rotation (`UpShape::AxisTurn`): its turn angle, `sin_cos` and
+/// `model::turn_up_unrotated`, which computes nothing.
 fn joints(model: &Model) -> Flops {
     let mut total = Flops::default();
     for body in &model.bodies {
         // The joint's coordinates `scale · q + offset` (the identity map unless mimic; still
         // computed), then its transform.
-        let nq = body.joint.kind.nq() as u64;
-        total += Flops::new(nq, nq) + jcalc_up(&body.joint.kind);
+        let kind = &body.joint.kind;
+        let nq = kind.nq() as u64;
+        let transform = match kind.up_shape(&body.x_tree) {
+            UpShape::AxisTurn(_) => turn_angle(kind) + SIN_COS,
+            _ => jcalc_up(kind),
+        };
+        total += Flops::new(nq, nq) + transform;
     }
     total
 }
@@ -305,15 +314,19 @@ pub const SIN_COS: Flops = Flops::new(27, 35);
 /// `JointKind::jcalc_up` for a joint of kind `kind`: its turn angle, `spatial::sin_cos` of it,
 /// and `jcalc_up_turned` (libm's `sin_cos` for an axis rotation in `sincos`).
 pub fn jcalc_up(kind: &JointKind) -> Flops {
-    let turn_angle = match kind {
+    turn_angle(kind) + SIN_COS + jcalc_up_turned(kind)
+}
+
+/// `JointKind::turn_angle`: `σ q` for a revolute joint about a coordinate axis, else nothing.
+fn turn_angle(kind: &JointKind) -> Flops {
+    match kind {
         JointKind::Revolute { axis } | JointKind::Continuous { axis }
             if is_coordinate_axis(axis) =>
         {
-            Flops::new(1, 0) // σ q
+            Flops::new(1, 0)
         }
         _ => Flops::default(),
-    };
-    turn_angle + SIN_COS + jcalc_up_turned(kind)
+    }
 }
 
 /// `JointKind::jcalc_up_turned` given the turn's sine and cosine.
@@ -726,18 +739,18 @@ mod tests {
     }
 
     /// Per body of a revolute chain, RNEA costs what its passes do: the joint coordinate
-    /// `scale · q + offset` (1 m + 1 a), jcalc (`σ q`, `spatial::sin_cos`, two rows mixed:
-    /// 1 + 27 + 12 m, 35 + 6 a),
-    /// `S q̇`, `S q̈` (7 m + 6 a each), two transforms (each joint's placement has no rotation:
-    /// a turn about the joint axis after a translation, 14 m + 10 a), a spatial cross product
+    /// `scale · q + offset` (1 m + 1 a), jcalc (`σ q` and `spatial::sin_cos`, 1 + 27 m, 35 a;
+    /// each joint's placement has no rotation, so its turn is written as it is),
+    /// `S q̇`, `S q̈` (7 m + 6 a each), two transforms (a turn about the joint axis after a
+    /// translation, 14 m + 10 a), a spatial cross product
     /// and three 6-vector sums outward (a revolute joint has no `c_J` to add), two inertia
     /// products, a cross product and a sum for `f`, and inward a projection (scaled,
     /// accumulated) and, below the root, a transform and a sum.
     #[test]
     fn rnea_per_body_on_a_chain() {
         let per_body = Flops::new(
-            1 + 40 + 7 + 7 + 28 + 18 + 48 + 18 + 7,
-            1 + 41 + 6 + 6 + 20 + 12 + 18 + 36 + 12 + 6 + 6,
+            1 + 28 + 7 + 7 + 28 + 18 + 48 + 18 + 7,
+            1 + 35 + 6 + 6 + 20 + 12 + 18 + 36 + 12 + 6 + 6,
         );
         let below_root = Flops::new(14, 16);
         // a_0 = −[0; g]: three subtractions from zero.

@@ -3,7 +3,7 @@
 
 use super::validate::check_q;
 use crate::error::DynamicsError;
-use crate::model::{turn_up, Joint, JointKind, Model};
+use crate::model::{turn_up, turn_up_unrotated, Joint, JointKind, Model, UpShape};
 use crate::spatial::{sin_cos_all, Force, Motion, Transform, Translation, Vector3};
 use crate::Workspace;
 
@@ -47,21 +47,31 @@ macro_rules! with_up_transform {
 pub(crate) use with_up_transform;
 
 /// Fills `ws.q_joint`, `ws.x_up` and `ws.s` for configuration `q` (already validated): the
-/// joints' own coordinates, then the sines and cosines of every joint's turn angle at once
+/// joints' own coordinates (a turning joint's one coordinate straight into its angle), then the sines and cosines of every joint's turn angle at once
 /// (`spatial::sin_cos_all`, two angles at a time), then each joint's `ⁱX_λ` and `S`. A
 /// revolute joint about a coordinate axis (`ws.turn_axes`, most joints) mixes two rows of its
-/// placement ([`turn_up`]); its `S` is constant, set when the workspace was made.
+/// placement ([`turn_up`]), or of the identity when its placement has no rotation
+/// ([`turn_up_unrotated`], `ws.up_shapes`); its `S` is constant, set when the workspace was
+/// made.
 pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     for (i, body) in model.bodies.iter().enumerate() {
-        joint_positions(&body.joint, q, &mut ws.q_joint[i]);
-        ws.turn_angles[i] = ws.turn_axes[i].map_or(0.0, |(_, sign)| sign * ws.q_joint[i][0]);
+        ws.turn_angles[i] = match ws.turn_axes[i] {
+            Some((_, sign)) => sign * joint_position(&body.joint, q, 0),
+            None => {
+                joint_positions(&body.joint, q, &mut ws.q_joint[i]);
+                0.0
+            }
+        };
     }
     sin_cos_all(&ws.turn_angles, &mut ws.turn_sines, &mut ws.turn_cosines);
     for (i, body) in model.bodies.iter().enumerate() {
         let turn = (ws.turn_sines[i], ws.turn_cosines[i]);
-        match ws.turn_axes[i] {
-            Some((k, _)) => turn_up(k, turn, &body.x_tree, &mut ws.x_up[i]),
-            None => body.joint.kind.jcalc_up_turned(
+        match (ws.turn_axes[i], ws.up_shapes[i]) {
+            (Some(_), UpShape::AxisTurn(k)) => {
+                turn_up_unrotated(k, turn, &body.x_tree, &mut ws.x_up[i])
+            }
+            (Some((k, _)), _) => turn_up(k, turn, &body.x_tree, &mut ws.x_up[i]),
+            (None, _) => body.joint.kind.jcalc_up_turned(
                 &ws.q_joint[i][..body.joint.kind.nq()],
                 turn,
                 &body.x_tree,
@@ -75,11 +85,16 @@ pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
 /// The joint's own coordinates `scale · q[q_index..] + offset` (a mimic follower reads its
 /// leader's coordinate; for every other joint scale is 1 and offset 0).
 fn joint_positions(joint: &Joint, q: &[f64], out: &mut [f64; 7]) {
-    let c = joint.coords;
-    let nq = joint.kind.nq();
-    for (o, x) in out[..nq].iter_mut().zip(&q[c.q_index..c.q_index + nq]) {
-        *o = c.scale * x + c.offset;
+    for (k, o) in out[..joint.kind.nq()].iter_mut().enumerate() {
+        *o = joint_position(joint, q, k);
     }
+}
+
+/// The joint's coordinate `k`, `scale · q[q_index + k] + offset`.
+#[inline(always)]
+fn joint_position(joint: &Joint, q: &[f64], k: usize) -> f64 {
+    let c = joint.coords;
+    c.scale * q[c.q_index + k] + c.offset
 }
 
 /// Placement of every body in the root (world) frame, `ⁱX_0` (world coordinates → body

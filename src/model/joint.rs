@@ -362,6 +362,36 @@ pub fn turn_up(k: usize, (sin, cos): (f64, f64), x_tree: &Transform, x_up: &mut 
     x_up.trans = x_tree.trans;
 }
 
+/// [`turn_up`] for a placement without rotation (`E_tree = 1`, the joints of shape
+/// [`UpShape::AxisTurn`]): `E_J` itself, rows `I`, `J` of the identity mixed by the turn
+/// (`row_I = c e_I + s e_J`, `row_J = c e_J − s e_I`), written without a product.
+#[inline(always)]
+pub fn turn_up_unrotated(
+    k: usize,
+    (sin, cos): (f64, f64),
+    x_tree: &Transform,
+    x_up: &mut Transform,
+) {
+    x_up.rot = match k {
+        0 => turn_rows::<1, 2>(cos, sin),
+        1 => turn_rows::<2, 0>(cos, sin),
+        _ => turn_rows::<0, 1>(cos, sin),
+    };
+    x_up.trans = x_tree.trans;
+}
+
+/// The identity with its rows `I` and `J` mixed by a rotation, [`mix_rows`] of the identity.
+#[inline(always)]
+fn turn_rows<const I: usize, const J: usize>(c: f64, s: f64) -> Matrix3 {
+    Matrix3::from_fn(|r, col| match (r, col) {
+        _ if r == col && (r == I || r == J) => c,
+        _ if r == col => 1.0,
+        _ if (r, col) == (I, J) => s,
+        _ if (r, col) == (J, I) => -s,
+        _ => 0.0,
+    })
+}
+
 /// `E` with its rows `I` and `J` mixed by a rotation: `row_I ← c row_I + s row_J`,
 /// `row_J ← c row_J − s row_I`, the others kept.
 #[inline(always)]

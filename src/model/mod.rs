@@ -16,7 +16,10 @@ mod orientation;
 mod reduction;
 
 pub use builder::{joint_position, BodySpec, JointSpec, ModelBuilder, ModelOptions};
-pub use joint::{axis_rotation, quaternion_rotation, turn_up, JointKind, MotionSubspace, UpShape};
+pub use joint::{
+    axis_rotation, quaternion_rotation, turn_up, turn_up_unrotated, JointKind, MotionSubspace,
+    UpShape,
+};
 
 use crate::error::ModelError;
 use crate::spatial::{Inertia, Transform, Vector3};
