@@ -47,12 +47,12 @@ macro_rules! with_up_transform {
 pub(crate) use with_up_transform;
 
 /// Fills `ws.q_joint`, `ws.x_up` and `ws.s` for configuration `q` (already validated): the
-/// joints' own coordinates (a turning joint's one coordinate straight into its angle), then the sines and cosines of every joint's turn angle at once
-/// (`spatial::sin_cos_all`, two angles at a time), then each joint's `ⁱX_λ` and `S`. A
-/// revolute joint about a coordinate axis (`ws.turn_axes`, most joints) mixes two rows of its
-/// placement ([`turn_up`]), or of the identity when its placement has no rotation
-/// ([`turn_up_unrotated`], `ws.up_shapes`); its `S` is constant, set when the workspace was
-/// made.
+/// joints' own coordinates (a turning joint's one coordinate straight into its angle), then
+/// the sines and cosines of every joint's turn angle at once (`spatial::sin_cos_all`, two
+/// angles at a time), then each joint's `ⁱX_λ` and `S`. A revolute joint about a coordinate
+/// axis (`ws.turn_axes`, most joints) mixes two rows of its placement ([`turn_up`]), or of the
+/// identity when its placement has no rotation ([`turn_up_unrotated`], `ws.up_shapes`); its `S`
+/// is constant, set when the workspace was made.
 pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     for (i, body) in model.bodies.iter().enumerate() {
         ws.turn_angles[i] = match ws.turn_axes[i] {
