@@ -1,7 +1,7 @@
 //! Scratch buffers for the algorithms (Pinocchio's `Data`): sized once from a model, reused by
 //! every call so that no call allocates.
 
-use crate::algorithms::crba::CrbaFrames;
+use crate::algorithms::crba::{mirror_by_tiles, CrbaFrames};
 use crate::algorithms::kinematics::frame_anchors;
 use crate::algorithms::ltl::Ancestors;
 use crate::model::{Model, MotionSubspace, UpShape};
@@ -84,10 +84,14 @@ pub struct Workspace {
     /// `F_c = I^c S_c` for each velocity coordinate `c` (CRBA's column forces, Pinocchio's `Fcrb`),
     /// in world coordinates or, moving up the tree, in each ancestor's.
     pub(crate) f_cols: Vec<Force>,
-    /// For each body, one past the last velocity coordinate of its subtree, when every subtree's
-    /// coordinates are contiguous (bodies depth-first, coordinates in body order, no mimic
-    /// joints): body `i`'s subtree then owns `v_index_i .. subtree_end[i]`. `None` otherwise.
+    /// For each velocity coordinate, one past the last coordinate of its body's subtree, when
+    /// every subtree's coordinates are contiguous (bodies depth-first, coordinates in body order,
+    /// no mimic joints): body `i`'s subtree then owns `v_index_i .. subtree_end[v_index_i]`, and
+    /// row `k` of `H` is zero beyond column `subtree_end[k]`. `None` otherwise.
     pub(crate) subtree_end: Option<Vec<usize>>,
+    /// Whether CRBA's row blocks leave `H`'s upper triangle to be copied by tiles afterwards
+    /// instead of storing each entry's mirror beside it (`crba::mirror_by_tiles`, from `nv`).
+    pub(crate) mirror_by_tiles: bool,
     /// Joint-space inertia matrix `H` (full, symmetric). Entries outside the tree's sparsity
     /// pattern (coordinate pairs neither of which is an ancestor of the other) are zero from
     /// construction on; every writer keeps them zero.
@@ -166,6 +170,7 @@ impl Workspace {
             qdd: DVector::zeros(nv),
             f_cols: vec![Force::zero(); nv],
             subtree_end: contiguous_subtrees(model),
+            mirror_by_tiles: mirror_by_tiles(nv),
             // From zeroed allocations (calloc): pages are only touched when used, so a model
             // with thousands of coordinates does not spend seconds writing zeros here.
             mass_matrix: DMatrix::from_vec(nv, nv, vec![0.0; nv * nv]),
@@ -242,5 +247,10 @@ pub(crate) fn contiguous_subtrees(model: &Model) -> Option<Vec<usize>> {
             count[p] += count[i];
         }
     }
-    Some(end)
+    let mut dof_end = vec![0; model.nv];
+    for (body, e) in model.bodies.iter().zip(end) {
+        let c = body.joint.coords;
+        dof_end[c.v_index..c.v_index + body.joint.kind.nv()].fill(e);
+    }
+    Some(dof_end)
 }

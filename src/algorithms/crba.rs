@@ -34,7 +34,8 @@
 //! When every subtree's coordinates are contiguous (the usual depth-first order) the inward
 //! pass fills `H` by row blocks, Pinocchio's way: the `F` of each coordinate is kept, and body
 //! `i` fills its rows from its own columns to the end of its subtree, `H_ij = S_iᵀ F_j` (see
-//! `row_blocks` and `local_row_blocks`). Otherwise (mimic joints) it runs in world
+//! `row_blocks` and `local_row_blocks`; written down the columns of the lower triangle, then
+//! copied to the upper one by tiles, `mirror_lower`). Otherwise (mimic joints) it runs in world
 //! coordinates along each column's path to the root: body `i` contributes to the column of its
 //! leader scaled by `μ_i`, `H[c_j, c_i] += μ_j μ_i S_jᵀ F` (and its mirror), which is
 //! `Jᵀ H_full J` for the coordinate map `J`.
@@ -119,12 +120,12 @@ pub fn crba<'w>(
 pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
     match ws.subtree_end.take() {
         Some(subtree_end) => {
-            let finite = match ws.crba_frames {
-                CrbaFrames::World => {
-                    world_axes_and_inertias(model, ws);
-                    row_blocks(model, ws, &subtree_end)
-                }
-                CrbaFrames::Local => local_row_blocks(model, ws, &subtree_end),
+            let finite = if ws.mirror_by_tiles {
+                let finite = row_block_pass::<false>(model, ws, &subtree_end);
+                mirror_lower(ws.mass_matrix.as_mut_slice(), model.nv, &subtree_end);
+                finite
+            } else {
+                row_block_pass::<true>(model, ws, &subtree_end)
             };
             ws.subtree_end = Some(subtree_end);
             finite
@@ -134,6 +135,24 @@ pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
             along_paths(model, ws);
             ws.mass_matrix.iter().all(|x| x.is_finite())
         }
+    }
+}
+
+/// The row blocks in the frames `ws.crba_frames` says. Each entry is written down its column of
+/// the lower triangle and, with `MIRROR`, its mirror in the upper triangle beside it (else
+/// [`mirror_lower`] copies the triangle up afterwards, `ws.mirror_by_tiles`). True when every
+/// entry written is finite.
+fn row_block_pass<const MIRROR: bool>(
+    model: &Model,
+    ws: &mut Workspace,
+    subtree_end: &[usize],
+) -> bool {
+    match ws.crba_frames {
+        CrbaFrames::World => {
+            world_axes_and_inertias(model, ws);
+            row_blocks::<MIRROR>(model, ws, subtree_end)
+        }
+        CrbaFrames::Local => local_row_blocks::<MIRROR>(model, ws, subtree_end),
     }
 }
 
@@ -149,11 +168,15 @@ fn world_axes_and_inertias(model: &Model, ws: &mut Workspace) {
 /// Inward pass when every subtree's coordinates are contiguous (Pinocchio's layout): for body
 /// `i` with coordinates `v_i .. v_i + n_i` and subtree coordinates `v_i .. e_i`,
 /// `F_c = ⁰I^c_i ⁰S_c` for its own columns, then the row block
-/// `H[v_i + k, c] = ⁰S_ikᵀ F_c` for `c` from `v_i + k` to `e_i` (upper triangle, mirrored):
-/// each descendant's `F_c` was stored when that descendant was visited.
+/// `H[v_i + k, c] = ⁰S_ikᵀ F_c` for `c` from `v_i + k` to `e_i` (and its mirror, see
+/// [`row_block_pass`]): each descendant's `F_c` was stored when that descendant was visited.
 /// Entries outside the pattern are never written (they stay zero). True when every entry
 /// written is finite (see [`fill_rows`]).
-fn row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) -> bool {
+fn row_blocks<const MIRROR: bool>(
+    model: &Model,
+    ws: &mut Workspace,
+    subtree_end: &[usize],
+) -> bool {
     let h = ws.mass_matrix.as_mut_slice();
     let mut probe = 0.0;
     for (i, body) in model.bodies.iter().enumerate().rev() {
@@ -162,13 +185,13 @@ fn row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) -> bool 
         for k in 0..s_i.nv {
             ws.f_cols[v0 + k] = ws.ic[i].apply(&s_i.cols[k]);
         }
-        probe += fill_rows(
+        probe += fill_rows::<MIRROR>(
             h,
             model.nv,
             v0,
             s_i,
             &[None; 6],
-            &ws.f_cols[..subtree_end[i]],
+            &ws.f_cols[..subtree_end[v0]],
         );
         if let Some(p) = body.parent {
             let ic_i = ws.ic[i];
@@ -192,7 +215,11 @@ fn row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) -> bool 
 /// cheapest form its joint allows (`with_up_transform`): for a revolute joint about a
 /// coordinate axis whose placement has no rotation (most joints of most robots), a turn after a
 /// translation, 24 flops a force and 71 the inertia instead of 42 and 113.
-fn local_row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) -> bool {
+fn local_row_blocks<const MIRROR: bool>(
+    model: &Model,
+    ws: &mut Workspace,
+    subtree_end: &[usize],
+) -> bool {
     let h = ws.mass_matrix.as_mut_slice();
     let mut probe = 0.0;
     for (ic, body) in ws.ic.iter_mut().zip(&model.bodies) {
@@ -201,7 +228,7 @@ fn local_row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) ->
     for i in (0..model.bodies.len()).rev() {
         let body = &model.bodies[i];
         let v0 = body.joint.coords.v_index;
-        let (s_i, axes, end) = (&ws.s[i], &ws.s_axes[i], subtree_end[i]);
+        let (s_i, axes, end) = (&ws.s[i], &ws.s_axes[i], subtree_end[v0]);
         for k in 0..s_i.nv {
             ws.f_cols[v0 + k] = match axes[k] {
                 Some((j, sign)) => ws.ic[i].column(j) * sign,
@@ -209,8 +236,8 @@ fn local_row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) ->
             };
         }
         probe += match body.joint.kind {
-            JointKind::Floating => floating_rows(h, model.nv, v0, &ws.f_cols[..end]),
-            _ => fill_rows(h, model.nv, v0, s_i, axes, &ws.f_cols[..end]),
+            JointKind::Floating => floating_rows::<MIRROR>(h, model.nv, v0, &ws.f_cols[..end]),
+            _ => fill_rows::<MIRROR>(h, model.nv, v0, s_i, axes, &ws.f_cols[..end]),
         };
         if let Some(p) = body.parent {
             // The parent's sum is taken where the moved inertia is made, so that it stays in
@@ -228,13 +255,14 @@ fn local_row_blocks(model: &Model, ws: &mut Workspace, subtree_end: &[usize]) ->
 }
 
 /// Rows `v0 .. v0 + n_i` of `H` (`n × n`, column-major) from the diagonal to the end of
-/// `f_cols`: `H[v0 + k, c] = S_kᵀ F_c` and its mirror `H[c, v0 + k]`, where a column `S_k`
+/// `f_cols`, `H[v0 + k, c] = S_kᵀ F_c`, written as their mirror `H[c, v0 + k]` (down a column of
+/// the lower triangle, contiguous) and, with `MIRROR`, also as themselves, where a column `S_k`
 /// that is a signed unit vector `σ e_j` (`axes[k]`) reads `σ F_c[j]` instead of a product.
 /// Returns the sum of `0·H_rc` over the entries written: `0·x` is 0 for a finite `x` and NaN
 /// otherwise, so the sum is 0 exactly when every entry is finite (two flops an entry and one
 /// addition a row, no branch).
 #[inline(always)]
-fn fill_rows(
+fn fill_rows<const MIRROR: bool>(
     h: &mut [f64],
     n: usize,
     v0: usize,
@@ -245,10 +273,10 @@ fn fill_rows(
     let mut probe = 0.0;
     for (k, s_k) in s.cols[..s.nv].iter().enumerate() {
         probe += match axes[k] {
-            Some((j, sign)) => fill_row(h, n, v0 + k, f_cols, |f| sign * f.component(j)),
+            Some((j, sign)) => fill_row::<MIRROR>(h, n, v0 + k, f_cols, |f| sign * f.component(j)),
             None => {
                 let s_k = *s_k; // a copy held in registers through the sweep
-                fill_row(h, n, v0 + k, f_cols, |f| dot6(&s_k, f))
+                fill_row::<MIRROR>(h, n, v0 + k, f_cols, |f| dot6(&s_k, f))
             }
         };
     }
@@ -257,14 +285,17 @@ fn fill_rows(
 
 /// The six rows of a floating joint in its body's coordinates: its `S` is `[0 1; 1 0]`
 /// (`v = [linear; angular]`), so `H[v0 .. v0 + 6, c] = Sᵀ F_c = [f_c; n_c]`, each column's force
-/// as it is, and the mirror `H[c, v0 .. v0 + 6]`; column by column, the 6×6 diagonal block in
-/// full (it is symmetric: its columns are those of the composite inertia). Returns the sum of
-/// `0·H_rc` over the entries written (see [`fill_rows`]).
-fn floating_rows(h: &mut [f64], n: usize, v0: usize, f_cols: &[Force]) -> f64 {
+/// as it is, written as the mirror `H[c, v0 .. v0 + 6]` (lower triangle, as [`fill_rows`]) and,
+/// with `MIRROR`, as itself; column by column, the 6×6 diagonal block in full (it is symmetric:
+/// its columns are those of the composite inertia). Returns the sum of `0·H_rc` over the
+/// entries written (see [`fill_rows`]).
+fn floating_rows<const MIRROR: bool>(h: &mut [f64], n: usize, v0: usize, f_cols: &[Force]) -> f64 {
     let mut probe = 0.0;
     for (c, f) in f_cols.iter().enumerate().skip(v0) {
         let rows = [f.lin.x, f.lin.y, f.lin.z, f.ang.x, f.ang.y, f.ang.z];
-        h[c * n + v0..c * n + v0 + 6].copy_from_slice(&rows);
+        if MIRROR {
+            h[c * n + v0..c * n + v0 + 6].copy_from_slice(&rows);
+        }
         for (k, x) in rows.iter().enumerate() {
             h[(v0 + k) * n + c] = *x;
             probe += 0.0 * x;
@@ -273,10 +304,55 @@ fn floating_rows(h: &mut [f64], n: usize, v0: usize, f_cols: &[Force]) -> f64 {
     probe
 }
 
-/// Row `row` of `H` from the diagonal to the end of `f_cols`, `H[row, c] = s_dot(F_c)`, and its
-/// mirror `H[c, row]`; returns the sum of `0·H_rc` (see [`fill_rows`]).
+/// `H`'s upper triangle from its lower one, `H[r, c] = H[c, r]` for `r < c` up to the end of
+/// row `r`'s pattern (`subtree_end[r]`; entries beyond are zero in both triangles), by tiles of
+/// eight rows and eight columns.
+///
+/// The passes write each row of `H` down its column (`H[c, r]` for `c ≥ r`, contiguous in
+/// column-major storage); its mirror beside it steps `n` entries a store, and where `n` is a
+/// multiple of 64 above 64 those stores fall in a few sets of the L1 cache and miss (a 256-link
+/// chain's CRBA took 3.3× as long: 196 µs against 59). A tile reads eight contiguous runs of
+/// the lower triangle and writes eight of the upper, a cache line each. For other sizes the
+/// mirror beside each entry is 2–10 % faster ([`mirror_by_tiles`] decides).
+fn mirror_lower(h: &mut [f64], n: usize, subtree_end: &[usize]) {
+    const TILE: usize = 8;
+    for r0 in (0..n).step_by(TILE) {
+        let r1 = (r0 + TILE).min(n);
+        let last = subtree_end[r0..r1].iter().copied().max().unwrap_or(r1);
+        for c0 in (r0..last).step_by(TILE) {
+            for c in c0..(c0 + TILE).min(last) {
+                for r in r0..r1.min(c) {
+                    h[c * n + r] = h[r * n + c];
+                }
+            }
+        }
+    }
+}
+
+/// Whether [`mirror_lower`] copies `H`'s upper triangle by tiles (else each entry's mirror is
+/// stored beside it): when a row's mirror stores, `8n` bytes apart, would outnumber the lines the
+/// L1 cache sets they reach can hold. An L1 way spans 4 KiB (64 sets of 64-byte lines) on
+/// current x86 cores; eight ways are counted (AMD's; Intel's hold twelve, so 160 and 224 tile
+/// where they need not there). True for 128, 160, 192, 224, every multiple of 16 from 256 to
+/// 512, and every `n` beyond 512 (a row then exceeds 64 sets of eight lines).
+pub(crate) fn mirror_by_tiles(n: usize) -> bool {
+    const WAY_BYTES: usize = 4096;
+    const LINE_BYTES: usize = 64;
+    const WAYS: usize = 8;
+    let stride = 8 * n;
+    let mut gcd = (WAY_BYTES, stride);
+    while gcd.1 != 0 {
+        gcd = (gcd.1, gcd.0 % gcd.1);
+    }
+    let sets = WAY_BYTES / gcd.0.max(LINE_BYTES);
+    n > WAYS * sets
+}
+
+/// Row `row` of `H` from the diagonal to the end of `f_cols`, `H[row, c] = s_dot(F_c)`, written
+/// as its mirror `H[c, row]`, down column `row`, and with `MIRROR` as itself; returns the sum of
+/// `0·H_rc` (see [`fill_rows`]).
 #[inline(always)]
-fn fill_row(
+fn fill_row<const MIRROR: bool>(
     h: &mut [f64],
     n: usize,
     row: usize,
@@ -287,7 +363,10 @@ fn fill_row(
     for (c, f) in f_cols.iter().enumerate().skip(row) {
         let x = s_dot(f);
         // Column-major: `H[c, row]` is at `row·n + c`, `H[row, c]` at `c·n + row`.
-        (h[row * n + c], h[c * n + row]) = (x, x);
+        h[row * n + c] = x;
+        if MIRROR {
+            h[c * n + row] = x;
+        }
         probe += 0.0 * x;
     }
     probe
@@ -370,6 +449,7 @@ mod tests {
                 false,
             ),
             load(&pendulum_urdf(9, 0.5, 0.7), false),
+            load(&pendulum_urdf(20, 0.5, 0.7), true), // mirrored by three tiles of rows
             load(examples::DEFAULT_ARM_URDF, false),
             load(examples::DEFAULT_ARM_URDF, true),
             load(examples::LAMP_URDF, true),
@@ -382,23 +462,43 @@ mod tests {
             for _ in 0..5 {
                 let q = random_q(model, &mut rng);
                 let mut h = Vec::new();
-                for (frames, subtree_end) in [
-                    (CrbaFrames::World, subtree_end.clone()),
-                    (CrbaFrames::Local, subtree_end.clone()),
-                    (CrbaFrames::World, None), // the general pass
+                for (frames, subtree_end, tiles) in [
+                    (CrbaFrames::World, subtree_end.clone(), false),
+                    (CrbaFrames::World, subtree_end.clone(), true),
+                    (CrbaFrames::Local, subtree_end.clone(), false),
+                    (CrbaFrames::Local, subtree_end.clone(), true),
+                    (CrbaFrames::World, None, false), // the general pass
                 ] {
                     (ws.crba_frames, ws.subtree_end) = (frames, subtree_end);
+                    ws.mirror_by_tiles = tiles;
                     ws.mass_matrix.fill(0.0); // an entry a pass misses stays 0
                     let m = crba(model, &mut ws, &q).unwrap();
                     assert_eq!(m, &m.transpose(), "{}: {frames:?}", model.name);
                     h.push(m.clone());
                 }
+                // The mirror's two forms give the same matrix, bit for bit.
+                assert_eq!(h[0], h[1], "{}: world rows", model.name);
+                assert_eq!(h[2], h[3], "{}: body rows", model.name);
                 let scale = h[0].amax();
                 for other in &h[1..] {
                     let err = (&h[0] - other).amax();
                     assert!(err < 1e-13 * scale, "{}: H differs by {err:e}", model.name);
                 }
             }
+        }
+    }
+
+    /// The mirror is copied by tiles where a row's stores, `8n` bytes apart, fall in too few L1
+    /// sets: every size measured 2–3× slow with the mirror beside each entry (chains of 128,
+    /// 192 and 256 links) and every size beyond 512; not below 128, nor the sizes measured
+    /// faster with the mirror beside each entry (112, 120, 136, 200, 300).
+    #[test]
+    fn mirror_by_tiles_where_strides_conflict() {
+        for n in [128, 192, 256].into_iter().chain(513..600) {
+            assert!(mirror_by_tiles(n), "{n}");
+        }
+        for n in (0..128).chain([136, 200, 300]) {
+            assert!(!mirror_by_tiles(n), "{n}");
         }
     }
 
