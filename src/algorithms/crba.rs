@@ -34,11 +34,12 @@
 //! When every subtree's coordinates are contiguous (the usual depth-first order) the inward
 //! pass fills `H` by row blocks, Pinocchio's way: the `F` of each coordinate is kept, and body
 //! `i` fills its rows from its own columns to the end of its subtree, `H_ij = S_iᵀ F_j` (see
-//! `row_blocks` and `local_row_blocks`; written down the columns of the lower triangle, then
-//! copied to the upper one by tiles, `mirror_lower`). Otherwise (mimic joints) it runs in world
-//! coordinates along each column's path to the root: body `i` contributes to the column of its
-//! leader scaled by `μ_i`, `H[c_j, c_i] += μ_j μ_i S_jᵀ F` (and its mirror), which is
-//! `Jᵀ H_full J` for the coordinate map `J`.
+//! `row_blocks` and `local_row_blocks`; each entry written down a column of the lower
+//! triangle with its mirror beside it, or, for the sizes where those mirror stores conflict in
+//! the L1 cache, the upper triangle copied afterwards by tiles, `mirror_lower`). Otherwise
+//! (mimic joints) it runs in world coordinates along each column's path to the root: body `i`
+//! contributes to the column of its leader scaled by `μ_i`, `H[c_j, c_i] += μ_j μ_i S_jᵀ F` (and
+//! its mirror), which is `Jᵀ H_full J` for the coordinate map `J`.
 
 use super::flops;
 use super::kinematics::{
@@ -309,11 +310,11 @@ fn floating_rows<const MIRROR: bool>(h: &mut [f64], n: usize, v0: usize, f_cols:
 /// eight rows and eight columns.
 ///
 /// The passes write each row of `H` down its column (`H[c, r]` for `c ≥ r`, contiguous in
-/// column-major storage); its mirror beside it steps `n` entries a store, and where `n` is a
-/// multiple of 64 above 64 those stores fall in a few sets of the L1 cache and miss (a 256-link
-/// chain's CRBA took 3.3× as long: 196 µs against 59). A tile reads eight contiguous runs of
-/// the lower triangle and writes eight of the upper, a cache line each. For other sizes the
-/// mirror beside each entry is 2–10 % faster ([`mirror_by_tiles`] decides).
+/// column-major storage); its mirror beside it steps `n` entries a store, and for some `n`
+/// (multiples of 64 from 128 on the worst) those stores fall in a few sets of the L1 cache and
+/// miss (a 256-link chain's CRBA took 3.2× as long: 196 µs against 62). A tile reads eight
+/// contiguous runs of the lower triangle and writes eight of the upper, a cache line each. For
+/// other sizes the mirror beside each entry is 2–10 % faster ([`mirror_by_tiles`] decides).
 fn mirror_lower(h: &mut [f64], n: usize, subtree_end: &[usize]) {
     const TILE: usize = 8;
     for r0 in (0..n).step_by(TILE) {
