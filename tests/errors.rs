@@ -307,6 +307,26 @@ fn finite_inputs_that_overflow_are_errors_not_infinities() {
     assert!(crba(&m, &mut ws_for(&m), &[0.3, 2.0]).is_ok());
 }
 
+/// A robot with no moving joint (one link, or everything fixed) has no coordinates: every
+/// algorithm answers with empty vectors and a 0 × 0 mass matrix, none panics.
+#[test]
+fn a_model_without_coordinates_answers_every_algorithm() {
+    let m = model(
+        r#"<robot name="r"><link name="a"><inertial><mass value="1"/>
+        <inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>"#,
+    )
+    .unwrap();
+    assert_eq!((m.nq, m.nv), (0, 0));
+    let mut ws = ws_for(&m);
+    assert!(rnea(&m, &mut ws, &[], &[], &[]).unwrap().is_empty());
+    assert!(gravity(&m, &mut ws, &[]).unwrap().is_empty());
+    assert_eq!(crba(&m, &mut ws, &[]).unwrap().shape(), (0, 0));
+    for method in ForwardDynamicsMethod::ALL {
+        let qdd = forward_dynamics(&m, &mut ws, &[], &[], &[], method, &Externals::none());
+        assert!(qdd.unwrap().is_empty(), "{method:?}");
+    }
+}
+
 fn ws_for(m: &spatial_dynamics::Model) -> Workspace {
     Workspace::new(m)
 }

@@ -66,6 +66,9 @@ pub fn cholesky_factor(
 /// columns (`x_i = (y_i − Σ_{k>i} L_ki x_k) / L_ii`).
 pub fn cholesky_solve(factor: &DMatrix<f64>, x: &mut DVector<f64>) {
     let n = factor.nrows();
+    if n == 0 {
+        return; // nothing to solve (and no columns to walk: `chunks_exact(0)` would panic)
+    }
     let x = x.as_mut_slice();
     for (k, l_k) in factor.as_slice().chunks_exact(n).enumerate() {
         x[k] /= l_k[k];
