@@ -5,10 +5,12 @@
 //! `launch_scripts/bench_pinocchio.sh`, which times `spatial_dynamics bench`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use spatial_dynamics::algorithms::{crba, forward_dynamics, gravity, rnea};
-use spatial_dynamics::model::examples;
-use spatial_dynamics::sampling::{random_q, Rng};
-use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
+use spatial_dynamics_core::algorithms::{crba, forward_dynamics, gravity, rnea};
+use spatial_dynamics_core::model::examples;
+use spatial_dynamics_core::sampling::{random_q, Rng};
+use spatial_dynamics_core::{
+    urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace,
+};
 use std::hint::black_box;
 use std::time::Duration;
 

@@ -17,15 +17,15 @@
 //! (`algorithms::flops::kernel_flops`) is printed as JSON, so the script needs no other binary.
 
 use nalgebra::{Matrix3, Rotation3, Vector6};
-use spatial_dynamics::algorithms::cholesky::spd_inverse;
-use spatial_dynamics::algorithms::{crba, flops, forward_dynamics, gravity, rnea};
-use spatial_dynamics::model::{examples, JointKind, MotionSubspace};
-use spatial_dynamics::sampling::{random_q, Rng};
-use spatial_dynamics::spatial::{
+use spatial_dynamics_core::algorithms::cholesky::spd_inverse;
+use spatial_dynamics_core::algorithms::{crba, flops, forward_dynamics, gravity, rnea};
+use spatial_dynamics_core::model::{examples, JointKind, MotionSubspace};
+use spatial_dynamics_core::sampling::{random_q, Rng};
+use spatial_dynamics_core::spatial::{
     AxisTransform, Force, Inertia, Matrix6, Motion, Transform, Translation, Vector3,
 };
-use spatial_dynamics::urdf::{model_from_file, model_from_str};
-use spatial_dynamics::{Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
+use spatial_dynamics_core::urdf::{model_from_file, model_from_str};
+use spatial_dynamics_core::{Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
 use std::hint::black_box;
 use std::path::Path;
 

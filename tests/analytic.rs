@@ -5,11 +5,11 @@ mod common;
 
 use common::{max_diff, Rng};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
-use spatial_dynamics::algorithms::{crba, gravity, rnea, rnea_with};
-use spatial_dynamics::model::examples::pendulum_urdf;
-use spatial_dynamics::model::{BodySpec, JointKind, JointLimits, JointSpec, ModelBuilder};
-use spatial_dynamics::spatial::{Force, Inertia, Transform};
-use spatial_dynamics::{urdf, Externals, Model, ModelOptions, Workspace};
+use spatial_dynamics_core::algorithms::{crba, gravity, rnea, rnea_with};
+use spatial_dynamics_core::model::examples::pendulum_urdf;
+use spatial_dynamics_core::model::{BodySpec, JointKind, JointLimits, JointSpec, ModelBuilder};
+use spatial_dynamics_core::spatial::{Force, Inertia, Transform};
+use spatial_dynamics_core::{urdf, Externals, Model, ModelOptions, Workspace};
 
 const G: f64 = 9.81;
 
@@ -90,7 +90,7 @@ fn handout_particle_example() {
 fn particle_urdf_is_the_handout_particle() {
     // config/models/particle.urdf: x, then z (vertical, gravity −z): Q = (m q̈0, m (q̈1 + g)).
     let model = urdf::model_from_str(
-        spatial_dynamics::model::examples::PARTICLE_URDF,
+        spatial_dynamics_core::model::examples::PARTICLE_URDF,
         &ModelOptions::default(),
     )
     .unwrap();

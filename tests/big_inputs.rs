@@ -3,12 +3,14 @@
 //! (a huge comment, a giant attribute, deep nesting, very many links) is answered with a model or a
 //! clear error, never a crash or an out-of-memory abort. Times are printed (`--nocapture`).
 
-use spatial_dynamics::algorithms::kinematics::{body_motion, body_placements};
-use spatial_dynamics::algorithms::{
+use spatial_dynamics_core::algorithms::kinematics::{body_motion, body_placements};
+use spatial_dynamics_core::algorithms::{
     bias, crba, energy, forward_dynamics, gravity, rnea, rnea_with,
 };
-use spatial_dynamics::spatial::Force;
-use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
+use spatial_dynamics_core::spatial::Force;
+use spatial_dynamics_core::{
+    urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace,
+};
 use std::time::{Duration, Instant};
 
 const LINKS: usize = 10_000;

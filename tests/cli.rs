@@ -3,8 +3,8 @@
 mod common;
 
 use serde_json::Value;
-use spatial_dynamics::algorithms::rnea;
-use spatial_dynamics::{urdf, ModelOptions, Workspace};
+use spatial_dynamics_core::algorithms::rnea;
+use spatial_dynamics_core::{urdf, ModelOptions, Workspace};
 use std::io::Write;
 use std::process::{Command, Stdio};
 

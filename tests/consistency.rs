@@ -6,11 +6,13 @@
 mod common;
 
 use common::{max_diff, norm, random_q, Rng};
-use spatial_dynamics::algorithms::{
+use spatial_dynamics_core::algorithms::{
     crba, forward_dynamics, gravity, rnea, rnea_columns::rnea_columns,
 };
-use spatial_dynamics::model::examples::{self, pendulum_urdf};
-use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
+use spatial_dynamics_core::model::examples::{self, pendulum_urdf};
+use spatial_dynamics_core::{
+    urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace,
+};
 
 const TREE: &str = include_str!("models/tree.urdf");
 

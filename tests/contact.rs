@@ -1,10 +1,10 @@
 //! Ground contact: the handout's lamp rests on the plane with the static penetration a spring
 //! model predicts, and jumps and lands without sinking deeper than a stated depth.
 
-use spatial_dynamics::model::examples::LAMP_URDF;
-use spatial_dynamics::sim::{ContactPoint, Ground, Integrator, SimConfig, Simulator, State};
-use spatial_dynamics::spatial::Vector3;
-use spatial_dynamics::{urdf, Model, ModelOptions};
+use spatial_dynamics_core::model::examples::LAMP_URDF;
+use spatial_dynamics_core::sim::{ContactPoint, Ground, Integrator, SimConfig, Simulator, State};
+use spatial_dynamics_core::spatial::Vector3;
+use spatial_dynamics_core::{urdf, Model, ModelOptions};
 
 /// The lamp's foot is a 0.20 × 0.10 m box whose bottom face is at z = 0 of its frame.
 fn lamp(locked: &[(&str, f64)]) -> (Model, SimConfig) {

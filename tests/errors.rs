@@ -1,12 +1,12 @@
 //! Failure is loud: every bad input or singular model gives an error naming the joint, the
 //! coordinate or the element, never NaN and never a panic.
 
-use spatial_dynamics::algorithms::{crba, forward_dynamics, gravity, rnea};
-use spatial_dynamics::{
+use spatial_dynamics_core::algorithms::{crba, forward_dynamics, gravity, rnea};
+use spatial_dynamics_core::{
     urdf, DynamicsError, Externals, ForwardDynamicsMethod, ModelError, ModelOptions, Workspace,
 };
 
-fn model(text: &str) -> Result<spatial_dynamics::Model, ModelError> {
+fn model(text: &str) -> Result<spatial_dynamics_core::Model, ModelError> {
     urdf::model_from_str(text, &ModelOptions::default())
 }
 
@@ -214,7 +214,7 @@ fn deep_nesting_is_refused_without_overflowing_the_stack() {
 
 #[test]
 fn eval_requests_that_are_not_json_or_not_utf8_are_answered_with_an_error() {
-    use spatial_dynamics::requests::answer_line;
+    use spatial_dynamics_core::requests::answer_line;
     let m = model(&ARM2.replace("LEAF", r#"<link name="l2"><inertial><mass value="0.5"/><inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001"/></inertial></link>"#)).unwrap();
     let mut ws = Workspace::new(&m);
     let cases: [(&[u8], &str); 7] = [
@@ -247,9 +247,9 @@ fn finite_inputs_that_overflow_are_errors_not_infinities() {
     // Found by fuzzing `eval`: {"op":"mass_matrix","q":[0,1e200]} answered {"M":[[null,0.0],..]}
     // (CRBA had no check of its result), and forward dynamics at that state called the
     // articulated inertia "singular: nothing with mass moves" when it had overflowed.
-    use spatial_dynamics::algorithms::energy;
-    use spatial_dynamics::algorithms::kinematics::{body_motion, body_placements};
-    use spatial_dynamics::requests::answer_line;
+    use spatial_dynamics_core::algorithms::energy;
+    use spatial_dynamics_core::algorithms::kinematics::{body_motion, body_placements};
+    use spatial_dynamics_core::requests::answer_line;
     let m = model(TURN_SLIDE).unwrap();
     let mut ws = Workspace::new(&m);
     let answer = answer_line(&m, &mut ws, br#"{"op":"mass_matrix","q":[0,1e200]}"#);
@@ -327,6 +327,6 @@ fn a_model_without_coordinates_answers_every_algorithm() {
     }
 }
 
-fn ws_for(m: &spatial_dynamics::Model) -> Workspace {
+fn ws_for(m: &spatial_dynamics_core::Model) -> Workspace {
     Workspace::new(m)
 }

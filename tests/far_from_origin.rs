@@ -10,13 +10,15 @@
 mod common;
 
 use common::{max_diff, norm, random_q, Rng};
-use spatial_dynamics::algorithms::{
+use spatial_dynamics_core::algorithms::{
     crba, forward_dynamics, gravity, joint_state_outputs, rnea, rnea_with, JointStateInputs,
     JointStateOutputs,
 };
-use spatial_dynamics::model::examples::{self, pendulum_urdf};
-use spatial_dynamics::spatial::{Force, Motion, Vector3};
-use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
+use spatial_dynamics_core::model::examples::{self, pendulum_urdf};
+use spatial_dynamics_core::spatial::{Force, Motion, Vector3};
+use spatial_dynamics_core::{
+    urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace,
+};
 
 const TREE: &str = include_str!("models/tree.urdf");
 

@@ -6,11 +6,11 @@
 mod common;
 
 use common::{allocations_during, max_diff, norm, random_q, Rng};
-use spatial_dynamics::algorithms::{
+use spatial_dynamics_core::algorithms::{
     forward_dynamics, gravity, joint_state_outputs, rnea, JointStateInputs, JointStateOutputs,
 };
-use spatial_dynamics::model::examples::{self, pendulum_urdf};
-use spatial_dynamics::{
+use spatial_dynamics_core::model::examples::{self, pendulum_urdf};
+use spatial_dynamics_core::{
     urdf, DynamicsError, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace,
 };
 

@@ -6,8 +6,8 @@ mod common;
 
 use common::{max_diff, Rng};
 use nalgebra::{DMatrix, DVector};
-use spatial_dynamics::algorithms::{crba, forward_dynamics, rnea};
-use spatial_dynamics::{
+use spatial_dynamics_core::algorithms::{crba, forward_dynamics, rnea};
+use spatial_dynamics_core::{
     urdf, DynamicsError, Externals, ForwardDynamicsMethod, ModelOptions, Workspace,
 };
 
@@ -46,7 +46,7 @@ fn mimic_model_is_the_projected_full_model() {
     .unwrap();
     assert_eq!((reduced.nq, full.nq), (2, 4));
     // J maps reduced coordinates to full ones, found by joint name: q_full = J q + offset.
-    let index = |m: &spatial_dynamics::Model, name: &str| {
+    let index = |m: &spatial_dynamics_core::Model, name: &str| {
         m.coordinate_joints()
             .find(|j| j.name == name)
             .unwrap()

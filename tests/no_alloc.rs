@@ -2,9 +2,11 @@
 //! allocations (counted by a global allocator; this file holds one test so nothing else runs
 //! in the process while it counts).
 
-use spatial_dynamics::algorithms::{aba, bias, crba, forward_dynamics, gravity, rnea, rnea_with};
-use spatial_dynamics::spatial::Force;
-use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, ModelOptions, Workspace};
+use spatial_dynamics_core::algorithms::{
+    aba, bias, crba, forward_dynamics, gravity, rnea, rnea_with,
+};
+use spatial_dynamics_core::spatial::Force;
+use spatial_dynamics_core::{urdf, Externals, ForwardDynamicsMethod, ModelOptions, Workspace};
 
 mod common;
 use common::allocations_during;

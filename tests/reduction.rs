@@ -5,9 +5,11 @@
 mod common;
 
 use common::{random_q, Rng};
-use spatial_dynamics::algorithms::{crba, forward_dynamics, rnea};
-use spatial_dynamics::model::examples::{DEFAULT_ARM_URDF, MIMIC_GRIPPER_URDF};
-use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
+use spatial_dynamics_core::algorithms::{crba, forward_dynamics, rnea};
+use spatial_dynamics_core::model::examples::{DEFAULT_ARM_URDF, MIMIC_GRIPPER_URDF};
+use spatial_dynamics_core::{
+    urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace,
+};
 
 const TREE: &str = include_str!("models/tree.urdf");
 

@@ -2,10 +2,10 @@
 //! happening. Pendulum figures: a rod of mass m = 1 kg and length L = 1 m about one end has
 //! I_o = m L²/3 and, for small swings, ω² = m g (L/2) / I_o = 3g / 2L.
 
-use spatial_dynamics::algorithms::{crba, gravity};
-use spatial_dynamics::model::examples::pendulum_urdf;
-use spatial_dynamics::sim::{Integrator, Passive, SimConfig, SimError, Simulator, State};
-use spatial_dynamics::{urdf, Model, ModelOptions, Workspace};
+use spatial_dynamics_core::algorithms::{crba, gravity};
+use spatial_dynamics_core::model::examples::pendulum_urdf;
+use spatial_dynamics_core::sim::{Integrator, Passive, SimConfig, SimError, Simulator, State};
+use spatial_dynamics_core::{urdf, Model, ModelOptions, Workspace};
 
 const G: f64 = 9.81;
 

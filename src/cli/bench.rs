@@ -8,10 +8,12 @@
 use super::ModelArgs;
 use clap::Args;
 use serde_json::{json, Map, Value};
-use spatial_dynamics::algorithms::method_choice::AUTO_TOLERANCE;
-use spatial_dynamics::algorithms::{choose_method, crba, flops, forward_dynamics, gravity, rnea};
-use spatial_dynamics::sampling::{random_q, Rng};
-use spatial_dynamics::{DynamicsError, Externals, ForwardDynamicsMethod, Model, Workspace};
+use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
+use spatial_dynamics_core::algorithms::{
+    choose_method, crba, flops, forward_dynamics, gravity, rnea,
+};
+use spatial_dynamics_core::sampling::{random_q, Rng};
+use spatial_dynamics_core::{DynamicsError, Externals, ForwardDynamicsMethod, Model, Workspace};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 

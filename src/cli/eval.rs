@@ -1,11 +1,11 @@
 //! `spatial_dynamics eval`: one JSON request per line on stdin, one JSON answer per line on
-//! stdout, in order (see [`spatial_dynamics::requests`] for the requests). A bad request answers
+//! stdout, in order (see [`spatial_dynamics_core::requests`] for the requests). A bad request answers
 //! `{"error": "..."}` and the loop goes on. Numbers are printed in the shortest form that parses
 //! back to the same f64.
 
 use super::ModelArgs;
-use spatial_dynamics::requests::answer_line;
-use spatial_dynamics::Workspace;
+use spatial_dynamics_core::requests::answer_line;
+use spatial_dynamics_core::Workspace;
 use std::io::{BufRead, Write};
 
 /// Runs the request loop until stdin closes.

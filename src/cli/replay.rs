@@ -30,11 +30,11 @@ use crate::bag::{
 use crate::node::joint_map::{JointMap, Target};
 use clap::{Args, ValueEnum};
 use serde_json::{json, Value};
-use spatial_dynamics::algorithms::{
+use spatial_dynamics_core::algorithms::{
     forward_dynamics, gravity, joint_state_outputs, rnea, JointStateInputs, JointStateOutputs,
 };
-use spatial_dynamics::model::examples::DEFAULT_ARM_URDF;
-use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
+use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
+use spatial_dynamics_core::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
 use std::ops::Range;

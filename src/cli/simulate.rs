@@ -7,11 +7,11 @@
 
 use super::ModelArgs;
 use clap::Args;
-use spatial_dynamics::sim::{
+use spatial_dynamics_core::sim::{
     ContactPoint, Ground, Integrator, Passive, SimConfig, Simulator, State,
 };
-use spatial_dynamics::spatial::Vector3;
-use spatial_dynamics::{ForwardDynamicsMethod, Model};
+use spatial_dynamics_core::spatial::Vector3;
+use spatial_dynamics_core::{ForwardDynamicsMethod, Model};
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::PathBuf;

@@ -1,9 +1,9 @@
 //! Where the model comes from: a URDF file or a built-in example, and the model options.
 
 use clap::Args;
-use spatial_dynamics::model::{examples, joint_position};
-use spatial_dynamics::spatial::Vector3;
-use spatial_dynamics::{urdf, Model, ModelOptions};
+use spatial_dynamics_core::model::{examples, joint_position};
+use spatial_dynamics_core::spatial::Vector3;
+use spatial_dynamics_core::{urdf, Model, ModelOptions};
 use std::path::PathBuf;
 
 /// Model selection and options shared by every subcommand.

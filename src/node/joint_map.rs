@@ -12,8 +12,8 @@
 //! - a planar joint `J` is named by its components `J/x`, `J/y`, `J/theta`; a floating base is not
 //!   named here (it has fields of its own).
 
-use spatial_dynamics::model::JointKind;
-use spatial_dynamics::Model;
+use spatial_dynamics_core::model::JointKind;
+use spatial_dynamics_core::Model;
 use std::collections::HashMap;
 
 /// Which vector a field fills.
@@ -238,7 +238,7 @@ impl JointMap {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use spatial_dynamics::{urdf, ModelOptions};
+    use spatial_dynamics_core::{urdf, ModelOptions};
 
     fn strings(a: &[&str]) -> Vec<String> {
         a.iter().map(|s| s.to_string()).collect()
@@ -247,7 +247,7 @@ mod tests {
     #[test]
     fn matches_by_name_in_any_order_and_names_every_problem() {
         let model = urdf::model_from_str(
-            spatial_dynamics::model::examples::MIMIC_GRIPPER_URDF,
+            spatial_dynamics_core::model::examples::MIMIC_GRIPPER_URDF,
             &ModelOptions::default(),
         )
         .unwrap();

@@ -318,7 +318,7 @@ async fn serve(
                 .clone();
             // Choosing a method never fails (auto falls back to aba), so the candidate skips
             // auto's measurements: the set action that follows measures once, for real.
-            candidate.method = Some(spatial_dynamics::ForwardDynamicsMethod::Aba);
+            candidate.method = Some(spatial_dynamics_core::ForwardDynamicsMethod::Aba);
             Engine::from_settings(&candidate, description.as_deref())?;
         }
         Ok(())

@@ -24,7 +24,7 @@
 //! | `initial_positions` | string[] | `[]` | simulate: `"NAME=POSITION"` at start and on reload (others zero) |
 //! | `ground_contacts` | string[] | `[]` | simulate: `"LINK:X,Y,Z"` points (link frame, m) that touch a ground plane; empty: no ground |
 //! | `ground_height` | double | `0` | simulate: the plane `z = height` (world, m) |
-//! | `ground_stiffness`, `ground_damping`, `ground_friction` | double | `2e4`, `200`, `0.8` | simulate: penalty contact per point: N/m, N·s/m, Coulomb μ (`spatial_dynamics::sim::contact`) |
+//! | `ground_stiffness`, `ground_damping`, `ground_friction` | double | `2e4`, `200`, `0.8` | simulate: penalty contact per point: N/m, N·s/m, Coulomb μ (`spatial_dynamics_core::sim::contact`) |
 //! | `use_sim_time` | bool | `false` | the node's clock is ROS simulated time: the latest `/clock` (simulate mode: its own simulated time); outputs are stamped with it |
 //! | `max_stamp_age` | double | `0` | drop a `joint_states` stamped more than this (s) before the node's clock; 0: off |
 //! | `future_stamp_tolerance` | double | `0` | drop a `joint_states` stamped more than this (s) after the node's clock; 0: off |
@@ -36,10 +36,10 @@
 //! reads its value from the store before each use.
 
 use ros2_client::ParameterValue;
-use spatial_dynamics::model::joint_position;
-use spatial_dynamics::sim::{ContactPoint, Ground, Integrator, Passive};
-use spatial_dynamics::spatial::Vector3;
-use spatial_dynamics::{ForwardDynamicsMethod, ModelOptions};
+use spatial_dynamics_core::model::joint_position;
+use spatial_dynamics_core::sim::{ContactPoint, Ground, Integrator, Passive};
+use spatial_dynamics_core::spatial::Vector3;
+use spatial_dynamics_core::{ForwardDynamicsMethod, ModelOptions};
 use std::path::Path;
 
 /// The parameter values in force.

@@ -3,7 +3,7 @@
 #![allow(dead_code)]
 
 #[allow(unused_imports)]
-pub use spatial_dynamics::sampling::{random_q, Rng};
+pub use spatial_dynamics_core::sampling::{random_q, Rng};
 
 /// Largest absolute difference.
 pub fn max_diff(a: &[f64], b: &[f64]) -> f64 {

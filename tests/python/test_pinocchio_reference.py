@@ -155,7 +155,7 @@ _TALOS = ("talos_data/robots/talos_full_v2.urdf", "talos_data/robots/talos_full.
 _SOLO12 = ("solo_description/robots/solo12.urdf",)
 _ANYMAL = ("anymal_b_simple_description/robots/anymal.urdf", "anymal_description/robots/anymal.urdf")
 _KINOVA = ("kinova_description/robots/kinova.urdf",)
-# Ours: joints placed by quarter turns, whose bodies our model turns (src/model/orientation.rs).
+# Ours: joints placed by quarter turns, whose bodies our model turns (src/core/model/orientation.rs).
 _QUARTER_TURNS = (str(REPO / "tests" / "models" / "quarter_turns.urdf"),)
 
 CASES = (

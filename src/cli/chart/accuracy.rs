@@ -15,9 +15,9 @@ use super::reference::{self, Chain, G};
 use super::svg::{Figure, Line, Marker, Panel, Series, Style, COLORS};
 use super::Table;
 use crate::cli::bench::{self, Settings};
-use spatial_dynamics::algorithms::forward_dynamics;
-use spatial_dynamics::sampling::Rng;
-use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, ModelOptions, Workspace};
+use spatial_dynamics_core::algorithms::forward_dynamics;
+use spatial_dynamics_core::sampling::Rng;
+use spatial_dynamics_core::{urdf, Externals, ForwardDynamicsMethod, ModelOptions, Workspace};
 
 /// Random states per chain.
 const STATES: usize = 8;

@@ -343,8 +343,8 @@ mod tests {
     /// dropped (1.2 ulp).
     #[test]
     fn library_sin_cos_within_one_ulp() {
-        use spatial_dynamics::sampling::Rng;
-        use spatial_dynamics::spatial::sin_cos;
+        use spatial_dynamics_core::sampling::Rng;
+        use spatial_dynamics_core::spatial::sin_cos;
         let ulps = |got: f64, exact: Dd| {
             let v = exact.to_f64().abs();
             let ulp = f64::from_bits(v.to_bits() + 1) - v;

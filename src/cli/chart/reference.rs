@@ -232,7 +232,7 @@ fn cholesky_solve(mut h: Vec<Vec<Dd>>, b: &mut [Dd]) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use spatial_dynamics::{urdf, ModelOptions};
+    use spatial_dynamics_core::{urdf, ModelOptions};
 
     #[test]
     fn urdf_numbers_are_the_reference_numbers() {

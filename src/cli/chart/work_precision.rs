@@ -1,4 +1,4 @@
-//! Chart 3: work–precision of the integrators of [`spatial_dynamics::sim`].
+//! Chart 3: work–precision of the integrators of [`spatial_dynamics_core::sim`].
 //!
 //! Two torque-free problems under gravity, from rest at a non-trivial configuration, integrated
 //! to `T = 1 s` with forward dynamics by ABA and no passive forces: a pendulum chain of 5 links
@@ -17,9 +17,9 @@
 
 use super::svg::{Figure, Line, Marker, Panel, Series, Style, COLORS};
 use super::Table;
-use spatial_dynamics::model::examples;
-use spatial_dynamics::sim::{Integrator, Passive, SimConfig, SimError, Simulator, State};
-use spatial_dynamics::{urdf, ForwardDynamicsMethod, Model, ModelOptions};
+use spatial_dynamics_core::model::examples;
+use spatial_dynamics_core::sim::{Integrator, Passive, SimConfig, SimError, Simulator, State};
+use spatial_dynamics_core::{urdf, ForwardDynamicsMethod, Model, ModelOptions};
 use std::time::{Duration, Instant};
 
 /// Final time (s).

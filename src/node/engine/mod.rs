@@ -9,15 +9,15 @@ use super::joint_map::{JointMap, Target};
 use super::msgs::*;
 use super::params::Settings;
 use simulation::Simulation;
-use spatial_dynamics::algorithms::kinematics::body_placements;
-use spatial_dynamics::algorithms::method_choice::AUTO_TOLERANCE;
-use spatial_dynamics::algorithms::{
+use spatial_dynamics_core::algorithms::kinematics::body_placements;
+use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
+use spatial_dynamics_core::algorithms::{
     choose_method, crba, forward_dynamics, joint_state_outputs, rnea_with, JointStateInputs,
     JointStateOutputs,
 };
-use spatial_dynamics::model::examples::DEFAULT_ARM_URDF;
-use spatial_dynamics::spatial::{Force, Transform};
-use spatial_dynamics::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
+use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
+use spatial_dynamics_core::spatial::{Force, Transform};
+use spatial_dynamics_core::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
 use std::time::{Duration, Instant};
 
 /// Where the model came from (for diagnostics and DescribeModel).

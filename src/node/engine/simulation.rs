@@ -8,7 +8,7 @@ use super::Engine;
 use crate::node::joint_map::Target;
 use crate::node::msgs::*;
 use crate::node::params::{parse_passive, Settings};
-use spatial_dynamics::sim::{SimConfig, Simulator, State};
+use spatial_dynamics_core::sim::{SimConfig, Simulator, State};
 use std::time::{Duration, Instant};
 
 /// The simulated robot.

@@ -1,13 +1,13 @@
-//! The `eval` command's request handling (`spatial_dynamics::requests`): any line of bytes is
+//! The `eval` command's request handling (`spatial_dynamics_core::requests`): any line of bytes is
 //! answered with one JSON object, either `{"error": "<a reason>"}` or the result, whose numbers
 //! are all finite (JSON has no NaN: a NaN would come out as `null`). Never a panic.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
 use serde_json::Value;
-use spatial_dynamics::model::examples::{DEFAULT_ARM_URDF, LAMP_URDF, MIMIC_GRIPPER_URDF};
-use spatial_dynamics::requests::answer_line;
-use spatial_dynamics::{urdf, Model, ModelOptions, Workspace};
+use spatial_dynamics_core::model::examples::{DEFAULT_ARM_URDF, LAMP_URDF, MIMIC_GRIPPER_URDF};
+use spatial_dynamics_core::requests::answer_line;
+use spatial_dynamics_core::{urdf, Model, ModelOptions, Workspace};
 use std::sync::OnceLock;
 
 /// A revolute joint carrying a prismatic one: the mass matrix holds `m x²`, so a finite

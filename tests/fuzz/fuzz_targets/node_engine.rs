@@ -10,7 +10,7 @@
 
 use arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
-use spatial_dynamics::model::examples::{
+use spatial_dynamics_core::model::examples::{
     DEFAULT_ARM_URDF, LAMP_URDF, MIMIC_GRIPPER_URDF, PARTICLE_URDF,
 };
 use std::time::Instant;

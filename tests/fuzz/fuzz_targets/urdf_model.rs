@@ -7,12 +7,12 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use spatial_dynamics::algorithms::kinematics::{body_motion, body_placements};
-use spatial_dynamics::algorithms::{
+use spatial_dynamics_core::algorithms::kinematics::{body_motion, body_placements};
+use spatial_dynamics_core::algorithms::{
     bias, crba, energy, forward_dynamics, gravity, rnea, rnea_with,
 };
-use spatial_dynamics::spatial::{Force, Vector3};
-use spatial_dynamics::{
+use spatial_dynamics_core::spatial::{Force, Vector3};
+use spatial_dynamics_core::{
     urdf, DynamicsError, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace,
 };
 

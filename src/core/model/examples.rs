@@ -2,13 +2,13 @@
 //! generator for n-link pendulums.
 
 /// The embedded default robot: `sd_arm7`, a 7-DOF arm (see `config/models/README.md`).
-pub const DEFAULT_ARM_URDF: &str = include_str!("../../config/models/default_arm.urdf");
+pub const DEFAULT_ARM_URDF: &str = include_str!("../../../config/models/default_arm.urdf");
 /// The handout's particle: a point mass on two massless prismatic joints (x, then z).
-pub const PARTICLE_URDF: &str = include_str!("../../config/models/particle.urdf");
+pub const PARTICLE_URDF: &str = include_str!("../../../config/models/particle.urdf");
 /// The handout's 2-D jumping lamp: a planar base and two hinges.
-pub const LAMP_URDF: &str = include_str!("../../config/models/lamp.urdf");
+pub const LAMP_URDF: &str = include_str!("../../../config/models/lamp.urdf");
 /// A small gripper with mimic joints.
-pub const MIMIC_GRIPPER_URDF: &str = include_str!("../../config/models/mimic_gripper.urdf");
+pub const MIMIC_GRIPPER_URDF: &str = include_str!("../../../config/models/mimic_gripper.urdf");
 
 /// URDF of a planar pendulum of `n` identical links hanging from the world: revolute joints
 /// `joint1…joint<n>` about y, each link a thin rod of `length` (m) and `mass` (kg) along −z, its
