@@ -5,7 +5,9 @@
 
 use spatial_dynamics_core::algorithms::forward_dynamics;
 use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
-use spatial_dynamics_core::{urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
+use spatial_dynamics_core::{
+    urdf, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace,
+};
 use std::error::Error;
 
 fn main() -> Result<(), Box<dyn Error>> {

@@ -17,7 +17,11 @@ fn main() -> Result<(), Box<dyn Error>> {
 
     let q = vec![0.3; model.nq];
     let h = crba(&model, &mut ws, &q)?;
-    println!("H(q) ({} × {}, kg·m² for revolute joints):", h.nrows(), h.ncols());
+    println!(
+        "H(q) ({} × {}, kg·m² for revolute joints):",
+        h.nrows(),
+        h.ncols()
+    );
     for row in h.row_iter() {
         let cells: Vec<String> = row.iter().map(|x| format!("{x:+.5}")).collect();
         println!("  [{}]", cells.join(" "));
