@@ -14,8 +14,10 @@ pub mod examples;
 mod joint;
 mod orientation;
 mod reduction;
+mod spec;
 
-pub use builder::{joint_position, BodySpec, JointSpec, ModelBuilder, ModelOptions};
+pub use builder::ModelBuilder;
+pub use spec::{joint_position, BodySpec, JointSpec, ModelOptions};
 pub use joint::{
     axis_rotation, quaternion_rotation, turn_up, turn_up_unrotated, JointKind, MotionSubspace,
     UpShape,

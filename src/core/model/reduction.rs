@@ -17,7 +17,7 @@
 //!   Removing it (and its coordinate) leaves every other coordinate's `τ`, `H` and `C` unchanged;
 //!   it also removes the zero row and column that would make `H` singular.
 
-use super::builder::{JointSpec, ModelOptions};
+use super::spec::{JointSpec, ModelOptions};
 use super::JointKind;
 use crate::error::ModelError;
 use crate::spatial::Inertia;
