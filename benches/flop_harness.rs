@@ -18,14 +18,16 @@
 
 use nalgebra::{Matrix3, Rotation3, Vector6};
 use spatial_dynamics_core::algorithms::cholesky::spd_inverse;
-use spatial_dynamics_core::algorithms::{crba, flops, forward_dynamics, gravity, rnea};
+use spatial_dynamics_core::algorithms::{crba, flop_table, flops, forward_dynamics, gravity, rnea};
 use spatial_dynamics_core::model::{examples, JointKind, MotionSubspace};
 use spatial_dynamics_core::sampling::{random_q, Rng};
 use spatial_dynamics_core::spatial::{
     AxisTransform, Force, Inertia, Matrix6, Motion, Transform, Translation, Vector3,
 };
 use spatial_dynamics_core::urdf::{model_from_file, model_from_str};
-use spatial_dynamics_core::{Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
+use spatial_dynamics_core::{
+    Externals, ForwardDynamicsMethod, Model, ModelOptions, Plan, Workspace,
+};
 use std::hint::black_box;
 use std::path::Path;
 
@@ -59,7 +61,7 @@ fn run(args: &[String]) -> Result<(), String> {
         return operation(name, calls);
     }
     let model = load(model_name)?;
-    let table = flops::kernel_flops(&model, kernel)
+    let table = flop_table::kernel_flops(&model, &Plan::new(&model), kernel)
         .ok_or_else(|| format!("no FLOP count for kernel '{kernel}' on this model"))?;
     let states: Vec<State> = {
         let mut rng = Rng::new(1);

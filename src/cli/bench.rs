@@ -10,10 +10,12 @@ use clap::Args;
 use serde_json::{json, Map, Value};
 use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics_core::algorithms::{
-    choose_method, crba, flops, forward_dynamics, gravity, rnea,
+    choose_method, crba, flop_table, forward_dynamics, gravity, rnea,
 };
 use spatial_dynamics_core::sampling::{random_q, Rng};
-use spatial_dynamics_core::{DynamicsError, Externals, ForwardDynamicsMethod, Model, Workspace};
+use spatial_dynamics_core::{
+    DynamicsError, Externals, ForwardDynamicsMethod, Model, Plan, Workspace,
+};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
@@ -155,15 +157,16 @@ pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), S
 }
 
 /// Per kernel, the floating-point operations of one call as implemented
-/// ([`flops::kernel_flops`]) and the rate achieved, GFLOP/s (FLOPs per nanosecond).
+/// ([`flop_table::kernel_flops`]) and the rate achieved, GFLOP/s (FLOPs per nanosecond).
 fn flops_per_call(
     model: &Model,
     results: &[(&str, Option<f64>)],
 ) -> (Map<String, Value>, Map<String, Value>) {
+    let plan = Plan::new(model);
     let mut flops_map = Map::new();
     let mut gflops_map = Map::new();
     for (name, ns) in results {
-        let count = flops::kernel_flops(model, name).map(|f| f.total());
+        let count = flop_table::kernel_flops(model, &plan, name).map(|f| f.total());
         flops_map.insert(name.to_string(), json!(count));
         let rate = match (count, ns) {
             (Some(count), Some(ns)) if *ns > 0.0 => {

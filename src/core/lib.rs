@@ -13,6 +13,7 @@
 pub mod algorithms;
 pub mod error;
 pub mod model;
+pub mod plan;
 pub mod requests;
 pub mod sampling;
 pub mod sim;
@@ -23,4 +24,5 @@ mod workspace;
 pub use algorithms::{Externals, ForwardDynamicsMethod};
 pub use error::{DynamicsError, ModelError};
 pub use model::{Model, ModelOptions};
+pub use plan::Plan;
 pub use workspace::Workspace;

@@ -1,10 +1,8 @@
 //! Scratch buffers for the algorithms (Pinocchio's `Data`): sized once from a model, reused by
 //! every call so that no call allocates.
 
-use crate::algorithms::crba::{mirror_by_tiles, CrbaFrames};
-use crate::algorithms::kinematics::frame_anchors;
-use crate::algorithms::ltl::Ancestors;
-use crate::model::{Model, MotionSubspace, UpShape};
+use crate::model::{Model, MotionSubspace};
+use crate::plan::Plan;
 use crate::spatial::{Force, Inertia, Matrix6, Motion, Transform, Vector3};
 use nalgebra::{DMatrix, DVector};
 
@@ -12,12 +10,11 @@ use nalgebra::{DMatrix, DVector};
 /// body are expressed in that body's frame.
 #[derive(Clone, Debug)]
 pub struct Workspace {
+    /// The model's plan: the choices every call follows, made once ([`Plan::new`]).
+    pub(crate) plan: Plan,
     /// The joint's own position coordinates (a mimic follower's computed from its leader), for
     /// every joint but those of `turn_axes`, whose one coordinate is read into its turn angle.
     pub(crate) q_joint: Vec<[f64; 7]>,
-    /// `Some((k, σ))` for a revolute joint about a coordinate axis `σ e_k`
-    /// (`JointKind::turn_axis`), fixed by the model.
-    pub(crate) turn_axes: Vec<Option<(usize, f64)>>,
     /// Each joint's turn angle (`σ q` for a revolute joint about a coordinate axis `σ e_k`,
     /// else 0), its sine and its cosine.
     pub(crate) turn_angles: Vec<f64>,
@@ -31,21 +28,10 @@ pub struct Workspace {
     /// frame: the frame of every quantity below said to be in world coordinates (see
     /// `kinematics::update_aligned_placements`).
     pub(crate) x_aligned: Vec<Transform>,
-    /// Which bodies anchor an aligned frame in ABA's passes (`kinematics::frame_anchors`):
-    /// every root, and bodies far along the tree from the anchor above them.
-    pub(crate) anchors: Vec<bool>,
     /// For an anchor, its origin in its parent's aligned frame (in the world for a root).
     pub(crate) anchor_shift: Vec<Vector3>,
     /// Motion subspace `S_i` of each body's joint.
     pub(crate) s: Vec<MotionSubspace>,
-    /// For each body, the columns of `S_i` that are a signed unit vector of `[ω; v]` whatever
-    /// `q` ([`JointKind::subspace_axes`](crate::model::JointKind::subspace_axes)).
-    pub(crate) s_axes: Vec<[Option<(usize, f64)>; 6]>,
-    /// For each body, the form of `ⁱX_λ` whatever `q`
-    /// ([`JointKind::up_shape`](crate::model::JointKind::up_shape)).
-    pub(crate) up_shapes: Vec<UpShape>,
-    /// The coordinates `crba`'s row blocks work in, chosen for the model.
-    pub(crate) crba_frames: CrbaFrames,
     /// Motion subspace `⁰X_i S_i` of each body's joint in world (root) coordinates (CRBA).
     pub(crate) s_world: Vec<MotionSubspace>,
     /// Body spatial velocities `v_i`.
@@ -84,25 +70,12 @@ pub struct Workspace {
     /// `F_c = I^c S_c` for each velocity coordinate `c` (CRBA's column forces, Pinocchio's `Fcrb`),
     /// in world coordinates or, moving up the tree, in each ancestor's.
     pub(crate) f_cols: Vec<Force>,
-    /// For each velocity coordinate, one past the last coordinate of its body's subtree, when
-    /// every subtree's coordinates are contiguous (bodies depth-first, coordinates in body order,
-    /// no mimic joints): body `i`'s subtree then owns `v_index_i .. subtree_end[v_index_i]`, and
-    /// row `k` of `H` is zero beyond column `subtree_end[k]`. `None` otherwise.
-    pub(crate) subtree_end: Option<Vec<usize>>,
-    /// Whether CRBA's row blocks leave `H`'s upper triangle to be copied by tiles afterwards
-    /// instead of storing each entry's mirror beside it (`crba::mirror_by_tiles`, from `nv`).
-    pub(crate) mirror_by_tiles: bool,
     /// Joint-space inertia matrix `H` (full, symmetric). Entries outside the tree's sparsity
     /// pattern (coordinate pairs neither of which is an ancestor of the other) are zero from
     /// construction on; every writer keeps them zero.
     pub(crate) mass_matrix: DMatrix<f64>,
     /// Factor of `H` (LTL or Cholesky), kept apart so `mass_matrix` stays readable.
     pub(crate) factor: DMatrix<f64>,
-    /// The ancestors of each coordinate and the range of its subtree, for the sparse
-    /// factorisation; `None` when mimic joints break the tree pattern
-    /// ([`Model::dof_parent`](crate::Model)) or the coordinates are not numbered depth-first
-    /// (then the dense Cholesky factorises `H`).
-    pub(crate) dof_ancestors: Option<Ancestors>,
     /// `C(q, q̇)` for forward dynamics.
     pub(crate) bias: DVector<f64>,
     /// Unit acceleration `e_k` (n+1 RNEA method).
@@ -115,19 +88,14 @@ impl Workspace {
         let n = model.nbodies();
         let nv = model.nv;
         Workspace {
+            plan: Plan::new(model),
             q_joint: vec![[0.0; 7]; n],
-            turn_axes: model
-                .bodies
-                .iter()
-                .map(|b| b.joint.kind.turn_axis())
-                .collect(),
             turn_angles: vec![0.0; n],
             turn_sines: vec![0.0; n],
             turn_cosines: vec![0.0; n],
             x_up: vec![Transform::identity(); n],
             x_world: vec![Transform::identity(); n],
             x_aligned: vec![Transform::identity(); n],
-            anchors: frame_anchors(model),
             anchor_shift: vec![Vector3::zeros(); n],
             // A turning joint's S is constant, and `update_joints` leaves it as set here.
             s: model
@@ -141,17 +109,6 @@ impl Workspace {
                     s
                 })
                 .collect(),
-            s_axes: model
-                .bodies
-                .iter()
-                .map(|b| b.joint.kind.subspace_axes())
-                .collect(),
-            up_shapes: model
-                .bodies
-                .iter()
-                .map(|b| b.joint.kind.up_shape(&b.x_tree))
-                .collect(),
-            crba_frames: crate::algorithms::crba::crba_frames(model),
             s_world: vec![MotionSubspace::default(); n],
             v: vec![Motion::zero(); n],
             a: vec![Motion::zero(); n],
@@ -169,16 +126,18 @@ impl Workspace {
             tau: DVector::zeros(nv),
             qdd: DVector::zeros(nv),
             f_cols: vec![Force::zero(); nv],
-            subtree_end: contiguous_subtrees(model),
-            mirror_by_tiles: mirror_by_tiles(nv),
             // From zeroed allocations (calloc): pages are only touched when used, so a model
             // with thousands of coordinates does not spend seconds writing zeros here.
             mass_matrix: DMatrix::from_vec(nv, nv, vec![0.0; nv * nv]),
             factor: DMatrix::from_vec(nv, nv, vec![0.0; nv * nv]),
-            dof_ancestors: model.dof_parent.as_deref().and_then(Ancestors::new),
             bias: DVector::zeros(nv),
             unit: DVector::zeros(nv),
         }
+    }
+
+    /// The choices the algorithms follow for this workspace's model.
+    pub fn plan(&self) -> &Plan {
+        &self.plan
     }
 
     /// The last generalized forces computed (inverse dynamics, bias or gravity).
@@ -219,38 +178,4 @@ impl Workspace {
     pub fn parent_to_body(&self, i: usize) -> Transform {
         self.x_up[i]
     }
-}
-
-/// `subtree_end` (see [`Workspace`]) when each subtree's coordinates are contiguous.
-pub(crate) fn contiguous_subtrees(model: &Model) -> Option<Vec<usize>> {
-    model.dof_parent.as_ref()?;
-    let n = model.nbodies();
-    let mut end = vec![0; n];
-    let mut count = vec![0; n];
-    let mut next_v = 0;
-    for (i, body) in model.bodies.iter().enumerate() {
-        let c = body.joint.coords;
-        if c.v_index != next_v || c.scale != 1.0 {
-            return None;
-        }
-        next_v += body.joint.kind.nv();
-        end[i] = next_v;
-        count[i] = body.joint.kind.nv();
-    }
-    for (i, body) in model.bodies.iter().enumerate().rev() {
-        let c = body.joint.coords;
-        if count[i] != end[i] - c.v_index {
-            return None;
-        }
-        if let Some(p) = body.parent {
-            end[p] = end[p].max(end[i]);
-            count[p] += count[i];
-        }
-    }
-    let mut dof_end = vec![0; model.nv];
-    for (body, e) in model.bodies.iter().zip(end) {
-        let c = body.joint.coords;
-        dof_end[c.v_index..c.v_index + body.joint.kind.nv()].fill(e);
-    }
-    Some(dof_end)
 }

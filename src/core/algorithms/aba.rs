@@ -154,7 +154,7 @@ pub(crate) fn articulated_pass(
             let bias = Force::from_vector(&(ws.ia[i] * ws.c[i].to_vector()));
             ws.pa[i] += bias;
             // Into the parent's frame (a translation when body i anchors its own).
-            if ws.anchors[i] {
+            if ws.plan.anchors[i] {
                 ws.ia[i] = Translation(ws.anchor_shift[i]).transpose_apply_matrix6(&ws.ia[i]);
             }
             let pa_i = force_out_of_aligned(ws, i, ws.pa[i]);

@@ -41,52 +41,16 @@
 //! contributes to the column of its leader scaled by `μ_i`, `H[c_j, c_i] += μ_j μ_i S_jᵀ F` (and
 //! its mirror), which is `Jᵀ H_full J` for the coordinate map `J`.
 
-use super::flops;
 use super::kinematics::{
-    travels_far, update_aligned_placements, update_joints, update_world_axes, with_up_transform,
-    Anchors,
+    update_aligned_placements, update_joints, update_world_axes, with_up_transform, Anchors,
 };
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model, MotionSubspace};
+use crate::plan::CrbaFrames;
 use crate::spatial::{Force, Motion, SpatialTransform};
 use crate::Workspace;
 use nalgebra::DMatrix;
-
-/// The coordinates the row-block inward pass works in (Pinocchio's `Convention`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum CrbaFrames {
-    /// World (root) coordinates: each body's inertia and axes are carried to the world once,
-    /// and an entry of `H` is one product `⁰S_jᵀ F_c` (the module's first scheme).
-    World,
-    /// Each body's own coordinates: no placements, and a joint axis that is a coordinate axis
-    /// reads one component of `F`, but each column force is moved up one body at a time (see
-    /// the module's second scheme).
-    Local,
-}
-
-/// The frames with fewer operations for `model` by the counts of [`flops::crba_world`] and
-/// [`flops::crba_local`]: body coordinates for short branches (arms, legs, a floating root over
-/// them), world coordinates for long ones; world coordinates when mimic joints break the tree
-/// pattern (only the world pass handles them); body coordinates when a slide below a root can
-/// carry its bodies farther than the aligned frames' anchor spacing (`kinematics::travels_far`:
-/// world rows keep one frame per tree).
-pub fn crba_frames(model: &Model) -> CrbaFrames {
-    if model.dof_parent.is_none() {
-        return CrbaFrames::World;
-    }
-    if travels_far(model) {
-        // World rows keep one frame per tree: a body a long slide carries far from its root
-        // would bring `m d²` terms that cancel. Body coordinates have no such distance.
-        return CrbaFrames::Local;
-    }
-    let (world, local) = (flops::crba_world(model), flops::crba_local(model));
-    if local.total() < world.total() {
-        CrbaFrames::Local
-    } else {
-        CrbaFrames::World
-    }
-}
 
 /// `H(q)` into `ws.mass_matrix()` (full and symmetric).
 pub fn crba<'w>(
@@ -114,21 +78,21 @@ pub fn crba<'w>(
     Ok(&ws.mass_matrix)
 }
 
-/// The two passes, on joints already updated for `q`, in the frames `ws.crba_frames` says (world
+/// The two passes, on joints already updated for `q`, in the frames `ws.plan.crba_frames` says (world
 /// coordinates for the general pass). Writes `ws.ic` and `ws.mass_matrix` (the row blocks also
 /// `ws.f_cols`, world coordinates `ws.x_aligned` and `ws.s_world`); true when every entry of `H`
 /// is finite.
 pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
-    match ws.subtree_end.take() {
+    match ws.plan.subtree_end.take() {
         Some(subtree_end) => {
-            let finite = if ws.mirror_by_tiles {
+            let finite = if ws.plan.mirror_by_tiles {
                 let finite = row_block_pass::<false>(model, ws, &subtree_end);
                 mirror_lower(ws.mass_matrix.as_mut_slice(), model.nv, &subtree_end);
                 finite
             } else {
                 row_block_pass::<true>(model, ws, &subtree_end)
             };
-            ws.subtree_end = Some(subtree_end);
+            ws.plan.subtree_end = Some(subtree_end);
             finite
         }
         None => {
@@ -139,16 +103,16 @@ pub(crate) fn crba_passes(model: &Model, ws: &mut Workspace) -> bool {
     }
 }
 
-/// The row blocks in the frames `ws.crba_frames` says. Each entry is written down its column of
+/// The row blocks in the frames `ws.plan.crba_frames` says. Each entry is written down its column of
 /// the lower triangle and, with `MIRROR`, its mirror in the upper triangle beside it (else
-/// [`mirror_lower`] copies the triangle up afterwards, `ws.mirror_by_tiles`). True when every
+/// [`mirror_lower`] copies the triangle up afterwards, `ws.plan.mirror_by_tiles`). True when every
 /// entry written is finite.
 fn row_block_pass<const MIRROR: bool>(
     model: &Model,
     ws: &mut Workspace,
     subtree_end: &[usize],
 ) -> bool {
-    match ws.crba_frames {
+    match ws.plan.crba_frames {
         CrbaFrames::World => {
             world_axes_and_inertias(model, ws);
             row_blocks::<MIRROR>(model, ws, subtree_end)
@@ -229,7 +193,7 @@ fn local_row_blocks<const MIRROR: bool>(
     for i in (0..model.bodies.len()).rev() {
         let body = &model.bodies[i];
         let v0 = body.joint.coords.v_index;
-        let (s_i, axes, end) = (&ws.s[i], &ws.s_axes[i], subtree_end[v0]);
+        let (s_i, axes, end) = (&ws.s[i], &ws.plan.s_axes[i], subtree_end[v0]);
         for k in 0..s_i.nv {
             ws.f_cols[v0 + k] = match axes[k] {
                 Some((j, sign)) => ws.ic[i].column(j) * sign,
@@ -328,25 +292,6 @@ fn mirror_lower(h: &mut [f64], n: usize, subtree_end: &[usize]) {
             }
         }
     }
-}
-
-/// Whether [`mirror_lower`] copies `H`'s upper triangle by tiles (else each entry's mirror is
-/// stored beside it): when a row's mirror stores, `8n` bytes apart, would outnumber the lines the
-/// L1 cache sets they reach can hold. An L1 way spans 4 KiB (64 sets of 64-byte lines) on
-/// current x86 cores; eight ways are counted (AMD's; Intel's hold twelve, so 160 and 224 tile
-/// where they need not there). True for 128, 160, 192, 224, every multiple of 16 from 256 to
-/// 512, and every `n` beyond 512 (a row then exceeds 64 sets of eight lines).
-pub(crate) fn mirror_by_tiles(n: usize) -> bool {
-    const WAY_BYTES: usize = 4096;
-    const LINE_BYTES: usize = 64;
-    const WAYS: usize = 8;
-    let stride = 8 * n;
-    let mut gcd = (WAY_BYTES, stride);
-    while gcd.1 != 0 {
-        gcd = (gcd.1, gcd.0 % gcd.1);
-    }
-    let sets = WAY_BYTES / gcd.0.max(LINE_BYTES);
-    n > WAYS * sets
 }
 
 /// Row `row` of `H` from the diagonal to the end of `f_cols`, `H[row, c] = s_dot(F_c)`, written
@@ -457,7 +402,7 @@ mod tests {
         ];
         for model in &models {
             let mut ws = Workspace::new(model);
-            let subtree_end = ws.subtree_end.clone();
+            let subtree_end = ws.plan.subtree_end.clone();
             assert!(subtree_end.is_some(), "{}", model.name);
             let mut rng = Rng::new(21);
             for _ in 0..5 {
@@ -470,8 +415,8 @@ mod tests {
                     (CrbaFrames::Local, subtree_end.clone(), true),
                     (CrbaFrames::World, None, false), // the general pass
                 ] {
-                    (ws.crba_frames, ws.subtree_end) = (frames, subtree_end);
-                    ws.mirror_by_tiles = tiles;
+                    (ws.plan.crba_frames, ws.plan.subtree_end) = (frames, subtree_end);
+                    ws.plan.mirror_by_tiles = tiles;
                     ws.mass_matrix.fill(0.0); // an entry a pass misses stays 0
                     let m = crba(model, &mut ws, &q).unwrap();
                     assert_eq!(m, &m.transpose(), "{}: {frames:?}", model.name);
@@ -489,46 +434,18 @@ mod tests {
         }
     }
 
-    /// The mirror is copied by tiles where a row's stores, `8n` bytes apart, fall in too few L1
-    /// sets: every size measured 2–3× slow with the mirror beside each entry (chains of 128,
-    /// 192 and 256 links) and every size beyond 512; not below 128, nor the sizes measured
-    /// faster with the mirror beside each entry (112, 120, 136, 200, 300).
-    #[test]
-    fn mirror_by_tiles_where_strides_conflict() {
-        for n in [128, 192, 256].into_iter().chain(513..600) {
-            assert!(mirror_by_tiles(n), "{n}");
-        }
-        for n in (0..128).chain([136, 200, 300]) {
-            assert!(!mirror_by_tiles(n), "{n}");
-        }
-    }
-
     /// An entry that overflows is found in either frame (`m x²` for a slide at `x = 1e200`).
     #[test]
     fn overflow_is_found_in_both_frames() {
         let model = load(TURN_SLIDE, false);
         let mut ws = Workspace::new(&model);
         for frames in [CrbaFrames::World, CrbaFrames::Local] {
-            ws.crba_frames = frames;
+            ws.plan.crba_frames = frames;
             let err = crba(&model, &mut ws, &[0.0, 1e200]).unwrap_err();
             assert!(
                 matches!(err, DynamicsError::NonFiniteResult { .. }),
                 "{frames:?}: {err}"
             );
         }
-    }
-
-    /// Short branches count fewer operations in body coordinates, a long chain fewer in world
-    /// coordinates (one product an entry instead of moving each column force up a body).
-    #[test]
-    fn frames_follow_the_operation_counts() {
-        assert_eq!(
-            crba_frames(&load(examples::DEFAULT_ARM_URDF, true)),
-            CrbaFrames::Local
-        );
-        assert_eq!(
-            crba_frames(&load(&pendulum_urdf(60, 0.5, 0.7), false)),
-            CrbaFrames::World
-        );
     }
 }

@@ -70,11 +70,7 @@
 //! Dense factorisations and ABA's inverse of a joint's `D` ([`spd_inverse`]) count exactly their
 //! loops.
 
-use super::crba::CrbaFrames;
-use super::kinematics::frame_anchors;
-use super::ltl::Ancestors;
 use crate::model::{Body, JointKind, Model, UpShape};
-use crate::workspace::contiguous_subtrees;
 use std::ops::{Add, AddAssign, Mul};
 
 /// Operation counts.
@@ -229,45 +225,8 @@ pub const QUATERNION_ROTATION: Flops = Flops {
     sincos: 0,
 };
 
-/// The count of kernel `name` (as `spatial_dynamics bench` names them: `rnea`, `crba`,
-/// `fd_aba`, `fd_crba`, `fd_rnea_columns`, `gravity`) on `model`; `None` for another name, or
-/// for `fd_aba` on a model with mimic joints (ABA refuses them).
-pub fn kernel_flops(model: &Model, name: &str) -> Option<Flops> {
-    let n = model.nv as u64;
-    let check = check_q(model);
-    Some(match name {
-        "rnea" => check + joints(model) + rnea_passes(model, true, true),
-        "crba" => check + joints(model) + crba_passes(model),
-        "gravity" => check + joints(model) + gravity_passes(model),
-        "fd_aba" => {
-            if model.bodies.iter().any(|b| b.joint.is_mimic()) {
-                return None;
-            }
-            check + joints(model) + aba_passes(model)
-        }
-        "fd_crba" => {
-            let solve = match model.dof_parent.as_deref().and_then(Ancestors::new) {
-                Some(ancestors) => ltl(&ancestors),
-                None => dense_cholesky(n),
-            };
-            check + joints(model) + rnea_passes(model, true, false) + crba_passes(model) + solve
-                // τ − C; each pivot checked against H_kk ε
-                + Flops::new(n, n)
-        }
-        "fd_rnea_columns" => {
-            check
-                + (joints(model) + rnea_passes(model, true, false))
-                + (joints(model) + rnea_passes(model, true, true)) * n
-                // H_k = τ − C for each column, τ − C once; each pivot checked against H_kk ε
-                + Flops::new(n, n * n + n)
-                + dense_cholesky(n)
-        }
-        _ => return None,
-    })
-}
-
 /// `check_q`: the norm of every floating joint's quaternion (4 m + 3 a and a square root).
-fn check_q(model: &Model) -> Flops {
+pub(crate) fn check_q(model: &Model) -> Flops {
     let floating = model
         .bodies
         .iter()
@@ -282,7 +241,7 @@ fn check_q(model: &Model) -> Flops {
 /// `update_joints`: `jcalc_up` for every body, but for a revolute joint about a coordinate
 /// axis whose placement has no rotation (`UpShape::AxisTurn`): its turn angle, `sin_cos` and
 /// `model::turn_up_unrotated`, which computes nothing.
-fn joints(model: &Model) -> Flops {
+pub(crate) fn joints(model: &Model) -> Flops {
     let mut total = Flops::default();
     for body in &model.bodies {
         // The joint's coordinates `scale · q + offset` (the identity map unless mimic; still
@@ -366,7 +325,7 @@ pub fn joint_bias(kind: &JointKind) -> Flops {
 
 /// `kinematics::update_world_axes`: each column of `S` into world coordinates, a row of the
 /// rotation for a coordinate axis, a general transform otherwise.
-fn world_axes(kind: &JointKind) -> Flops {
+pub(crate) fn world_axes(kind: &JointKind) -> Flops {
     let axes = kind.subspace_axes();
     let mut total = Flops::default();
     for axis in &axes[..kind.nv()] {
@@ -380,7 +339,7 @@ fn world_axes(kind: &JointKind) -> Flops {
 }
 
 /// `c_J` computed, moved by `moved` and added to a 6-vector, for the kinds that have one.
-fn bias_added(kind: &JointKind, moved: Flops) -> Flops {
+pub(crate) fn bias_added(kind: &JointKind, moved: Flops) -> Flops {
     match kind {
         JointKind::Planar { .. } => joint_bias(kind) + moved + ADD6,
         _ => Flops::default(),
@@ -388,7 +347,7 @@ fn bias_added(kind: &JointKind, moved: Flops) -> Flops {
 }
 
 /// `rnea_passes` with velocities (`with_v`) and accelerations (`with_a`) given.
-fn rnea_passes(model: &Model, with_v: bool, with_a: bool) -> Flops {
+pub(crate) fn rnea_passes(model: &Model, with_v: bool, with_a: bool) -> Flops {
     // a_0 = a_base − [0; g] (the angular part is 0 − 0 for the externals the kernels take, which
     // the compiler folds).
     let mut total = Flops::new(0, 3);
@@ -411,7 +370,7 @@ fn rnea_passes(model: &Model, with_v: bool, with_a: bool) -> Flops {
 }
 
 /// `inward_pass`: `τ_i = S_iᵀ f_i` (scaled, accumulated), `f_λ += Xᵀ f_i`.
-fn inward_pass(model: &Model) -> Flops {
+pub(crate) fn inward_pass(model: &Model) -> Flops {
     let mut total = Flops::default();
     for body in &model.bodies {
         total += (DOT6 + Flops::new(1, 1)) * body.joint.kind.nv() as u64;
@@ -425,7 +384,7 @@ fn inward_pass(model: &Model) -> Flops {
 /// What body `i`'s `ⁱX_λ` costs on a 6-vector, on a rigid inertia and composed with a placement,
 /// in the form the passes use for its joint (`kinematics::with_up_transform`,
 /// [`JointKind::up_shape`]).
-fn up_transform(body: &Body) -> (Flops, Flops, Flops) {
+pub(crate) fn up_transform(body: &Body) -> (Flops, Flops, Flops) {
     match body.joint.kind.up_shape(&body.x_tree) {
         UpShape::General => (TRANSFORM_VECTOR, TRANSFORM_INERTIA, COMPOSE),
         UpShape::Translation => (TRANSLATE_VECTOR, TRANSLATE_INERTIA, TRANSLATE_COMPOSE),
@@ -434,32 +393,24 @@ fn up_transform(body: &Body) -> (Flops, Flops, Flops) {
 }
 
 /// `gravity_passes`: `a_i = E a_λ`, `f_i = [h × a; m a]`, then the inward pass.
-fn gravity_passes(model: &Model) -> Flops {
+pub(crate) fn gravity_passes(model: &Model) -> Flops {
     (MAT3_VEC3 + CROSS3 + Flops::new(3, 0)) * model.nbodies() as u64 + inward_pass(model)
 }
 
 /// `update_placements`: one `compose` per body below the root.
-fn placements(model: &Model) -> Flops {
+pub(crate) fn placements(model: &Model) -> Flops {
     let below_roots = model.bodies.iter().filter(|b| b.parent.is_some());
     below_roots
         .map(|b| up_transform(b).2)
         .fold(Flops::default(), Add::add)
 }
 
-/// `crba_passes`: the row blocks in the frames [`crba_frames`](super::crba::crba_frames)
-/// chooses (the cheaper of the two counts below), or the general pass along the paths.
-fn crba_passes(model: &Model) -> Flops {
-    match super::crba::crba_frames(model) {
-        CrbaFrames::World => crba_world(model),
-        CrbaFrames::Local => crba_local(model),
-    }
-}
-
-/// `crba_passes` in world coordinates: world placements, inertias and axes; `F = I^c S` per
+/// CRBA's passes in world coordinates (`general_path`: the model's subtrees are not contiguous,
+/// [`Plan::subtree_end`](crate::plan::Plan::subtree_end) is `None`): world placements, inertias and axes; `F = I^c S` per
 /// coordinate; one `S_jᵀ F` per entry of `H`'s upper triangle in the tree pattern (counted
 /// along each coordinate's ancestors) and its finiteness probe; composite inertias added into
 /// the parents.
-pub fn crba_world(model: &Model) -> Flops {
+pub fn crba_world(model: &Model, general_path: bool) -> Flops {
     let mut total = placements(model);
     for body in &model.bodies {
         let nv = body.joint.kind.nv() as u64;
@@ -471,7 +422,7 @@ pub fn crba_world(model: &Model) -> Flops {
     // One product per entry in the pattern (own block and one block per ancestor).
     let entries = pattern_entries(model);
     total += DOT6 * entries;
-    if contiguous_subtrees(model).is_none() {
+    if general_path {
         // The general path scales every entry by μ_i μ_j (two multiplications) and adds it, an
         // entry off the diagonal to both of its places.
         let diagonal: u64 = model.bodies.iter().map(|b| b.joint.kind.nv() as u64).sum();
@@ -482,7 +433,7 @@ pub fn crba_world(model: &Model) -> Flops {
     total
 }
 
-/// `crba_passes` in body coordinates (row blocks only): for each body, `F = I^c S` per column
+/// CRBA's passes in body coordinates (row blocks only): for each body, `F = I^c S` per column
 /// (`σ I e_j` for a column that is an axis: entries of `Ī`, `h` and `m` and the sign, 6 m),
 /// its rows `S_kᵀ F_c` over its subtree's columns
 /// (`σ F_j`, one multiplication, for an axis; a floating joint's six rows are the forces as
@@ -548,84 +499,8 @@ fn pattern_entries(model: &Model) -> u64 {
     count
 }
 
-/// The three ABA passes (world frame).
-fn aba_passes(model: &Model) -> Flops {
-    // Pass 3's a_0 = a_base − [0; g] (as in `rnea_passes`).
-    let mut total = placements(model) + Flops::new(0, 3);
-    let anchors = frame_anchors(model);
-    for (i, body) in model.bodies.iter().enumerate() {
-        let nv = body.joint.kind.nv() as u64;
-        // Pass 1: ⁰S, v_J (`S q̇`, each rate scaled by the mimic factor), v_i, c_i, ⁰I (and as
-        // a 6×6), p^A.
-        total += world_axes(&body.joint.kind) + SUBSPACE_COLUMN * nv + ADD6;
-        total += CROSS6 + bias_added(&body.joint.kind, TRANSFORM_VECTOR);
-        total += TRANSFORM_INERTIA + INERTIA_TO_MATRIX + INERTIA_APPLY + CROSS6;
-        // Pass 2: U, D, u, D⁻¹ (its pivot check scales `64 · max diag I^A` by ε).
-        total += MAT6_VEC6 * nv + DOT6 * (nv * nv) + (DOT6 + Flops::new(0, 1)) * nv;
-        total += Flops::new(1, 0);
-        total += if nv == 1 {
-            Flops {
-                div: 1,
-                ..Flops::new(1, 0)
-            }
-        } else {
-            // The pivots checked against one scale `reference · ε` (`pivot_is_sound`).
-            spd_inverse(nv as usize) + Flops::new(1, 0)
-        };
-        if anchors[i] {
-            // The parent's (or the root's) velocity and acceleration moved into the body's
-            // aligned frame (`Translation::apply_motion`: a cross product and three
-            // subtractions each).
-            total += TRANSLATE_VECTOR * 2;
-            if body.parent.is_some() {
-                // I^a and p^a moved into the parent's frame.
-                total += TRANSLATE_MATRIX6 + TRANSLATE_VECTOR;
-            }
-        }
-        if body.parent.is_some() {
-            // D⁻¹ u and the rows of D⁻¹ Uᵀ, the rank-nv update, p^a, I^a c, the parent sums.
-            total += (Flops::new(nv, nv) + Flops::new(6, 6) * nv) * nv;
-            total += (Flops::new(36, 36) + Flops::new(6, 6)) * nv;
-            total += MAT6_VEC6 + ADD6 + Flops::new(0, 36) + ADD6;
-        }
-        // Pass 3: a' = a_λ + c_i, the right-hand side, q̈ = D⁻¹ rhs (a `sum` of nv products:
-        // its first addition, to −0, is folded), a_i += S q̈.
-        total += ADD6 + (DOT6 + Flops::new(0, 1)) * nv;
-        total += Flops::new(nv, nv - 1) * nv + Flops::new(6, 6) * nv;
-    }
-    total
-}
-
-/// `ltl_factor` and `ltl_solve` along the tree: for coordinate `k` with `d_k` ancestors and
-/// `s_k` descendants, `d_k + 1` products of two column segments of length `s_k` (none for a
-/// leaf; else `s_k` multiplications, `s_k` additions into four partial sums and three to join
-/// them), each subtracted from its entry of `H`, one square root and `d_k` divisions; the two
-/// triangular solves, `2 s_k` multiply-adds (the first addition of `Lᵀ y = b`'s sum, to −0, is
-/// folded, and a leaf's empty sum is subtracted) and two divisions. In all the
-/// multiplications and divisions are RBDA's (`d_k (d_k + 1) / 2` multiply-subtracts for `k`
-/// counted at each descendant instead).
-fn ltl(ancestors: &Ancestors) -> Flops {
-    let mut total = Flops::default();
-    for k in 0..ancestors.len() {
-        let d = ancestors.of(k).len() as u64;
-        let s = ancestors.below(k).len() as u64;
-        let dot = if s > 0 {
-            Flops::new(s, s + 3)
-        } else {
-            Flops::default()
-        };
-        total += (dot + Flops::new(0, 1)) * (d + 1);
-        total += Flops {
-            sqrt: 1,
-            div: d + 2,
-            ..Flops::new(2 * s, 2 * s + u64::from(s == 0))
-        };
-    }
-    total
-}
-
 /// `cholesky_factor` and `cholesky_solve` on a dense `n × n` matrix.
-fn dense_cholesky(n: u64) -> Flops {
+pub(crate) fn dense_cholesky(n: u64) -> Flops {
     let mut total = Flops::default();
     for j in 0..n {
         // Pivot, then the column below it.
@@ -660,40 +535,6 @@ mod tests {
             &ModelOptions::default(),
         )
         .unwrap()
-    }
-
-    /// For an unbranched chain `H` is dense and the sparse `LᵀL` is a dense Cholesky. Featherstone
-    /// (RBDA §6.5) gives `n³/6 + n²/2 − 2n/3` multiplications for the factorisation, counting
-    /// the `n(n−1)/2` scalings by `1/L_kk` as multiplications (we divide), and `n` square roots;
-    /// the two substitutions add `n² − n` multiply-adds and `2n` divisions.
-    #[test]
-    fn ltl_on_a_chain_matches_the_dense_cholesky_count() {
-        for n in [1usize, 2, 7, 30] {
-            let model = chain(n);
-            let ancestors = Ancestors::new(model.dof_parent.as_ref().unwrap()).unwrap();
-            let n = n as u64;
-            let count = ltl(&ancestors);
-            let (solve_mul, solve_div) = (n * n - n, 2 * n);
-            assert_eq!(
-                (count.mul - solve_mul) + (count.div - solve_div),
-                (n * n * n + 3 * n * n - 4 * n) / 6,
-                "n = {n}"
-            );
-            assert_eq!(count.div - solve_div, n * (n - 1) / 2, "n = {n}");
-            assert_eq!(count.sqrt, n, "n = {n}");
-            let dense = dense_cholesky(n);
-            assert_eq!((count.mul, count.div), (dense.mul, dense.div), "n = {n}");
-            // The additions: one per multiplication, and for each of the n(n+1)/2 column
-            // products one subtraction from H, three more to join partial sums unless it is
-            // empty (the n products of the last coordinate), and the leaf's empty sum in the
-            // solve.
-            let products = n * (n + 1) / 2;
-            assert_eq!(
-                count.add,
-                count.mul + products + 3 * (products - n) + 1,
-                "n = {n}"
-            );
-        }
     }
 
     /// The number of `S_jᵀ F` products CRBA is charged for (walking bodies to the root) is the
@@ -735,30 +576,6 @@ mod tests {
                     }
                 }
             }
-        }
-    }
-
-    /// Per body of a revolute chain, RNEA costs what its passes do: the joint coordinate
-    /// `scale · q + offset` (1 m + 1 a), jcalc (`σ q` and `spatial::sin_cos`, 1 + 27 m, 35 a;
-    /// each joint's placement has no rotation, so its turn is written as it is),
-    /// `S q̇`, `S q̈` (7 m + 6 a each), two transforms (a turn about the joint axis after a
-    /// translation, 14 m + 10 a), a spatial cross product
-    /// and three 6-vector sums outward (a revolute joint has no `c_J` to add), two inertia
-    /// products, a cross product and a sum for `f`, and inward a projection (scaled,
-    /// accumulated) and, below the root, a transform and a sum.
-    #[test]
-    fn rnea_per_body_on_a_chain() {
-        let per_body = Flops::new(
-            1 + 28 + 7 + 7 + 28 + 18 + 48 + 18 + 7,
-            1 + 35 + 6 + 6 + 20 + 12 + 18 + 36 + 12 + 6 + 6,
-        );
-        let below_root = Flops::new(14, 16);
-        // a_0 = −[0; g]: three subtractions from zero.
-        let root = Flops::new(0, 3);
-        for n in [1usize, 4, 9] {
-            let model = chain(n);
-            let expected = root + per_body * n as u64 + below_root * (n as u64 - 1);
-            assert_eq!(kernel_flops(&model, "rnea"), Some(expected), "n = {n}");
         }
     }
 }

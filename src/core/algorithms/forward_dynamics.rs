@@ -107,7 +107,7 @@ pub(crate) fn crba_solve_on_joints<'w>(
     crba_passes(model, ws);
     ws.qdd.copy_from_slice(tau);
     ws.qdd -= &ws.tau;
-    match &ws.dof_ancestors {
+    match &ws.plan.dof_ancestors {
         Some(ancestors) => {
             ltl_factor(model, ancestors, &ws.mass_matrix, &mut ws.factor)?;
             ltl_solve(ancestors, &ws.factor, &mut ws.qdd);

@@ -3,12 +3,12 @@
 
 use super::validate::check_q;
 use crate::error::DynamicsError;
-use crate::model::{turn_up, turn_up_unrotated, Joint, JointKind, Model, UpShape};
+use crate::model::{turn_up, turn_up_unrotated, Joint, Model, UpShape};
 use crate::spatial::{sin_cos_all, Force, Motion, Transform, Translation, Vector3};
 use crate::Workspace;
 
 /// Evaluates `$body` with `$x` bound to body `$i`'s `ⁱX_λ` (`ws.x_up[i]`, a `&Transform`) in
-/// the cheapest form its joint allows (`ws.up_shapes[i]`, [`JointKind::up_shape`]): the general
+/// the cheapest form its joint allows (`ws.plan.up_shapes[i]`, [`JointKind::up_shape`]): the general
 /// [`Transform`], a [`Translation`] or an [`AxisTransform`](crate::spatial::AxisTransform) about
 /// its axis. `$body` uses [`SpatialTransform`](crate::spatial::SpatialTransform)'s actions and
 /// is compiled once for each form.
@@ -19,7 +19,7 @@ macro_rules! with_up_transform {
         use $crate::model::UpShape;
         use $crate::spatial::{AxisTransform, Translation};
         let (shape, x_up): (UpShape, &$crate::spatial::Transform) =
-            ($ws.up_shapes[$i], &$ws.x_up[$i]);
+            ($ws.plan.up_shapes[$i], &$ws.x_up[$i]);
         match shape {
             UpShape::General => {
                 let $x = x_up;
@@ -50,12 +50,12 @@ pub(crate) use with_up_transform;
 /// joints' own coordinates (a turning joint's one coordinate straight into its angle), then
 /// the sines and cosines of every joint's turn angle at once (`spatial::sin_cos_all`, two
 /// angles at a time), then each joint's `ⁱX_λ` and `S`. A revolute joint about a coordinate
-/// axis (`ws.turn_axes`, most joints) mixes two rows of its placement ([`turn_up`]), or of the
-/// identity when its placement has no rotation ([`turn_up_unrotated`], `ws.up_shapes`); its `S`
+/// axis (`ws.plan.turn_axes`, most joints) mixes two rows of its placement ([`turn_up`]), or of the
+/// identity when its placement has no rotation ([`turn_up_unrotated`], `ws.plan.up_shapes`); its `S`
 /// is constant, set when the workspace was made.
 pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     for (i, body) in model.bodies.iter().enumerate() {
-        ws.turn_angles[i] = match ws.turn_axes[i] {
+        ws.turn_angles[i] = match ws.plan.turn_axes[i] {
             Some((_, sign)) => sign * joint_position(&body.joint, q, 0),
             None => {
                 joint_positions(&body.joint, q, &mut ws.q_joint[i]);
@@ -66,7 +66,7 @@ pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     sin_cos_all(&ws.turn_angles, &mut ws.turn_sines, &mut ws.turn_cosines);
     for (i, body) in model.bodies.iter().enumerate() {
         let turn = (ws.turn_sines[i], ws.turn_cosines[i]);
-        match (ws.turn_axes[i], ws.up_shapes[i]) {
+        match (ws.plan.turn_axes[i], ws.plan.up_shapes[i]) {
             (Some(_), UpShape::AxisTurn(k)) => {
                 turn_up_unrotated(k, turn, &body.x_tree, &mut ws.x_up[i])
             }
@@ -186,7 +186,7 @@ pub(crate) fn update_aligned_placements(model: &Model, ws: &mut Workspace, ancho
         place_below_parent(ws, Placements::Aligned, i, body.parent);
         let anchor = match anchors {
             Anchors::Roots => body.parent.is_none(),
-            Anchors::Spaced => ws.anchors[i],
+            Anchors::Spaced => ws.plan.anchors[i],
         };
         if anchor {
             // `rot(E_a)`: the placement without its translation, which is recorded.
@@ -204,21 +204,21 @@ pub(crate) enum Anchors {
     /// conditioning of `H`, not from the frame, and which would have to move every column
     /// force of a subtree across each anchor).
     Roots,
-    /// The roots and the bodies `ws.anchors` marks ([`frame_anchors`]): ABA and
+    /// The roots and the bodies `ws.plan.anchors` marks ([`frame_anchors`]): ABA and
     /// `joint_state_outputs`, which cross an anchor with one motion, force and inertia each,
     /// through [`motion_into_aligned`] and [`force_out_of_aligned`].
     Spaced,
 }
 
 /// `⁰S_i = ⁰X_i S_i` into `ws.s_world[i]` from the aligned placement `ws.x_aligned[i]`: a column
-/// along a coordinate axis (`ws.s_axes`) is a row of the rotation
+/// along a coordinate axis (`ws.plan.s_axes`) is a row of the rotation
 /// ([`Transform::inverse_apply_axis`]), any other a general inverse transform. Returns
 /// `⁰S_i q̇_i` for the joint's `rates` scaled by `scale` (zero for no rates), summed as the
 /// columns are made: read back from `ws` just after they are written, the columns would be
 /// loaded across the stores that wrote them, which the processor cannot forward.
 #[inline(always)]
 pub(crate) fn update_world_axes(ws: &mut Workspace, i: usize, rates: &[f64], scale: f64) -> Motion {
-    let (x, s, axes) = (&ws.x_aligned[i], &ws.s[i], &ws.s_axes[i]);
+    let (x, s, axes) = (&ws.x_aligned[i], &ws.s[i], &ws.plan.s_axes[i]);
     let s_world = &mut ws.s_world[i];
     s_world.nv = s.nv;
     let mut v = Motion::zero();
@@ -239,7 +239,7 @@ pub(crate) fn update_world_axes(ws: &mut Workspace, i: usize, rates: &[f64], sca
 /// body `i`'s aligned frame ([`Anchors::Spaced`]): moved by `xlt(anchor_shift)` when `i`
 /// anchors a frame.
 pub(crate) fn motion_into_aligned(ws: &Workspace, i: usize, m: Motion) -> Motion {
-    if ws.anchors[i] {
+    if ws.plan.anchors[i] {
         Translation(ws.anchor_shift[i]).apply_motion(&m)
     } else {
         m
@@ -249,73 +249,10 @@ pub(crate) fn motion_into_aligned(ws: &Workspace, i: usize, m: Motion) -> Motion
 /// A force in body `i`'s aligned frame into its parent's aligned frame ([`Anchors::Spaced`]):
 /// moved by `xlt(anchor_shift)ᵀ` when `i` anchors a frame.
 pub(crate) fn force_out_of_aligned(ws: &Workspace, i: usize, f: Force) -> Force {
-    if ws.anchors[i] {
+    if ws.plan.anchors[i] {
         Translation(ws.anchor_shift[i]).transpose_apply_force(&f)
     } else {
         f
-    }
-}
-
-/// Distance along the tree (sum of joint-origin offsets `|r_tree|` and of prismatic joints'
-/// travel) after which a body starts a new aligned frame, in multiples `s` of the model's
-/// longest offset `ℓ`: a body's origin is at most `(s + 1) ℓ` from its frame's (a slide that
-/// can travel farther starts a frame at its body), so its inertia carries
-/// terms up to about `(s + 1)² = 25` times those about its own origin. Measured on chains of
-/// 256 equal links (relative error of ABA's `q̈`): 3.7e-15 at `s = 1`, 1.0e-14 at 2, 3.8e-14
-/// at 4, 7.1e-14 at 8, 1.8e-12 without interior anchors; at 4 none of the benchmark robots
-/// (UR5 … TALOS) needs one, so they pay nothing for it.
-pub(crate) const ANCHOR_SPACING: f64 = 4.0;
-
-/// Which bodies anchor an aligned frame with [`Anchors::Spaced`]: every root and each body
-/// whose joint origin can be more than [`ANCHOR_SPACING`] longest offsets along the tree from
-/// the anchor above it, counting each prismatic joint's travel (its largest `|limit|`; a
-/// planar or floating joint below the root travels without bound).
-pub(crate) fn frame_anchors(model: &Model) -> Vec<bool> {
-    let spacing = anchor_spacing(model);
-    let mut along = vec![0.0; model.nbodies()];
-    let mut anchors = vec![true; model.nbodies()];
-    for (i, body) in model.bodies.iter().enumerate() {
-        if let Some(p) = body.parent {
-            along[i] = along[p] + body.x_tree.trans.norm() + travel(&body.joint);
-            anchors[i] = along[i] > spacing;
-            if anchors[i] {
-                along[i] = 0.0;
-            }
-        }
-    }
-    anchors
-}
-
-/// [`ANCHOR_SPACING`] times the model's longest joint offset `|r_tree|`.
-fn anchor_spacing(model: &Model) -> f64 {
-    let longest = model
-        .bodies
-        .iter()
-        .map(|b| b.x_tree.trans.norm())
-        .fold(0.0, f64::max);
-    ANCHOR_SPACING * longest
-}
-
-/// True when a joint below a root can travel farther than the anchor spacing (a long rail):
-/// a pass with one frame per tree ([`Anchors::Roots`]) would then hold inertias far from their
-/// bodies and lose digits in proportion to the travel squared.
-pub(crate) fn travels_far(model: &Model) -> bool {
-    let spacing = anchor_spacing(model);
-    model
-        .bodies
-        .iter()
-        .any(|b| b.parent.is_some() && travel(&b.joint) > spacing)
-}
-
-/// How far `joint` moves its body's origin from the joint origin within its limits: a slide's
-/// largest `|limit|` (unbounded without limits), without bound for a planar or floating joint,
-/// 0 for a turn. (A slide driven past its limits is not refused: its body's frame is then
-/// farther from its anchor, and digits go as described at [`ANCHOR_SPACING`].)
-fn travel(joint: &Joint) -> f64 {
-    match joint.kind {
-        JointKind::Prismatic { .. } => joint.limits.lower.abs().max(joint.limits.upper.abs()),
-        JointKind::Planar { .. } | JointKind::Floating => f64::INFINITY,
-        JointKind::Revolute { .. } | JointKind::Continuous { .. } => 0.0,
     }
 }
 
@@ -359,10 +296,11 @@ pub fn body_motion(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::algorithms::crba::{crba, CrbaFrames};
+    use crate::algorithms::crba::crba;
     use crate::algorithms::{forward_dynamics, rnea, Externals, ForwardDynamicsMethod};
     use crate::model::examples::{self, pendulum_urdf};
     use crate::model::UpShape;
+    use crate::plan::CrbaFrames;
     use crate::sampling::{random_q, Rng};
     use crate::{urdf, ModelOptions};
 
@@ -385,8 +323,8 @@ mod tests {
         let mut seen = Vec::new();
         for model in &models {
             let mut ws = Workspace::new(model);
-            ws.crba_frames = CrbaFrames::Local;
-            let shapes = ws.up_shapes.clone();
+            ws.plan.crba_frames = CrbaFrames::Local;
+            let shapes = ws.plan.up_shapes.clone();
             seen.extend_from_slice(&shapes);
             let mut rng = Rng::new(5);
             let aba = |ws: &mut Workspace, q: &[f64], v: &[f64], tau: &[f64]| {
@@ -399,11 +337,11 @@ mod tests {
                 let q = random_q(model, &mut rng);
                 let (v, a) = (rng.vector(model.nv, 2.0), rng.vector(model.nv, 3.0));
                 let effort = rng.vector(model.nv, 10.0);
-                ws.up_shapes.clone_from(&shapes);
+                ws.plan.up_shapes.clone_from(&shapes);
                 let tau = rnea(model, &mut ws, &q, &v, &a).unwrap().to_vec();
                 let h = crba(model, &mut ws, &q).unwrap().clone();
                 let qdd = aba(&mut ws, &q, &v, &effort);
-                ws.up_shapes.fill(UpShape::General);
+                ws.plan.up_shapes.fill(UpShape::General);
                 let tau_general = rnea(model, &mut ws, &q, &v, &a).unwrap();
                 let scale = tau.iter().fold(1.0, |m: f64, x| m.max(x.abs()));
                 for (x, y) in tau.iter().zip(tau_general) {

@@ -19,67 +19,8 @@
 use super::pivot_is_sound;
 use crate::error::DynamicsError;
 use crate::model::Model;
+use crate::plan::Ancestors;
 use nalgebra::{DMatrix, DVector};
-
-/// The proper ancestors of every degree of freedom, nearest first (`λ(k), λ(λ(k)), …`), and the
-/// end of each one's subtree, listed once per model so that the factorisation and the solves
-/// walk plain slices.
-#[derive(Clone, Debug)]
-pub struct Ancestors {
-    list: Vec<usize>,
-    start: Vec<usize>,
-    end: Vec<usize>,
-}
-
-impl Ancestors {
-    /// From `λ` over degrees of freedom ([`Model::dof_parent`](crate::Model)), when every
-    /// subtree is a contiguous range `k + 1 .. e(k)` (depth-first numbering, as the model builder
-    /// makes it); `None` otherwise.
-    pub fn new(lambda: &[Option<usize>]) -> Option<Self> {
-        let n = lambda.len();
-        let mut list = Vec::new();
-        let mut start = vec![0];
-        for k in 0..n {
-            list.extend(std::iter::successors(lambda[k], |&i| lambda[i]));
-            start.push(list.len());
-        }
-        // e(k) and the subtree's size; contiguous when they agree and parents come first.
-        let mut end: Vec<usize> = (1..=n).collect();
-        let mut size = vec![1; n];
-        for k in (0..n).rev() {
-            if let Some(p) = lambda[k] {
-                if p >= k {
-                    return None;
-                }
-                end[p] = end[p].max(end[k]);
-                size[p] += size[k];
-            }
-        }
-        (0..n)
-            .all(|k| end[k] - k == size[k])
-            .then_some(Ancestors { list, start, end })
-    }
-
-    /// The ancestors of `k`, nearest first; those of `of(k)[m]` are `of(k)[m + 1..]`.
-    pub fn of(&self, k: usize) -> &[usize] {
-        &self.list[self.start[k]..self.start[k + 1]]
-    }
-
-    /// The descendants of `k`: `k + 1 .. e(k)`.
-    pub fn below(&self, k: usize) -> std::ops::Range<usize> {
-        k + 1..self.end[k]
-    }
-
-    /// The number of degrees of freedom.
-    pub fn len(&self) -> usize {
-        self.start.len() - 1
-    }
-
-    /// True for a model without degrees of freedom.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-}
 
 /// Factorises `h` (full symmetric) into `factor`: afterwards `factor` holds `L` in its lower
 /// triangle along the tree pattern (entry `(k, j)` is `L_kj`; column `j` of `L` is contiguous in

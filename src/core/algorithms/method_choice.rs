@@ -15,7 +15,7 @@
 //! random velocity for one second, so every joint kind stays on its manifold), random `q̇` and
 //! random `τ`, drawn from a fixed seed.
 
-use super::{flops, forward_dynamics, ForwardDynamicsMethod};
+use super::{flop_table, forward_dynamics, ForwardDynamicsMethod};
 use crate::sampling::Rng;
 use crate::{DynamicsError, Externals, Model, Workspace};
 use std::time::{Duration, Instant};
@@ -91,8 +91,10 @@ pub fn choose_method(
     )
     .is_ok();
     let aba_ns = start.elapsed().as_nanos() as f64;
+    let plan = ws.plan().clone();
     let flops_of = |m: ForwardDynamicsMethod| {
-        flops::kernel_flops(model, &format!("fd_{}", m.name())).map_or(1.0, |f| f.total() as f64)
+        flop_table::kernel_flops(model, &plan, &format!("fd_{}", m.name()))
+            .map_or(1.0, |f| f.total() as f64)
     };
     let ns_per_flop = if aba_runs {
         aba_ns / flops_of(ForwardDynamicsMethod::Aba)

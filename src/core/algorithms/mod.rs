@@ -23,6 +23,7 @@ pub mod bias;
 pub mod cholesky;
 pub mod crba;
 pub mod energy;
+pub mod flop_table;
 pub mod flops;
 pub mod forward_dynamics;
 pub mod gravity;

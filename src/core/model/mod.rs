@@ -17,11 +17,11 @@ mod reduction;
 mod spec;
 
 pub use builder::ModelBuilder;
-pub use spec::{joint_position, BodySpec, JointSpec, ModelOptions};
 pub use joint::{
     axis_rotation, quaternion_rotation, turn_up, turn_up_unrotated, JointKind, MotionSubspace,
     UpShape,
 };
+pub use spec::{joint_position, BodySpec, JointSpec, ModelOptions};
 
 use crate::error::ModelError;
 use crate::spatial::{Inertia, Transform, Vector3};

@@ -1,0 +1,204 @@
+//! The FLOP count of each kernel as `spatial_dynamics bench` names them, for a model and the
+//! [`Plan`] its calls follow: the sum of its passes' costs from [`flops`](super::flops).
+
+use super::flops::*;
+use crate::model::Model;
+use crate::plan::{Ancestors, CrbaFrames, Plan};
+
+/// The count of kernel `name` (as `spatial_dynamics bench` names them: `rnea`, `crba`,
+/// `fd_aba`, `fd_crba`, `fd_rnea_columns`, `gravity`) on `model` as `plan` runs it; `None` for another name, or
+/// for `fd_aba` on a model with mimic joints (ABA refuses them).
+pub fn kernel_flops(model: &Model, plan: &Plan, name: &str) -> Option<Flops> {
+    let n = model.nv as u64;
+    let check = check_q(model);
+    Some(match name {
+        "rnea" => check + joints(model) + rnea_passes(model, true, true),
+        "crba" => check + joints(model) + crba_passes(model, plan),
+        "gravity" => check + joints(model) + gravity_passes(model),
+        "fd_aba" => {
+            if model.bodies.iter().any(|b| b.joint.is_mimic()) {
+                return None;
+            }
+            check + joints(model) + aba_passes(model, &plan.anchors)
+        }
+        "fd_crba" => {
+            let solve = match &plan.dof_ancestors {
+                Some(ancestors) => ltl(ancestors),
+                None => dense_cholesky(n),
+            };
+            check + joints(model) + rnea_passes(model, true, false) + crba_passes(model, plan) + solve
+                // τ − C; each pivot checked against H_kk ε
+                + Flops::new(n, n)
+        }
+        "fd_rnea_columns" => {
+            check
+                + (joints(model) + rnea_passes(model, true, false))
+                + (joints(model) + rnea_passes(model, true, true)) * n
+                // H_k = τ − C for each column, τ − C once; each pivot checked against H_kk ε
+                + Flops::new(n, n * n + n)
+                + dense_cholesky(n)
+        }
+        _ => return None,
+    })
+}
+
+/// CRBA's passes in the frames the plan chose ([`crate::plan::crba_frames`]).
+fn crba_passes(model: &Model, plan: &Plan) -> Flops {
+    match plan.crba_frames {
+        CrbaFrames::World => crba_world(model, plan.subtree_end.is_none()),
+        CrbaFrames::Local => crba_local(model),
+    }
+}
+
+/// The three ABA passes (world frame).
+fn aba_passes(model: &Model, anchors: &[bool]) -> Flops {
+    // Pass 3's a_0 = a_base − [0; g] (as in `rnea_passes`).
+    let mut total = placements(model) + Flops::new(0, 3);
+    for (i, body) in model.bodies.iter().enumerate() {
+        let nv = body.joint.kind.nv() as u64;
+        // Pass 1: ⁰S, v_J (`S q̇`, each rate scaled by the mimic factor), v_i, c_i, ⁰I (and as
+        // a 6×6), p^A.
+        total += world_axes(&body.joint.kind) + SUBSPACE_COLUMN * nv + ADD6;
+        total += CROSS6 + bias_added(&body.joint.kind, TRANSFORM_VECTOR);
+        total += TRANSFORM_INERTIA + INERTIA_TO_MATRIX + INERTIA_APPLY + CROSS6;
+        // Pass 2: U, D, u, D⁻¹ (its pivot check scales `64 · max diag I^A` by ε).
+        total += MAT6_VEC6 * nv + DOT6 * (nv * nv) + (DOT6 + Flops::new(0, 1)) * nv;
+        total += Flops::new(1, 0);
+        total += if nv == 1 {
+            Flops {
+                div: 1,
+                ..Flops::new(1, 0)
+            }
+        } else {
+            // The pivots checked against one scale `reference · ε` (`pivot_is_sound`).
+            spd_inverse(nv as usize) + Flops::new(1, 0)
+        };
+        if anchors[i] {
+            // The parent's (or the root's) velocity and acceleration moved into the body's
+            // aligned frame (`Translation::apply_motion`: a cross product and three
+            // subtractions each).
+            total += TRANSLATE_VECTOR * 2;
+            if body.parent.is_some() {
+                // I^a and p^a moved into the parent's frame.
+                total += TRANSLATE_MATRIX6 + TRANSLATE_VECTOR;
+            }
+        }
+        if body.parent.is_some() {
+            // D⁻¹ u and the rows of D⁻¹ Uᵀ, the rank-nv update, p^a, I^a c, the parent sums.
+            total += (Flops::new(nv, nv) + Flops::new(6, 6) * nv) * nv;
+            total += (Flops::new(36, 36) + Flops::new(6, 6)) * nv;
+            total += MAT6_VEC6 + ADD6 + Flops::new(0, 36) + ADD6;
+        }
+        // Pass 3: a' = a_λ + c_i, the right-hand side, q̈ = D⁻¹ rhs (a `sum` of nv products:
+        // its first addition, to −0, is folded), a_i += S q̈.
+        total += ADD6 + (DOT6 + Flops::new(0, 1)) * nv;
+        total += Flops::new(nv, nv - 1) * nv + Flops::new(6, 6) * nv;
+    }
+    total
+}
+
+/// `ltl_factor` and `ltl_solve` along the tree: for coordinate `k` with `d_k` ancestors and
+/// `s_k` descendants, `d_k + 1` products of two column segments of length `s_k` (none for a
+/// leaf; else `s_k` multiplications, `s_k` additions into four partial sums and three to join
+/// them), each subtracted from its entry of `H`, one square root and `d_k` divisions; the two
+/// triangular solves, `2 s_k` multiply-adds (the first addition of `Lᵀ y = b`'s sum, to −0, is
+/// folded, and a leaf's empty sum is subtracted) and two divisions. In all the
+/// multiplications and divisions are RBDA's (`d_k (d_k + 1) / 2` multiply-subtracts for `k`
+/// counted at each descendant instead).
+fn ltl(ancestors: &Ancestors) -> Flops {
+    let mut total = Flops::default();
+    for k in 0..ancestors.len() {
+        let d = ancestors.of(k).len() as u64;
+        let s = ancestors.below(k).len() as u64;
+        let dot = if s > 0 {
+            Flops::new(s, s + 3)
+        } else {
+            Flops::default()
+        };
+        total += (dot + Flops::new(0, 1)) * (d + 1);
+        total += Flops {
+            sqrt: 1,
+            div: d + 2,
+            ..Flops::new(2 * s, 2 * s + u64::from(s == 0))
+        };
+    }
+    total
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::examples;
+    use crate::urdf::model_from_str;
+    use crate::ModelOptions;
+
+    fn chain(n: usize) -> Model {
+        model_from_str(
+            &examples::pendulum_urdf(n, 1.0, 1.0),
+            &ModelOptions::default(),
+        )
+        .unwrap()
+    }
+
+    /// For an unbranched chain `H` is dense and the sparse `LᵀL` is a dense Cholesky. Featherstone
+    /// (RBDA §6.5) gives `n³/6 + n²/2 − 2n/3` multiplications for the factorisation, counting
+    /// the `n(n−1)/2` scalings by `1/L_kk` as multiplications (we divide), and `n` square roots;
+    /// the two substitutions add `n² − n` multiply-adds and `2n` divisions.
+    #[test]
+    fn ltl_on_a_chain_matches_the_dense_cholesky_count() {
+        for n in [1usize, 2, 7, 30] {
+            let model = chain(n);
+            let ancestors = Ancestors::new(model.dof_parent.as_ref().unwrap()).unwrap();
+            let n = n as u64;
+            let count = ltl(&ancestors);
+            let (solve_mul, solve_div) = (n * n - n, 2 * n);
+            assert_eq!(
+                (count.mul - solve_mul) + (count.div - solve_div),
+                (n * n * n + 3 * n * n - 4 * n) / 6,
+                "n = {n}"
+            );
+            assert_eq!(count.div - solve_div, n * (n - 1) / 2, "n = {n}");
+            assert_eq!(count.sqrt, n, "n = {n}");
+            let dense = dense_cholesky(n);
+            assert_eq!((count.mul, count.div), (dense.mul, dense.div), "n = {n}");
+            // The additions: one per multiplication, and for each of the n(n+1)/2 column
+            // products one subtraction from H, three more to join partial sums unless it is
+            // empty (the n products of the last coordinate), and the leaf's empty sum in the
+            // solve.
+            let products = n * (n + 1) / 2;
+            assert_eq!(
+                count.add,
+                count.mul + products + 3 * (products - n) + 1,
+                "n = {n}"
+            );
+        }
+    }
+
+    /// Per body of a revolute chain, RNEA costs what its passes do: the joint coordinate
+    /// `scale · q + offset` (1 m + 1 a), jcalc (`σ q` and `spatial::sin_cos`, 1 + 27 m, 35 a;
+    /// each joint's placement has no rotation, so its turn is written as it is),
+    /// `S q̇`, `S q̈` (7 m + 6 a each), two transforms (a turn about the joint axis after a
+    /// translation, 14 m + 10 a), a spatial cross product
+    /// and three 6-vector sums outward (a revolute joint has no `c_J` to add), two inertia
+    /// products, a cross product and a sum for `f`, and inward a projection (scaled,
+    /// accumulated) and, below the root, a transform and a sum.
+    #[test]
+    fn rnea_per_body_on_a_chain() {
+        let per_body = Flops::new(
+            1 + 28 + 7 + 7 + 28 + 18 + 48 + 18 + 7,
+            1 + 35 + 6 + 6 + 20 + 12 + 18 + 36 + 12 + 6 + 6,
+        );
+        let below_root = Flops::new(14, 16);
+        // a_0 = −[0; g]: three subtractions from zero.
+        let root = Flops::new(0, 3);
+        for n in [1usize, 4, 9] {
+            let model = chain(n);
+            let expected = root + per_body * n as u64 + below_root * (n as u64 - 1);
+            assert_eq!(
+                kernel_flops(&model, &Plan::new(&model), "rnea"),
+                Some(expected),
+                "n = {n}"
+            );
+        }
+    }
+}
