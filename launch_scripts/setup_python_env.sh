@@ -51,7 +51,7 @@ tool_packages=(pytest numpy mpmath pin example-robot-data example-robot-data-loa
 # for msg/, ament_cargo (with `cargo ament-build` from crates.io) for the node.
 colcon_packages=(
     colcon-core colcon-ros colcon-cmake colcon-cargo colcon-ros-cargo colcon-library-path
-    colcon-recursive-crawl colcon-package-information
+    colcon-recursive-crawl colcon-package-information colcon-bash
 )
 
 log() { printf '== %s\n' "$*"; }
