@@ -342,18 +342,18 @@ def test_launch_file_starts_the_installed_node_with_declared_parameters(workspac
 
 def test_launch_file_with_urdf_adds_robot_state_publisher(workspace, installed_launch, ros, tmp_path):
     share, description = installed_launch
-    urdf = sd.LAMP_URDF
+    urdf = sd.PARTICLE_URDF
     text = urdf.read_text()
-    ours, rsp = launch_nodes(description, urdf=str(urdf), namespace="lamp")
+    ours, rsp = launch_nodes(description, urdf=str(urdf), namespace="particle")
     assert (rsp.kwargs["package"], rsp.kwargs["executable"]) == ("robot_state_publisher", "robot_state_publisher")
     assert rsp.kwargs["parameters"] == [{"robot_description": text}]
-    assert rsp.kwargs["namespace"] == ours.kwargs["namespace"] == "lamp"
+    assert rsp.kwargs["namespace"] == ours.kwargs["namespace"] == "particle"
     assert ours.kwargs["parameters"][-1] == {"robot_description": text}
 
-    running = start(workspace, ros, node_ros_args(ours, tmp_path), tmp_path, "launched_urdf", prefix="/lamp/spatial_dynamics")
+    running = start(workspace, ros, node_ros_args(ours, tmp_path), tmp_path, "launched_urdf", prefix="/particle/spatial_dynamics")
     try:
-        declared = set(ros.list_parameters(node="/lamp/spatial_dynamics"))
+        declared = set(ros.list_parameters(node="/particle/spatial_dynamics"))
         assert parameter_names(ours) <= declared
-        inverse_dynamics_matches_pinocchio(ros, urdf, prefix="/lamp/spatial_dynamics")
+        inverse_dynamics_matches_pinocchio(ros, urdf, prefix="/particle/spatial_dynamics")
     finally:
         running.stop()
