@@ -11,7 +11,7 @@
 //! | `tip_links` | string[] | `[]` | keep only the joints from the root to these links; bodies past a tip lump onto it |
 //! | `prune_massless` | bool | `false` | remove moving joints whose whole subtree is massless |
 //! | `gravity` | double[3] | `[0, 0, -9.81]` | gravity in the world frame, m/s² |
-//! | `method` | string | `auto` | forward dynamics: `aba`, `crba`, `rnea_columns`, or `auto`: the fastest method that agrees with `aba` to 1e-10 on this model, measured at load |
+//! | `method` | string | `auto` | forward dynamics: `aba`, `crba`, `rnea_columns`, or `auto`: of the methods that agree with `aba` to 1e-10 on this model, the one with the fewest FLOPs per call (the same choice on every run) |
 //! | `command_joints` | string[] | `[]` | order of `~/commands` and `~/feedforward_commands` (empty: all joints in model order) |
 //! | `mode` | string | `serve` | `serve`: dynamics of the measured state; `simulate`: the node owns and integrates the state |
 //! | `publish_rate` | double | `100` | simulate: `joint_states` per second (Hz) |
