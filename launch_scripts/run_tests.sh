@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Runs the whole test suite: the Rust tests (unit, behaviour, command line), then the Python
-# tests that check us against independent references (Pinocchio) with the release binary.
+# Runs the whole test suite: the Rust tests (unit, behaviour, command line), fuzzing, the Python
+# tests that check us against independent references (Pinocchio) with the release binary, the
+# node over DDS, and the repository built as a ROS 2 package by colcon.
 # Usage: launch_scripts/run_tests.sh        (from anywhere; sets up .venv on first use)
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -58,3 +59,10 @@ if ! command -v ip >/dev/null 2>&1; then
     fi
 fi
 "$repo/launch_scripts/netns_exec.sh" "$repo/.venv/bin/python" -m pytest -q "$repo/tests/dds"
+
+echo "== ROS package: colcon builds the repository in a fresh workspace; the installed node and launch file =="
+# colcon comes with .venv; colcon-ros-cargo runs `cargo ament-build` (crates.io), installed once.
+if ! cargo ament-build --help >/dev/null 2>&1; then
+    cargo install cargo-ament-build --locked
+fi
+"$repo/launch_scripts/netns_exec.sh" "$repo/.venv/bin/python" -m pytest -q "$repo/tests/package"

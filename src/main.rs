@@ -1,11 +1,5 @@
-//! The `spatial_dynamics` command: `model`, `eval` (and, later, the ROS 2 node).
-
-#[cfg(feature = "replay")]
-mod bag;
-mod cli;
-#[cfg(feature = "node")]
-mod node;
+//! The `spatial_dynamics` command: `model`, `eval`, `bench`, `chart`, `simulate`, `replay`, `node`.
 
 fn main() -> std::process::ExitCode {
-    cli::run()
+    spatial_dynamics::cli_main()
 }

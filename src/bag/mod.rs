@@ -191,8 +191,8 @@ fn open_directory(dir: &Path) -> Result<Bag, String> {
             path.display()
         )
     })?;
-    let yaml: serde_yaml::Value =
-        serde_yaml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let yaml: serde_norway::Value =
+        serde_norway::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     let info = &yaml["rosbag2_bagfile_information"];
     let field = |name: &str| {
         info[name]

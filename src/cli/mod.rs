@@ -92,6 +92,11 @@ pub fn run() -> ExitCode {
         #[cfg(feature = "node")]
         Command::Node { args } => crate::node::run(&args),
     };
+    exit_code(result)
+}
+
+/// The process's exit status for a command's result; an error is printed to stderr first.
+pub fn exit_code(result: Result<(), String>) -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(message) => {

@@ -11,7 +11,7 @@
 //! | `tip_links` | string[] | `[]` | keep only the joints from the root to these links; bodies past a tip lump onto it |
 //! | `prune_massless` | bool | `false` | remove moving joints whose whole subtree is massless |
 //! | `gravity` | double[3] | `[0, 0, -9.81]` | gravity in the world frame, m/s² |
-//! | `method` | string | `auto` | forward dynamics: `aba`, `crba`, `rnea_columns`, or `auto`: the fastest method that agrees with `aba` to 1e-10 on this model, measured at load |
+//! | `method` | string | `auto` | forward dynamics: `aba`, `crba`, `rnea_columns`, or `auto`: of the methods that agree with `aba` to 1e-10 on this model, the one with the fewest FLOPs per call (the same choice on every run) |
 //! | `command_joints` | string[] | `[]` | order of `~/commands` and `~/feedforward_commands` (empty: all joints in model order) |
 //! | `mode` | string | `serve` | `serve`: dynamics of the measured state; `simulate`: the node owns and integrates the state |
 //! | `publish_rate` | double | `100` | simulate: `joint_states` per second (Hz) |
@@ -334,10 +334,10 @@ impl Settings {
     pub fn apply_file(&mut self, path: &Path, namespace: &str, node: &str) -> Result<(), String> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| format!("--params-file {}: {e}", path.display()))?;
-        let doc: serde_yaml::Value = serde_yaml::from_str(&text)
+        let doc: serde_norway::Value = serde_norway::from_str(&text)
             .map_err(|e| format!("--params-file {}: {e}", path.display()))?;
         let full = format!("{}/{node}", namespace.trim_end_matches('/'));
-        let serde_yaml::Value::Mapping(entries) = doc else {
+        let serde_norway::Value::Mapping(entries) = doc else {
             return Err(format!(
                 "--params-file {}: expected a mapping of node names",
                 path.display()
@@ -374,8 +374,8 @@ impl Settings {
 
     /// Applies `-p NAME:=VALUE` (VALUE in YAML).
     pub fn apply_arg(&mut self, name: &str, value: &str) -> Result<(), String> {
-        let yaml: serde_yaml::Value =
-            serde_yaml::from_str(value).map_err(|e| format!("-p {name}:={value}: {e}"))?;
+        let yaml: serde_norway::Value =
+            serde_norway::from_str(value).map_err(|e| format!("-p {name}:={value}: {e}"))?;
         let value = parameter_value(&yaml).map_err(|e| format!("-p {name}:={value}: {e}"))?;
         self.set(name, &value)
             .map_err(|e| format!("-p {name}: {e}"))
@@ -402,9 +402,13 @@ fn parse_lock(item: &str) -> Result<(String, f64), String> {
 }
 
 /// Nested mappings become dotted names, as ROS reads them.
-fn flatten(prefix: &str, value: &serde_yaml::Value, out: &mut Vec<(String, serde_yaml::Value)>) {
+fn flatten(
+    prefix: &str,
+    value: &serde_norway::Value,
+    out: &mut Vec<(String, serde_norway::Value)>,
+) {
     match value {
-        serde_yaml::Value::Mapping(m) => {
+        serde_norway::Value::Mapping(m) => {
             for (k, v) in m {
                 let key = k
                     .as_str()
@@ -423,8 +427,8 @@ fn flatten(prefix: &str, value: &serde_yaml::Value, out: &mut Vec<(String, serde
 }
 
 /// A YAML value as a ROS parameter value (integers in a list of floats become floats).
-pub fn parameter_value(v: &serde_yaml::Value) -> Result<ParameterValue, String> {
-    use serde_yaml::Value as Y;
+pub fn parameter_value(v: &serde_norway::Value) -> Result<ParameterValue, String> {
+    use serde_norway::Value as Y;
     use ParameterValue as P;
     Ok(match v {
         Y::Bool(b) => P::Boolean(*b),

@@ -89,10 +89,12 @@ LIVE_NODES: list = []  # every NodeProcess started and not yet stopped (for fail
 
 
 class NodeProcess:
-    """`spatial_dynamics node ARGS`, output to a log file; stopped by SIGINT, then SIGKILL."""
+    """`spatial_dynamics node ARGS` (or `BINARY ARGS` with ``subcommand=()``, for the
+    `spatial_dynamics_node` executable), output to a log file; stopped by SIGINT, then SIGKILL."""
 
-    def __init__(self, binary: Path, args, env: dict, log_path: Path, label: str, expect_exit=False):
-        self.args = [str(binary), "node", *[str(a) for a in args]]
+    def __init__(self, binary: Path, args, env: dict, log_path: Path, label: str, expect_exit=False,
+                 subcommand=("node",)):
+        self.args = [str(binary), *subcommand, *[str(a) for a in args]]
         self.label = label
         self.log_path = log_path
         self.expect_exit = expect_exit
@@ -244,7 +246,7 @@ class RosSession:
     # yet; a dropped request is then only repaired by the writer's next heartbeat (Fast DDS: every
     # 3 s), and later requests of that client wait behind it. So a client is only used once
     # SETTLE_S have passed since both its creation and the (re)start of the node being called
-    # (see ROS_WHEELS.md); a call that still times out is retried once.
+    # (0.5 s was enough in every run measured); a call that still times out is retried once.
 
     SETTLE_S = 0.5
 

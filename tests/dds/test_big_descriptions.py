@@ -64,7 +64,7 @@ def many_links(size):
 def served(ros, n, timeout):
     """Polls ~/inverse_dynamics with a one-value request until the node refuses it for a model of
     `n` names (a short answer: replies of hundreds of kB from the node to rclpy are slow or lost
-    with Fast DDS's default socket buffers, see ROS_WHEELS.md); returns the seconds it took."""
+    with Fast DDS's default socket buffers); returns the seconds it took."""
     start = time.monotonic()
     last = None
     while time.monotonic() - start < timeout:

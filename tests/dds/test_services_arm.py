@@ -75,7 +75,7 @@ def test_describe_model_matches_the_urdf(arm, ros):
     assert (r.nq, r.nv) == (7, 7)
     assert r.floating_base is False
     assert (r.gravity.x, r.gravity.y, r.gravity.z) == (0.0, 0.0, -9.81)
-    # method "auto": the fastest method measured on this model, with the measurements in the message.
+    # method "auto": the cheapest accurate method (FLOPs) on this model, with the measurements in the message.
     assert r.method in ("aba", "crba", "rnea_columns")
     assert f"method auto: {r.method} (measured: aba " in r.message, r.message
     assert list(r.locked_joints) == []

@@ -1,19 +1,25 @@
-//! Choosing the forward-dynamics method for a model from measurements: the fastest method whose
-//! answers are accurate enough on this model.
+//! Choosing the forward-dynamics method for a model: of the methods whose answers are accurate
+//! enough on this model, the one with the fewest floating-point operations per call.
 //!
 //! Accuracy: `aba` is the reference. The conditioning study (`benches/conditioning.py`, against
 //! a 50-digit solution) found it the most accurate method on every chain measured, with an error
 //! near ε even where `crba` and `rnea_columns` lose digits with cond H. A method is accurate
 //! enough when, over sampled states, its `q̈` differs from `aba`'s by at most `tolerance` relative
 //! to `‖q̈_aba‖∞` (1 + that, for tiny accelerations). Where `aba` does not apply (mimic joints)
-//! there is no reference and the fastest method that runs is taken.
+//! there is no reference and the cheapest method that runs is taken.
 //!
-//! Speed: each method runs over the same sampled states; the median of several timed passes is
-//! its time per call. A method whose predicted cost — its FLOP count ([`super::flops`])
-//! at the rate measured for one `aba` call — would exceed the budget over the samples is not run
-//! at all (on a 10 000-link chain one CRBA solve costs minutes): it is reported as skipped. The sampled states are `q = q₀ ⊕ δ` (neutral configuration moved along a
-//! random velocity for one second, so every joint kind stays on its manifold), random `q̇` and
-//! random `τ`, drawn from a fixed seed.
+//! Cost: each method's FLOP count on this model ([`super::flop_table`]), not a timing, so the same
+//! model gets the same method on every run and under any load (timed choices flip between
+//! methods within a few per cent of each other, and a single cold call can misjudge a method
+//! by orders of magnitude). On the models measured with `spatial_dynamics bench` (the 7-joint
+//! arm, chains of 3 to 60 links, the mimic gripper) the FLOP counts rank the methods as their
+//! times do. The methods are tried cheapest first: the
+//! first that is accurate enough is chosen, and a method costing more than `aba` is never run
+//! (it could not be chosen; on a 10 000-link chain one CRBA solve costs minutes). Each method
+//! that ran is also timed (median of passes over the samples, within `budget`) for the summary
+//! only. The sampled states are `q = q₀ ⊕ δ` (neutral configuration moved along a random
+//! velocity for one second, so every joint kind stays on its manifold), random `q̇` and random
+//! `τ`, drawn from a fixed seed: the accuracy check is deterministic too.
 
 use super::{flop_table, forward_dynamics, ForwardDynamicsMethod};
 use crate::sampling::Rng;
@@ -29,11 +35,13 @@ pub const AUTO_TOLERANCE: f64 = 1e-10;
 pub struct MethodChoice {
     /// The method chosen.
     pub method: ForwardDynamicsMethod,
-    /// Each method that ran: its median time per call (ns) and its largest relative difference
-    /// from `aba` over the samples (`None` when `aba` cannot run on this model).
-    pub measured: Vec<(ForwardDynamicsMethod, f64, Option<f64>)>,
-    /// Methods not run because their predicted time per call (ns) exceeds the budget.
-    pub skipped: Vec<(ForwardDynamicsMethod, f64)>,
+    /// Each method that ran: its FLOPs per call, its median time per call (ns, informative only)
+    /// and its largest relative difference from `aba` over the samples (`None` when `aba` cannot
+    /// run on this model).
+    pub measured: Vec<(ForwardDynamicsMethod, u64, f64, Option<f64>)>,
+    /// Methods not run, with their FLOPs per call: more than `aba`'s, or more than a method
+    /// already found accurate enough.
+    pub skipped: Vec<(ForwardDynamicsMethod, u64)>,
 }
 
 impl MethodChoice {
@@ -42,18 +50,21 @@ impl MethodChoice {
         let parts: Vec<String> = self
             .measured
             .iter()
-            .map(|(m, ns, diff)| match diff {
-                Some(d) => format!("{m} {:.2} µs (differs from aba by {d:.1e})", ns / 1e3),
-                None => format!("{m} {:.2} µs", ns / 1e3),
+            .map(|(m, flops, ns, diff)| match diff {
+                Some(d) => format!(
+                    "{m} {flops} FLOPs {:.2} µs (differs from aba by {d:.1e})",
+                    ns / 1e3
+                ),
+                None => format!("{m} {flops} FLOPs {:.2} µs", ns / 1e3),
             })
             .collect();
         let skipped: Vec<String> = self
             .skipped
             .iter()
-            .map(|(m, ns)| format!(", {m} not run (predicted {:.1} ms per call)", ns / 1e6))
+            .map(|(m, flops)| format!(", {m} not run ({flops} FLOPs per call)"))
             .collect();
         format!(
-            "{} (measured: {}{})",
+            "{} (measured: {}{}; the fewest FLOPs among the methods agreeing with aba)",
             self.method,
             parts.join(", "),
             skipped.concat()
@@ -65,9 +76,10 @@ impl MethodChoice {
 const SAMPLES: usize = 16;
 const PASSES: usize = 5;
 
-/// Measures every forward-dynamics method on `model` and picks the fastest whose relative
-/// difference from `aba` stays within `tolerance` (`aba` itself always qualifies). Each method's
-/// timing stops early once it has used `budget`. Errors only if no method can run at all.
+/// Picks the forward-dynamics method for `model`: the one with the fewest FLOPs per call whose
+/// relative difference from `aba` stays within `tolerance` over the samples (`aba` itself always
+/// qualifies). The choice depends on the model and `tolerance` only; `budget` bounds the time
+/// spent timing each method for the summary. Errors only if no method can run at all.
 pub fn choose_method(
     model: &Model,
     tolerance: f64,
@@ -75,87 +87,95 @@ pub fn choose_method(
 ) -> Result<MethodChoice, DynamicsError> {
     let mut ws = Workspace::new(model);
     let states = sample_states(model);
-    let ext = Externals::none();
-    // The machine's rate, from one aba call (1 GFLOP/s if aba cannot run), predicts each
-    // method's time per call from its FLOP count.
-    let (q0, v0, tau0) = &states[0];
-    let start = Instant::now();
-    let aba_runs = forward_dynamics(
-        model,
-        &mut ws,
-        q0,
-        v0,
-        tau0,
-        ForwardDynamicsMethod::Aba,
-        &ext,
-    )
-    .is_ok();
-    let aba_ns = start.elapsed().as_nanos() as f64;
     let plan = ws.plan().clone();
     let flops_of = |m: ForwardDynamicsMethod| {
-        flop_table::kernel_flops(model, &plan, &format!("fd_{}", m.name()))
-            .map_or(1.0, |f| f.total() as f64)
+        flop_table::kernel_flops(model, &plan, &format!("fd_{}", m.name())).map(|f| f.total())
     };
-    let ns_per_flop = if aba_runs {
-        aba_ns / flops_of(ForwardDynamicsMethod::Aba)
-    } else {
-        1.0
-    };
-    let mut skipped = Vec::new();
-    // Answers of each method on every state; a method that refuses the model is left out.
-    let mut answers: Vec<(ForwardDynamicsMethod, Vec<Vec<f64>>)> = Vec::new();
+    // Cheapest first (FLOP counts tie only between identical costs: then the order of ALL).
+    // A method without a count (aba on a mimic model) does not apply.
+    let mut order: Vec<(ForwardDynamicsMethod, u64)> = ForwardDynamicsMethod::ALL
+        .into_iter()
+        .filter_map(|m| flops_of(m).map(|f| (m, f)))
+        .collect();
+    order.sort_by_key(|&(_, f)| f);
     let mut first_error = None;
-    for method in ForwardDynamicsMethod::ALL {
-        let predicted = flops_of(method) * ns_per_flop;
-        if method != ForwardDynamicsMethod::Aba
-            && predicted * states.len() as f64 > budget.as_nanos() as f64
+    // aba's answers and cost, when it runs on this model.
+    let reference = match order.iter().find(|(m, _)| *m == ForwardDynamicsMethod::Aba) {
+        Some(&(_, aba_flops)) => match answers(model, &mut ws, &states, ForwardDynamicsMethod::Aba)
         {
-            skipped.push((method, predicted));
-            continue;
-        }
-        let run: Result<Vec<Vec<f64>>, DynamicsError> = states
-            .iter()
-            .map(|(q, v, tau)| {
-                forward_dynamics(model, &mut ws, q, v, tau, method, &ext).map(<[f64]>::to_vec)
-            })
-            .collect();
-        match run {
-            Ok(qdd) => answers.push((method, qdd)),
+            Ok(qdd) => Some((qdd, aba_flops)),
             Err(e) => {
-                first_error.get_or_insert(e);
+                first_error = Some(e);
+                None
             }
+        },
+        None => None,
+    };
+    let mut chosen = None;
+    let mut measured = Vec::new();
+    let mut skipped = Vec::new();
+    for (method, flops) in order {
+        let qdd = match (&reference, method) {
+            (Some((r, _)), ForwardDynamicsMethod::Aba) => r.clone(),
+            // aba refused the model: its error is kept.
+            (None, ForwardDynamicsMethod::Aba) => continue,
+            // Never chosen: a cheaper accurate method exists (aba, when it runs, is one).
+            (Some((_, aba_flops)), _) if flops > *aba_flops || chosen.is_some() => {
+                skipped.push((method, flops));
+                continue;
+            }
+            (None, _) if chosen.is_some() => {
+                skipped.push((method, flops));
+                continue;
+            }
+            _ => match answers(model, &mut ws, &states, method) {
+                Ok(qdd) => qdd,
+                Err(e) => {
+                    first_error.get_or_insert(e);
+                    continue;
+                }
+            },
+        };
+        let diff = reference.as_ref().map(|(r, _)| largest_difference(&qdd, r));
+        let ns = time_per_call(model, &mut ws, &states, method, budget);
+        measured.push((method, flops, ns, diff));
+        if chosen.is_none() && diff.is_none_or(|d| d <= tolerance) {
+            chosen = Some(method);
         }
     }
-    if answers.is_empty() {
-        return match first_error {
+    // Measured in cost order; listed with aba first, as the reference.
+    measured.sort_by_key(|&(m, _, _, _)| m != ForwardDynamicsMethod::Aba);
+    match chosen {
+        Some(method) => Ok(MethodChoice {
+            method,
+            measured,
+            skipped,
+        }),
+        None => match first_error {
             Some(e) => Err(e),
             None => Ok(MethodChoice {
                 method: ForwardDynamicsMethod::Aba,
-                measured: Vec::new(),
+                measured,
                 skipped,
             }),
-        };
+        },
     }
-    let reference = answers
+}
+
+/// `method`'s `q̈` on every state (the first error if it refuses one).
+fn answers(
+    model: &Model,
+    ws: &mut Workspace,
+    states: &[(Vec<f64>, Vec<f64>, Vec<f64>)],
+    method: ForwardDynamicsMethod,
+) -> Result<Vec<Vec<f64>>, DynamicsError> {
+    let ext = Externals::none();
+    states
         .iter()
-        .find(|(m, _)| *m == ForwardDynamicsMethod::Aba)
-        .map(|(_, qdd)| qdd.clone());
-    let mut measured = Vec::new();
-    for (method, qdd) in &answers {
-        let diff = reference.as_ref().map(|r| largest_difference(qdd, r));
-        let ns = time_per_call(model, &mut ws, &states, *method, budget);
-        measured.push((*method, ns, diff));
-    }
-    let method = measured
-        .iter()
-        .filter(|(_, _, diff)| diff.is_none_or(|d| d <= tolerance))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map_or(ForwardDynamicsMethod::Aba, |(m, _, _)| *m);
-    Ok(MethodChoice {
-        method,
-        measured,
-        skipped,
-    })
+        .map(|(q, v, tau)| {
+            forward_dynamics(model, ws, q, v, tau, method, &ext).map(<[f64]>::to_vec)
+        })
+        .collect()
 }
 
 /// `max over samples of ‖a − b‖∞ / (1 + ‖b‖∞)`.
@@ -216,47 +236,92 @@ fn sample_states(model: &Model) -> Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::examples::{pendulum_urdf, MIMIC_GRIPPER_URDF};
+    use crate::model::examples::{pendulum_urdf, DEFAULT_ARM_URDF, MIMIC_GRIPPER_URDF};
     use crate::{urdf, ModelOptions};
 
     fn load(text: &str) -> Model {
         urdf::model_from_str(text, &ModelOptions::default()).unwrap()
     }
 
-    #[test]
-    fn a_method_that_disagrees_with_aba_is_not_chosen() {
-        // 200 equal links: cond H is large and crba / rnea_columns lose digits (the conditioning
-        // study measured 5e-8 and worse at n = 500); with a tolerance below what they reach,
-        // only aba qualifies, whatever the timings.
-        let model = load(&pendulum_urdf(200, 1.0, 1.0));
-        // (A generous budget, so that no method is skipped for cost on a slow machine.)
-        let choice = choose_method(&model, 1e-13, Duration::from_secs(2)).unwrap();
-        let diff = |m| {
-            choice
-                .measured
-                .iter()
-                .find(|x| x.0 == m)
-                .and_then(|x| x.2)
-                .unwrap()
-        };
-        assert!(diff(ForwardDynamicsMethod::Crba) > 1e-13, "{choice:?}");
-        assert_eq!(choice.method, ForwardDynamicsMethod::Aba, "{choice:?}");
-        assert_eq!(diff(ForwardDynamicsMethod::Aba), 0.0);
+    fn flops(m: ForwardDynamicsMethod, model: &Model) -> u64 {
+        flop_table::kernel_flops(model, &crate::Plan::new(model), &format!("fd_{}", m.name()))
+            .unwrap()
+            .total()
     }
 
     #[test]
-    fn the_fastest_accurate_method_is_chosen() {
-        // A short chain: every method agrees to ~1e-14, so the choice is the fastest measured.
+    fn a_method_that_disagrees_with_aba_is_not_chosen() {
+        // 3 links: crba costs fewer FLOPs than aba and agrees with it to ~1e-14, not exactly;
+        // with a tolerance of 0 only aba qualifies.
         let model = load(&pendulum_urdf(3, 1.0, 1.0));
-        let choice = choose_method(&model, 1e-9, Duration::from_millis(20)).unwrap();
-        assert_eq!(choice.measured.len(), 3);
-        let fastest = choice
-            .measured
-            .iter()
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .unwrap();
-        assert_eq!(choice.method, fastest.0, "{choice:?}");
-        assert!(choice.measured.iter().all(|m| m.2.unwrap() < 1e-9));
+        let crba = ForwardDynamicsMethod::Crba;
+        assert!(flops(crba, &model) < flops(ForwardDynamicsMethod::Aba, &model));
+        let choice = choose_method(&model, 0.0, Duration::from_millis(5)).unwrap();
+        let diff = |m| choice.measured.iter().find(|x| x.0 == m).and_then(|x| x.3);
+        assert!(diff(crba).unwrap() > 0.0, "{choice:?}");
+        assert_eq!(choice.method, ForwardDynamicsMethod::Aba, "{choice:?}");
+        assert_eq!(diff(ForwardDynamicsMethod::Aba), Some(0.0));
+    }
+
+    #[test]
+    fn the_cheapest_accurate_method_is_chosen() {
+        // The default arm and a short chain: crba has the fewest FLOPs and agrees to ~1e-14;
+        // a 30-link chain: aba has the fewest, and the others are not even run.
+        for (text, want) in [
+            (DEFAULT_ARM_URDF.to_string(), ForwardDynamicsMethod::Crba),
+            (pendulum_urdf(3, 1.0, 1.0), ForwardDynamicsMethod::Crba),
+            (pendulum_urdf(30, 1.0, 1.0), ForwardDynamicsMethod::Aba),
+        ] {
+            let model = load(&text);
+            let cheapest = ForwardDynamicsMethod::ALL
+                .into_iter()
+                .min_by_key(|&m| flops(m, &model))
+                .unwrap();
+            assert_eq!(cheapest, want);
+            let choice = choose_method(&model, 1e-9, Duration::from_millis(5)).unwrap();
+            assert_eq!(choice.method, want, "{choice:?}");
+            assert!(choice.measured.iter().all(|m| m.3.unwrap() < 1e-9));
+            if want == ForwardDynamicsMethod::Aba {
+                assert_eq!(choice.measured.len(), 1, "{choice:?}");
+                assert_eq!(choice.skipped.len(), 2, "{choice:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_same_model_gets_the_same_method_every_time_even_under_load() {
+        // The default arm, where aba and crba take within a few per cent of each other's time:
+        // a timed choice flips between them from run to run. Half the runs compete with threads
+        // that keep every core busy.
+        let model = load(DEFAULT_ARM_URDF);
+        let first = choose_method(&model, AUTO_TOLERANCE, Duration::from_millis(2))
+            .unwrap()
+            .method;
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+        for round in 0..2 {
+            let burners: Vec<_> = (0..if round == 1 { cores } else { 0 })
+                .map(|_| {
+                    let stop = stop.clone();
+                    std::thread::spawn(move || {
+                        let mut x = 1.0f64;
+                        while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                            x = std::hint::black_box(x * 1.000_000_1 + 1e-9);
+                        }
+                    })
+                })
+                .collect();
+            for _ in 0..40 {
+                let choice =
+                    choose_method(&model, AUTO_TOLERANCE, Duration::from_millis(2)).unwrap();
+                assert_eq!(choice.method, first, "round {round}: {}", choice.summary());
+            }
+            stop.store(true, std::sync::atomic::Ordering::Relaxed);
+            for b in burners {
+                b.join().unwrap();
+            }
+            stop.store(false, std::sync::atomic::Ordering::Relaxed);
+        }
     }
 
     #[test]
@@ -287,7 +352,7 @@ mod tests {
         assert!(choice
             .measured
             .iter()
-            .all(|m| m.0 != ForwardDynamicsMethod::Aba && m.2.is_none()));
+            .all(|m| m.0 != ForwardDynamicsMethod::Aba && m.3.is_none()));
         assert_ne!(choice.method, ForwardDynamicsMethod::Aba);
     }
 }

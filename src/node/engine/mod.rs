@@ -129,8 +129,9 @@ impl Engine {
         Ok(engine)
     }
 
-    /// Uses `method`, or with `None` (`auto`) the fastest method that agrees with `aba` to
-    /// [`AUTO_TOLERANCE`] on this model, measured now (about 10 ms per method). If no method can
+    /// Uses `method`, or with `None` (`auto`) the method with the fewest FLOPs per call among
+    /// those that agree with `aba` to [`AUTO_TOLERANCE`] on this model (checked now, timed for
+    /// the summary within about 10 ms per method). If no method can
     /// run on the model (a singular mass matrix, say), `aba` stays and requests will say why.
     pub fn set_method(&mut self, method: Option<ForwardDynamicsMethod>) {
         (self.method, self.method_choice) = match method {
