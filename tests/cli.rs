@@ -401,6 +401,10 @@ fn bench_prints_the_json_contract() {
             v["full"]["ns_per_call"][kernel].as_f64().unwrap(),
             v["speedup"][kernel].as_f64().unwrap(),
         );
-        assert!((up - full / ours).abs() < 0.01 * up, "{kernel}: {out}");
+        // `speedup` is printed to two decimals, the times to 0.1 ns.
+        assert!(
+            (up - full / ours).abs() <= 0.005 + 0.01 * up,
+            "{kernel}: {out}"
+        );
     }
 }
