@@ -185,11 +185,10 @@ fn a_subnormal_tip_mass_is_refused_by_aba_with_its_pivot() {
 
 #[test]
 fn deep_nesting_is_refused_without_overflowing_the_stack() {
-    // Found while testing big inputs: 1 000 000 nested elements kept the loader busy for more
-    // than 15 minutes of CPU (building the XML tree costs more per level the deeper it is) and
-    // the tree was then walked recursively (stripped, printed, dropped). Now refused from the
-    // token stream before any tree is built; on a 256 KiB stack to show that no recursion over
-    // the depth is left.
+    // 1 000 000 nested elements would keep an XML tree builder busy for more than 15 minutes of
+    // CPU (each level costs more the deeper it is), and walking such a tree recursively
+    // overflows the stack. They are refused from the token stream before any tree is built; the
+    // test runs on a 256 KiB stack to show that no recursion over the depth is left.
     let depth = 1_000_000;
     let text = format!(
         r#"<robot name="x"><link name="a"/>{}{}</robot>"#,

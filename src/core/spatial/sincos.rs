@@ -1,5 +1,5 @@
 //! `sin θ` and `cos θ` of the joint angles, all at once: every revolute joint takes one pair
-//! per call, and libm's `sin_cos`, one angle per call, was a quarter of CRBA's time on a
+//! per call, and libm's `sin_cos`, one angle a call, would be a quarter of CRBA's time on a
 //! six-joint arm. Computed here without branches, two angles share the SIMD registers.
 //!
 //! **Reduction** (Cody and Waite): `θ = k π/2 + r` with `k = round(θ · 2/π)`, so `|r| ≲ π/4`.
