@@ -50,6 +50,7 @@ def pytest_report_header(config):
     return [
         f"spatial_dynamics binary: {binary}{'' if binary.is_file() else '  (MISSING)'}",
         f"ROS_DOMAIN_ID={DOMAIN_ID}",
+        sd.ros_versions(),
     ]
 
 
