@@ -50,8 +50,12 @@ def pytest_report_header(config):
     return [
         f"spatial_dynamics binary: {binary}{'' if binary.is_file() else '  (MISSING)'}",
         f"ROS_DOMAIN_ID={DOMAIN_ID}",
-        sd.ros_versions(),
     ]
+
+
+def pytest_terminal_summary(terminalreporter):
+    # In the summary, not the header: `pytest -q` (as run_tests.sh runs) prints no header.
+    terminalreporter.write_line(f"ROS 2 under test: {sd.ros_versions()}")
 
 
 @pytest.hookimpl(hookwrapper=True)
