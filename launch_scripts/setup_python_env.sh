@@ -3,8 +3,12 @@
 #   - ROS 2 from PyPI wheels (rclpy, Fast DDS, the common interface packages),
 #   - pytest, numpy, Pinocchio (`pin`), example-robot-data (reference URDFs), rosbags, colcon,
 #   - our own interface package msg/ (spatial_dynamics_msgs), built and installed into the venv.
+# With --jazzy it sets up `.venv-jazzy/` instead: the genuine ROS 2 Jazzy wheels (`ros-jazzy-*`:
+# rclpy 7.1, rmw_fastrtps_cpp on Fast DDS 2.14), msg/ built against them, and only what the DDS
+# tests need besides (pytest, numpy, pin, example-robot-data); run_tests.sh runs a subset of the
+# DDS tests with it.
 #
-# Usage: launch_scripts/setup_python_env.sh [--force]
+# Usage: launch_scripts/setup_python_env.sh [--jazzy] [--force]
 #   Idempotent: a second run only compares two stamp files and exits in well under a second.
 #   The Python packages are (re)installed when the package list below changes, and msg/ is
 #   rebuilt when any file under msg/ changes. --force (or SETUP_FORCE=1) redoes both.
@@ -13,14 +17,26 @@
 set -euo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-venv="$repo/.venv"
+
+force="${SETUP_FORCE:-0}"
+jazzy=0
+for arg in "$@"; do
+    case "$arg" in
+        --force) force=1 ;;
+        --jazzy) jazzy=1 ;;
+        *) printf 'setup_python_env.sh: unknown option %s (usage: [--jazzy] [--force])\n' "$arg" >&2; exit 2 ;;
+    esac
+done
+
+if [[ "$jazzy" == 1 ]]; then venv="$repo/.venv-jazzy"; else venv="$repo/.venv"; fi
 msg_dir="$repo/msg"
-build_dir="$venv/build/spatial_dynamics_msgs"   # inside .venv: never tracked by git
+build_dir="$venv/build/spatial_dynamics_msgs"   # inside the venv: never tracked by git
 pip_stamp="$venv/.setup_pip.stamp"
 msg_stamp="$venv/.setup_msgs.stamp"
 
-force="${SETUP_FORCE:-0}"
-if [[ "${1:-}" == "--force" ]]; then force=1; fi
+# Started from a venv's Python, we inherit its ROS wheels bootstrapper's guard and LD_LIBRARY_PATH
+# (that venv's ROS libraries): drop both, so this venv's Python sets up its own.
+if [[ -n "${_ROS_WHEELS_BOOTSTRAP_COMPLETE:-}" ]]; then unset _ROS_WHEELS_BOOTSTRAP_COMPLETE LD_LIBRARY_PATH; fi
 
 # No prompts, ever (CI runs with no stdin).
 export DEBIAN_FRONTEND=noninteractive
@@ -54,6 +70,20 @@ colcon_packages=(
     colcon-core colcon-ros colcon-cmake colcon-cargo colcon-ros-cargo colcon-library-path
     colcon-recursive-crawl colcon-package-information colcon-bash
 )
+
+# Genuine Jazzy: every `ros-jazzy-X` wheel pins the unprefixed `ros-X` at its Jazzy version, and
+# installing any unprefixed `ros-*` name next to them upgrades the core to the newer distribution.
+# So this venv gets only `ros-jazzy-*` names (the lists above with the prefix, the build's extra
+# ament test macros, ament_cmake_ros in place of its -core half), and no colcon or rosbags.
+if [[ "$jazzy" == 1 ]]; then
+    jazzy_names() { printf '%s\n' "${@/#ros-/ros-jazzy-}"; }
+    mapfile -t ros_packages < <(jazzy_names "${ros_packages[@]}" "${optional_packages[@]}")
+    optional_packages=()
+    mapfile -t build_packages < <(jazzy_names "${build_packages[@]/%ros-ament-cmake-ros-core/ros-ament-cmake-ros}" \
+        ros-ament-cmake-gmock ros-ament-cmake-gtest ros-ament-cmake-pytest ros-python-cmake-module)
+    tool_packages=(pytest numpy pin example-robot-data)
+    colcon_packages=()
+fi
 
 log() { printf '== %s\n' "$*"; }
 die() { printf 'setup_python_env.sh: %s\n' "$*" >&2; exit 1; }

@@ -53,6 +53,11 @@ def pytest_report_header(config):
     ]
 
 
+def pytest_terminal_summary(terminalreporter):
+    # In the summary, not the header: `pytest -q` (as run_tests.sh runs) prints no header.
+    terminalreporter.write_line(f"ROS 2 under test: {sd.ros_versions()}")
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item, call):
     outcome = yield

@@ -52,6 +52,26 @@ def binary_path() -> Path:
     return Path(env) if env else REPO / "target" / "release" / "spatial_dynamics"
 
 
+def ros_versions() -> str:
+    """rclpy's, the RMW's and Fast DDS's versions, as installed (for the test report's header)."""
+    from importlib import metadata
+
+    def version(*dists):
+        for dist in dists:
+            try:
+                return metadata.version(dist)
+            except metadata.PackageNotFoundError:
+                pass
+        return "unknown"
+
+    rmw = rclpy.get_rmw_implementation_identifier()
+    # The Fast DDS wheel is `ros-fastdds` from Fast DDS 3 on, `ros-fastrtps` before.
+    return (
+        f"rclpy {version('ros-rclpy')}, {rmw} {version('ros-' + rmw.replace('_', '-'))}, "
+        f"Fast DDS {version('ros-fastdds', 'ros-fastrtps')}"
+    )
+
+
 def robots_dir() -> Path:
     """example-robot-data's robots/ directory (the PyPI wheel ships it under cmeel.prefix)."""
     candidates = []
