@@ -31,7 +31,7 @@ use report::{report, Progress};
 use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
 use spatial_dynamics_core::{urdf, ForwardDynamicsMethod, Model, ModelOptions};
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 mod block;
@@ -116,12 +116,19 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
         Some(n) => n,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
-    let js_topic = names.resolve(&args.joint_states);
-    let cmd_topic = names.resolve(args.effort_command.as_deref().unwrap_or("~/effort_command"));
-    let description_topic = names.resolve(&args.robot_description);
+    let mut js_topic = names.resolve(&args.joint_states);
+    let mut cmd_topic = names.resolve(args.effort_command.as_deref().unwrap_or("~/effort_command"));
+    let mut description_topic = names.resolve(&args.robot_description);
 
     let bag = Bag::open(&args.bag)?;
     let topics = bag.topics()?;
+    if let Some(topics) = &topics {
+        for topic in [&mut js_topic, &mut cmd_topic, &mut description_topic] {
+            if let Some(t) = recorded(topics, topic) {
+                topic.clone_from(&t.name);
+            }
+        }
+    }
     let total = match &topics {
         Some(topics) => {
             let Some(t) = topics.iter().find(|t| t.name == js_topic) else {
@@ -145,8 +152,10 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
         );
     }
 
+    // Written beside the output and renamed over it only when the run succeeds.
+    let partial = PartialFile::beside(&args.out)?;
     let mut writer = McapWriter::create(
-        &args.out,
+        &partial.path,
         match args.compression {
             OutCompression::None => bag::Compression::None,
             OutCompression::Zstd => bag::Compression::Zstd(args.zstd_level),
@@ -203,7 +212,67 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
         jobs,
         seconds,
     );
-    Ok(())
+    if outcome.written[0] == 0 {
+        return Err(format!(
+            "no joint state was answered ({} read on {js_topic}){}",
+            outcome.read[0],
+            report::problem_lines(&outcome.problems, "joint_states")
+                .iter()
+                .fold(String::new(), |text, line| text + "\n" + line)
+        ));
+    }
+    partial.keep_as(&args.out)
+}
+
+/// A topic as the bag records it: `AAA` and `/AAA` name the same topic.
+fn recorded<'t>(topics: &'t [bag::TopicInfo], topic: &str) -> Option<&'t bag::TopicInfo> {
+    let bare = topic.trim_start_matches('/');
+    topics
+        .iter()
+        .find(|t| t.name.trim_start_matches('/') == bare)
+}
+
+/// An output being written: a temporary file beside the final one, removed unless kept.
+struct PartialFile {
+    path: PathBuf,
+    kept: bool,
+}
+
+impl PartialFile {
+    /// `DIR/.NAME.PID.partial` for output `DIR/NAME`.
+    fn beside(out: &Path) -> Result<PartialFile, String> {
+        let name = out
+            .file_name()
+            .ok_or_else(|| format!("--out {}: not a file name", out.display()))?;
+        let mut partial = std::ffi::OsString::from(".");
+        partial.push(name);
+        partial.push(format!(".{}.partial", std::process::id()));
+        Ok(PartialFile {
+            path: out.with_file_name(partial),
+            kept: false,
+        })
+    }
+
+    /// Renames the finished file to `out` (replacing it).
+    fn keep_as(mut self, out: &Path) -> Result<(), String> {
+        std::fs::rename(&self.path, out).map_err(|e| {
+            format!(
+                "cannot rename {} to {}: {e}",
+                self.path.display(),
+                out.display()
+            )
+        })?;
+        self.kept = true;
+        Ok(())
+    }
+}
+
+impl Drop for PartialFile {
+    fn drop(&mut self) {
+        if !self.kept {
+            let _ = std::fs::remove_file(&self.path);
+        }
+    }
 }
 
 /// The model: `--urdf` / `--builtin`, else the bag's first robot_description, else the default arm.

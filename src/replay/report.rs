@@ -33,20 +33,24 @@ impl Progress {
     }
 
     fn draw(&self, done: u64) {
-        let rate = done as f64 / self.started.elapsed().as_secs_f64().max(1e-9);
+        let elapsed = self.started.elapsed().as_secs_f64();
+        let rate = match elapsed > 0.0 {
+            true => format!("{:.0} msg/s", done as f64 / elapsed),
+            false => String::new(),
+        };
         let line = match self.total {
             Some(total) if total > 0 => {
                 let fraction = (done as f64 / total as f64).min(1.0);
                 let filled = (fraction * 30.0) as usize;
                 format!(
-                    "[{}{}] {:5.1} % {done}/{total} joint states, {:.0} msg/s",
+                    "[{}{}] {:5.1} % {done}/{total} joint states, {}",
                     "#".repeat(filled),
                     " ".repeat(30 - filled),
                     100.0 * fraction,
                     rate
                 )
             }
-            _ => format!("{done} joint states, {rate:.0} msg/s"),
+            _ => format!("{done} joint states, {rate}"),
         };
         eprint!("\r\x1b[2K{line}");
     }
@@ -69,7 +73,10 @@ pub fn report(
     jobs: usize,
     seconds: f64,
 ) {
-    let rate = outcome.read[0] as f64 / seconds.max(1e-9);
+    // Rates only from a duration the clock could measure.
+    let rate = (seconds > 0.0).then(|| outcome.read[0] as f64 / seconds);
+    let cpu = cpu_seconds();
+    let cpu_rate = cpu.filter(|c| *c > 0.0).map(|c| outcome.read[0] as f64 / c);
     let skipped_js = outcome.problems.total("joint_states");
     let skipped_cmd = outcome.problems.total("effort_command");
     eprintln!(
@@ -77,8 +84,10 @@ pub fn report(
         model.name, model.nv
     );
     eprintln!(
-        "read {} {js_topic} and {} {cmd_topic} messages in {seconds:.2} s ({rate:.0} joint states/s, {jobs} jobs)",
-        outcome.read[0], outcome.read[1]
+        "read {} {js_topic} and {} {cmd_topic} messages in {seconds:.2} s ({}{jobs} jobs)",
+        outcome.read[0],
+        outcome.read[1],
+        rate.map_or(String::new(), |r| format!("{r:.0} joint states/s, "))
     );
     eprintln!(
         "wrote {}: {} {}, {} {}, {} {}",
@@ -136,8 +145,8 @@ pub fn report(
             "log_time_backwards": outcome.log_time_backwards,
             "seconds": seconds,
             "joint_states_per_second": rate,
-            "cpu_seconds": cpu_seconds(),
-            "joint_states_per_cpu_second": cpu_seconds().map(|c| outcome.read[0] as f64 / c.max(1e-9)),
+            "cpu_seconds": cpu,
+            "joint_states_per_cpu_second": cpu_rate,
             "jobs": jobs,
         });
         println!("{summary}");
@@ -156,16 +165,31 @@ fn cpu_seconds() -> Option<f64> {
     Some(ticks as f64 / 100.0)
 }
 
-fn print_problems(problems: &Problems, what: &str) {
-    for ((w, kind), p) in &problems.by_kind {
-        if *w == what {
-            eprintln!(
+/// One line per kind of problem with `what`: the joint names that did not match first, then
+/// by count (most first).
+pub fn problem_lines(problems: &Problems, what: &str) -> Vec<String> {
+    let mut kinds: Vec<_> = problems
+        .by_kind
+        .iter()
+        .filter(|((w, _), _)| *w == what)
+        .collect();
+    kinds.sort_by_key(|((_, kind), p)| (*kind != "bad joint names", std::cmp::Reverse(p.count)));
+    kinds
+        .into_iter()
+        .map(|((_, kind), p)| {
+            format!(
                 "  {:>9}  {kind} (first at log time {}.{:09}: {})",
                 p.count,
                 p.first_log_time / 1_000_000_000,
                 p.first_log_time % 1_000_000_000,
                 p.first
-            );
-        }
+            )
+        })
+        .collect()
+}
+
+fn print_problems(problems: &Problems, what: &str) {
+    for line in problem_lines(problems, what) {
+        eprintln!("{line}");
     }
 }

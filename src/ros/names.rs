@@ -34,7 +34,7 @@ impl NameResolver {
             Some((ns, node)) => (ns, node),
             None => ("", trimmed),
         };
-        if node.is_empty() || namespace.contains("//") {
+        if node.is_empty() || trimmed.contains("//") {
             return Err(format!("'{full}' is not a node name"));
         }
         Ok(NameResolver::new(namespace, node, &[]))
