@@ -6,8 +6,14 @@
 #[cfg(feature = "replay")]
 mod bag;
 mod cli;
+#[cfg(any(feature = "node", feature = "replay"))]
+mod joint_states;
 #[cfg(feature = "node")]
 mod node;
+#[cfg(feature = "replay")]
+mod replay;
+#[cfg(any(feature = "node", feature = "replay"))]
+mod ros;
 
 use std::process::ExitCode;
 

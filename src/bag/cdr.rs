@@ -285,7 +285,7 @@ mod tests {
     //! Round trips against `cdr-encoding`, the serializer ros2-client puts on the wire, with
     //! the node's message structs: what we write it reads back, and what it writes we read.
     use super::*;
-    use crate::node::msgs::{Header, JointDynamics, JointState, StringMsg, Time};
+    use crate::ros::msgs::{Header, JointDynamics, JointState, StringMsg, Time};
     use byteorder::{BigEndian, LittleEndian};
 
     fn state(frame_id: &str, names: &[&str], n: [usize; 3]) -> JointState {

@@ -2,7 +2,7 @@
 //! reason), outputs published, compute time per message; and warnings limited to one a second per
 //! topic, with the number suppressed.
 
-use super::msgs::{DiagnosticStatus, KeyValue};
+use crate::ros::msgs::{DiagnosticStatus, KeyValue};
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 

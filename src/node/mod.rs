@@ -23,16 +23,16 @@
 
 mod engine;
 mod health;
-pub(crate) mod joint_map;
-pub(crate) mod msgs;
+mod messages;
 mod params;
 mod ros_args;
 
+use crate::ros::msgs::*;
+use crate::ros::names::NameResolver;
 use engine::clock::{self, NodeClock};
 use engine::Engine;
 use futures::StreamExt;
 use health::Health;
-use msgs::*;
 use params::Settings;
 use ros2_client::dds::rustdds::{DomainParticipantBuilder, Topic};
 use ros2_client::qos::{Durability, History, WhenFull};
@@ -40,7 +40,7 @@ use ros2_client::{
     Context, Message, MessageTypeName, Name, Node, NodeName, NodeOptions, ParameterValue,
     QosProfile, ROSTime, ServiceMapping, ServiceTypeName, Subscription,
 };
-use ros_args::{NameResolver, RosArgs};
+use ros_args::RosArgs;
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime};

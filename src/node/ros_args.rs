@@ -1,4 +1,5 @@
-//! ROS-style command-line arguments (`--ros-args …`) and ROS name resolution with remapping.
+//! ROS-style command-line arguments (`--ros-args …`); names resolve by
+//! [`NameResolver`](crate::ros::names::NameResolver).
 //!
 //! Understood: `-r/--remap FROM:=TO` (including `__node:=NAME` and `__ns:=/NS`),
 //! `-p/--param NAME:=VALUE` (VALUE in YAML, as `ros2 run` reads it), `--params-file FILE`,
@@ -68,67 +69,6 @@ fn split_rule<'a>(rule: &'a str, flag: &str) -> Result<(&'a str, &'a str), Strin
         .ok_or_else(|| format!("{flag} '{rule}': expected NAME:=VALUE"))
 }
 
-/// Resolves ROS names for one node: relative names go under the namespace, `~/` names under
-/// the node, and remapping rules (matched on the resolved name) replace them.
-#[derive(Clone, Debug)]
-pub struct NameResolver {
-    namespace: String,
-    node: String,
-    remaps: Vec<(String, String)>,
-}
-
-impl NameResolver {
-    /// A resolver for node `node` in namespace `namespace` (absolute, `/` for none).
-    pub fn new(namespace: &str, node: &str, remaps: &[(String, String)]) -> Self {
-        let mut r = NameResolver {
-            namespace: normalise_namespace(namespace),
-            node: node.to_string(),
-            remaps: Vec::new(),
-        };
-        r.remaps = remaps
-            .iter()
-            .map(|(from, to)| (r.expand(from), r.expand(to)))
-            .collect();
-        r
-    }
-
-    /// The namespace, absolute, `/` at the root.
-    pub fn namespace(&self) -> &str {
-        &self.namespace
-    }
-
-    /// The fully qualified, remapped name of `name`.
-    pub fn resolve(&self, name: &str) -> String {
-        let full = self.expand(name);
-        self.remaps
-            .iter()
-            .find(|(from, _)| *from == full)
-            .map_or(full, |(_, to)| to.clone())
-    }
-
-    fn expand(&self, name: &str) -> String {
-        let base = self.namespace.trim_end_matches('/');
-        if name.starts_with('/') {
-            name.to_string()
-        } else if let Some(private) = name.strip_prefix("~/") {
-            format!("{base}/{}/{private}", self.node)
-        } else if name == "~" {
-            format!("{base}/{}", self.node)
-        } else {
-            format!("{base}/{name}")
-        }
-    }
-}
-
-fn normalise_namespace(ns: &str) -> String {
-    let trimmed = ns.trim_matches('/');
-    if trimmed.is_empty() {
-        "/".to_string()
-    } else {
-        format!("/{trimmed}")
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -175,22 +115,5 @@ mod tests {
         assert!(RosArgs::parse(&strings(&["--ros-args", "-r"]))
             .unwrap_err()
             .contains("needs a value"));
-    }
-
-    #[test]
-    fn resolves_and_remaps_names() {
-        let remaps = vec![
-            ("joint_states".to_string(), "/arm/joint_states".to_string()),
-            ("~/acceleration".to_string(), "qdd".to_string()),
-        ];
-        let r = NameResolver::new("/robot", "dyn", &remaps);
-        assert_eq!(r.resolve("joint_states"), "/arm/joint_states");
-        assert_eq!(r.resolve("~/gravity_effort"), "/robot/dyn/gravity_effort");
-        assert_eq!(r.resolve("~/acceleration"), "/robot/qdd");
-        assert_eq!(r.resolve("/diagnostics"), "/diagnostics");
-        assert_eq!(
-            NameResolver::new("", "n", &[]).resolve("robot_description"),
-            "/robot_description"
-        );
     }
 }

@@ -17,7 +17,7 @@ replay's output MCAP is read back with ``rosbags`` (its typestore registered wit
 * bad messages (truncated, NaN, unknown or missing joint, wrong length) are skipped and counted
   in the ``--json`` summary, by kind.
 
-The scheme (see ``src/cli/replay.rs``): samples ``i-1, i`` are one segment when both carry
+The scheme (see ``src/joint_states/differences.rs``): samples ``i-1, i`` are one segment when both carry
 velocities and ``0 < t_i - t_{i-1} <= max_gap`` (0.1 s; t = header stamp); inside a segment
 ``a_i = [h-^2 (v+ - v) + h+^2 (v - v-)] / (h- h+ (h- + h+))``, at its ends one-sided differences,
 and an isolated sample gets no measured-dynamics message.
@@ -432,3 +432,75 @@ def test_overflowing_state_is_counted_not_fatal(tmp_path):
     assert summary["not_estimated"]["kinds"]["inverse dynamics failed"]["count"] >= 1, stderr
     written = summary["written"]
     assert written[NODE + "/gravity_effort"] == written[NODE + "/acceleration"] == len(exp["states"]) - 1
+
+
+def run_replay(bag, out, *extra):
+    return subprocess.run(
+        [BIN, "replay", "--bag", str(bag), "--out", str(out), "--json", *extra], capture_output=True, text=True, timeout=60
+    )
+
+
+def test_no_answered_joint_state_fails_and_keeps_the_earlier_output(tmp_path):
+    """Every joint state names a joint the model lacks: the run fails, says why with counts
+    (the names that did not match first), leaves the earlier output as it was and no partial
+    file beside it."""
+    records = []
+    t = 1_700_000_000_000_000_000
+    for k in range(30):
+        names = JOINTS[:-1] + ["wrist9"] if k % 3 else JOINTS
+        position = np.zeros(7) if k % 3 else np.array([0.0] * 6 + [float("nan")])
+        records.append(("/joint_states", JS, t + k * 2_000_000, cdr(state_msg(t + k * 2_000_000, names, position, np.zeros(7)))))
+    bag = tmp_path / "in"
+    write_bag(bag, "mcap", records)
+    out = tmp_path / "out.mcap"
+    out.write_bytes(b"earlier output")
+    run = run_replay(bag / "in.mcap", out, "--builtin", "default_arm")
+    assert run.returncode != 0, run.stderr
+    assert "no joint state was answered" in run.stderr, run.stderr
+    lines = run.stderr[run.stderr.index("no joint state was answered") :].splitlines()
+    assert "20" in lines[1] and "bad joint names" in lines[1] and "wrist9" in lines[1], lines
+    assert "10" in lines[2] and "bad position" in lines[2], lines
+    assert out.read_bytes() == b"earlier output"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in", "out.mcap"]
+
+
+def test_a_failed_read_leaves_no_partial_output(tmp_path):
+    records, _ = make_inputs(n=50, commands=False)
+    bag = tmp_path / "in"
+    write_bag(bag, "mcap", records)
+    mcap = bag / "in.mcap"
+    data = mcap.read_bytes()
+    # The joint states' channel recorded with another type: an error when it is read.
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(data.replace(b"sensor_msgs/msg/JointState", b"sensor_msgs/msg/JointStatf"))
+    out = tmp_path / "out.mcap"
+    run = run_replay(bad, out, "--builtin", "default_arm", "--joint-states", "/joint_states")
+    assert run.returncode != 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.mcap", "in"], run.stderr
+
+
+@pytest.mark.parametrize("given", ["joint_states", "/joint_states"])
+def test_topics_match_as_recorded_with_or_without_a_leading_slash(tmp_path, given):
+    """rosbags and some recorders store names without the leading slash."""
+    records, exp = make_inputs(n=40, commands=False)
+    records = [("joint_states",) + r[1:] for r in records]
+    bag = tmp_path / "in"
+    write_bag(bag, "mcap", records)
+    run = run_replay(bag, tmp_path / "out.mcap", "--builtin", "default_arm", "--joint-states", given)
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    assert summary["written"][NODE + "/gravity_effort"] == len(exp["states"])
+
+
+def test_rates_are_never_computed_from_a_zero_duration(tmp_path):
+    records, _ = make_inputs(n=3, commands=False)
+    bag = tmp_path / "in"
+    write_bag(bag, "mcap", records)
+    run = run_replay(bag, tmp_path / "out.mcap", "--builtin", "default_arm", "--jobs", "1")
+    assert run.returncode == 0, run.stderr
+    s = json.loads(run.stdout)
+    cpu, rate = s["cpu_seconds"], s["joint_states_per_cpu_second"]
+    assert (cpu is None or cpu == 0) == (rate is None), s
+    if rate is not None:
+        assert rate == pytest.approx(s["read"]["/joint_states"] / cpu)
+    assert (s["joint_states_per_second"] is None) == (s["seconds"] == 0)

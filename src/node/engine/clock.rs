@@ -23,8 +23,8 @@
 //! seconds after it is dropped as `stamp from the future`. Each 0 switches its check off (the
 //! default). A zero stamp (header not filled in) is therefore stale whenever the age check is on.
 
-use crate::node::msgs::Time;
 use crate::node::params::Settings;
+use crate::ros::msgs::Time;
 use std::time::{SystemTime, UNIX_EPOCH};
 
 const NS: i64 = 1_000_000_000;

@@ -5,15 +5,16 @@
 pub mod clock;
 mod simulation;
 
-use super::joint_map::{JointMap, Target};
-use super::msgs::*;
 use super::params::Settings;
+use crate::joint_states::commands::Commands;
+use crate::joint_states::dynamics::JointStateDynamics;
+use crate::joint_states::joint_map::{JointMap, Target};
+use crate::ros::msgs::*;
 use simulation::Simulation;
 use spatial_dynamics_core::algorithms::kinematics::body_placements;
 use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics_core::algorithms::{
-    choose_method, crba, forward_dynamics, joint_state_outputs, rnea_with, JointStateInputs,
-    JointStateOutputs,
+    choose_method, crba, forward_dynamics, rnea_with, JointStateInputs,
 };
 use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
 use spatial_dynamics_core::spatial::{Force, Transform};
@@ -38,18 +39,17 @@ pub struct Engine {
     pub method_choice: Option<String>,
     ws: Workspace,
     /// Scratch for `joint_states`: gravity torques and accelerations computed together.
-    outputs: JointStateOutputs,
+    dynamics: JointStateDynamics,
     map: JointMap,
-    /// For each `command_joints` entry, its index in the map's names.
-    command_slots: Vec<usize>,
+    /// Latest commanded effort, zero until one arrives.
+    commands: Commands,
     q: Vec<f64>,
     v: Vec<f64>,
     a: Vec<f64>,
     tau: Vec<f64>,
     out: Vec<f64>,
     wrenches: Vec<Force>,
-    /// Latest commanded effort (`v`-sized), zero until one arrives, and when it arrived.
-    command: Vec<f64>,
+    /// When the latest command arrived.
     command_time: Option<Instant>,
     /// The simulated robot, in simulate mode.
     simulation: Option<Simulation>,
@@ -86,35 +86,19 @@ impl Engine {
         };
         let model = model.map_err(|e| e.to_string())?;
         let map = JointMap::for_model(&model)?;
-        let command_slots = if settings.command_joints.is_empty() {
-            (0..map.names().len()).collect()
-        } else {
-            settings
-                .command_joints
-                .iter()
-                .map(|n| {
-                    map.index(n).ok_or_else(|| {
-                        format!(
-                            "command_joints: unknown joint '{n}' (the model's joints: {})",
-                            map.names().join(", ")
-                        )
-                    })
-                })
-                .collect::<Result<_, _>>()?
-        };
+        let commands = Commands::new(&map, model.nv, &settings.command_joints)?;
         let (nq, nv, nb) = (model.nq, model.nv, model.nbodies());
         let mut engine = Engine {
             ws: Workspace::new(&model),
-            outputs: JointStateOutputs::new(&model),
+            dynamics: JointStateDynamics::new(&model),
             map,
-            command_slots,
+            commands,
             q: vec![0.0; nq],
             v: vec![0.0; nv],
             a: vec![0.0; nv],
             tau: vec![0.0; nv],
             out: Vec::with_capacity(nv),
             wrenches: vec![Force::zero(); nb],
-            command: vec![0.0; nv],
             command_time: None,
             simulation: None,
             base_q: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
@@ -151,12 +135,11 @@ impl Engine {
         self.map.names()
     }
 
-    /// Names of `command_joints`, in command order.
+    /// Names of `command_joints`, in command order (the order of `~/commands`; the fuzz target
+    /// sizes its commands by it).
+    #[allow(dead_code)]
     pub fn command_names(&self) -> Vec<String> {
-        self.command_slots
-            .iter()
-            .map(|&i| self.map.names()[i].clone())
-            .collect()
+        self.commands.names()
     }
 
     // ---- services ------------------------------------------------------------------------------
@@ -404,37 +387,16 @@ impl Engine {
 
     /// `~/effort_command` (by name).
     pub fn set_effort_command(&mut self, js: &JointState) -> Result<(), String> {
-        self.map.match_names(&js.name, "name")?;
-        // Joints only: a floating base is never commanded.
-        self.tau.iter_mut().for_each(|t| *t = 0.0);
-        self.map
-            .scatter("effort", &js.effort, Target::Rate, false, &mut self.tau)?;
-        self.command.copy_from_slice(&self.tau);
+        self.commands
+            .set_effort_command(&js.name, &js.effort)
+            .map_err(|(_, e)| e)?;
         self.command_time = Some(Instant::now());
         Ok(())
     }
 
     /// `~/commands` (in `command_joints` order; joints left out get zero).
     pub fn set_commands(&mut self, cmd: &Float64MultiArray) -> Result<(), String> {
-        if cmd.data.len() != self.command_slots.len() {
-            return Err(format!(
-                "commands has {} values, command_joints has {} joints ({})",
-                cmd.data.len(),
-                self.command_slots.len(),
-                self.command_names().join(", ")
-            ));
-        }
-        if let Some(i) = cmd.data.iter().position(|x| !x.is_finite()) {
-            return Err(format!(
-                "commands[{i}] (joint '{}') is {}",
-                self.map.names()[self.command_slots[i]],
-                cmd.data[i]
-            ));
-        }
-        self.command.iter_mut().for_each(|c| *c = 0.0);
-        for (&slot, value) in self.command_slots.iter().zip(&cmd.data) {
-            self.command[self.map.slot(slot).1] = *value;
-        }
+        self.commands.set_commands(&cmd.data).map_err(|(_, e)| e)?;
         self.command_time = Some(Instant::now());
         Ok(())
     }
@@ -446,19 +408,14 @@ impl Engine {
         let input = JointStateInputs {
             q: &self.q,
             v: &self.v,
-            effort_command: &self.command,
+            effort_command: self.commands.effort(),
             measured_acceleration: None,
         };
-        joint_state_outputs(
-            &self.model,
-            &mut self.ws,
-            self.method,
-            &input,
-            &mut self.outputs,
-        )
-        .map_err(|e| e.to_string())?;
-        self.tau.copy_from_slice(self.outputs.gravity());
-        self.a.copy_from_slice(self.outputs.acceleration());
+        self.dynamics
+            .evaluate(&self.model, &mut self.ws, self.method, &input)
+            .node?;
+        self.tau.copy_from_slice(self.dynamics.gravity());
+        self.a.copy_from_slice(self.dynamics.acceleration());
         let names = self.map.answer_names();
         let mut position = Vec::new();
         self.map.gather(&self.q, Target::Position, &mut position);
@@ -475,7 +432,8 @@ impl Engine {
         let mut effort = Vec::new();
         self.map.gather(&self.v, Target::Rate, &mut velocity);
         self.map.gather(&self.a, Target::Rate, &mut acceleration);
-        self.map.gather(&self.command, Target::Rate, &mut effort);
+        self.map
+            .gather(self.commands.effort(), Target::Rate, &mut effort);
         let accel_msg = JointDynamics {
             header: js.header.clone(),
             name: names,
@@ -533,11 +491,7 @@ impl Engine {
             velocity: Vec::new(),
             effort: self.out.clone(),
         };
-        let data: Vec<f64> = self
-            .command_slots
-            .iter()
-            .map(|&s| self.tau[self.map.slot(s).1])
-            .collect();
+        let data = self.commands.gather(&self.tau);
         let dim = MultiArrayDimension {
             label: "joints".into(),
             size: data.len() as u32,
@@ -569,9 +523,8 @@ impl Engine {
     ) -> Result<(), String> {
         self.map.match_names(names, "name")?;
         self.map
-            .scatter("position", position, Target::Position, false, &mut self.q)?;
-        self.map
-            .scatter("velocity", velocity, Target::Rate, true, &mut self.v)?;
+            .scatter_state(position, velocity, &mut self.q, &mut self.v)
+            .map_err(|(_, e)| e)?;
         if let Some((qi, vi)) = self.map.base() {
             match base_pose {
                 Some(pose) => write_pose(&mut self.q, qi, pose, "base_pose")?,

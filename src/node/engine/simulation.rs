@@ -5,9 +5,9 @@
 //! stays, nothing non-finite is published) and says when and why.
 
 use super::Engine;
-use crate::node::joint_map::Target;
-use crate::node::msgs::*;
+use crate::joint_states::joint_map::Target;
 use crate::node::params::{parse_passive, Settings};
+use crate::ros::msgs::*;
 use spatial_dynamics_core::sim::{SimConfig, Simulator, State};
 use std::time::{Duration, Instant};
 
@@ -118,7 +118,11 @@ impl Engine {
             .simulation
             .as_mut()
             .expect("advance is only called when simulating");
-        let tau = if stale { &sim.zero } else { &self.command };
+        let tau = if stale {
+            &sim.zero
+        } else {
+            self.commands.effort()
+        };
         for _ in 0..steps {
             if let Err(e) = sim.sim.step(&self.model, &mut sim.state, tau) {
                 let message = format!("simulation stopped: {e}");
@@ -247,7 +251,7 @@ impl Engine {
         sim.state.v.copy_from_slice(&self.v);
         sim.sim.restart_energy_budget();
         sim.diverged = None;
-        self.command.iter_mut().for_each(|c| *c = 0.0);
+        self.commands.clear();
         self.command_time = None;
         ResetResponse {
             success: true,

@@ -16,26 +16,30 @@ use spatial_dynamics_core::model::examples::{
 use std::time::Instant;
 
 // The node's engine and the modules it uses, from the node's sources (the DDS serving loop in
-// `src/node/mod.rs` is left out). `params` and `msgs` name ros2-client's `ParameterValue` and
-// `Message`; nothing else of ROS is compiled. The engine's sources refer to `crate::node::…`.
+// `src/node/mod.rs` is left out): the engine, the joint-state code it shares with offline
+// replay (`src/joint_states/`), the plain message types (`src/ros/msgs.rs`) and the parameters
+// (`params` names ros2-client's `ParameterValue`; nothing else of ROS is compiled). The
+// sources refer to `crate::node::…`, `crate::joint_states::…` and `crate::ros::…`.
 #[allow(dead_code, unused_imports)]
 #[path = "../../../src/node/engine/mod.rs"]
 mod engine;
 #[allow(dead_code)]
-#[path = "../../../src/node/joint_map.rs"]
-mod joint_map;
-#[allow(dead_code)]
-#[path = "../../../src/node/msgs.rs"]
-mod msgs;
+#[path = "../../../src/joint_states/mod.rs"]
+mod joint_states;
 #[allow(dead_code)]
 #[path = "../../../src/node/params.rs"]
 mod params;
+mod ros {
+    #[allow(dead_code)]
+    #[path = "../../../../src/ros/msgs.rs"]
+    pub mod msgs;
+}
 mod node {
-    pub(crate) use super::{engine, joint_map, msgs, params};
+    pub(crate) use super::{engine, params};
 }
 
 use node::engine::Engine;
-use node::msgs::*;
+use ros::msgs::*;
 use node::params::Settings;
 
 const SPECIAL: [f64; 10] = [

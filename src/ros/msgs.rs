@@ -1,7 +1,8 @@
 //! ROS 2 message and service types, as serde structs laid out field by field like their `.msg`
-//! definitions (CDR serialises them in declaration order).
+//! definitions (CDR serialises them in declaration order). Plain data: the node marks them as
+//! ros2-client messages (`src/node/messages.rs`); offline replay and the bag code use them
+//! without any ROS crate.
 
-use ros2_client::Message;
 use serde::{Deserialize, Serialize};
 
 macro_rules! ros_message {
@@ -10,7 +11,6 @@ macro_rules! ros_message {
             $(#[$doc])*
             #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
             pub struct $name { $(pub $field: $ty),* }
-            impl Message for $name {}
         )*
     };
 }
@@ -120,8 +120,6 @@ impl Default for Quaternion {
         }
     }
 }
-
-impl Message for Quaternion {}
 
 /// A 6×6 covariance, `float64[36]` (a fixed-size array: serialised without a length).
 #[derive(Clone, Debug, PartialEq)]

@@ -204,6 +204,23 @@ impl JointMap {
         Ok(())
     }
 
+    /// Positions and velocities of a message matched by [`match_names`](Self::match_names)
+    /// into `q` and `v` (model order); `velocity` may be empty (zero velocities). Returns
+    /// whether the message carried velocities.
+    pub fn scatter_state(
+        &self,
+        position: &[f64],
+        velocity: &[f64],
+        q: &mut [f64],
+        v: &mut [f64],
+    ) -> Result<bool, super::Rejection> {
+        self.scatter("position", position, Target::Position, false, q)
+            .map_err(|e| ("bad position", e))?;
+        self.scatter("velocity", velocity, Target::Rate, true, v)
+            .map_err(|e| ("bad velocity", e))?;
+        Ok(!velocity.is_empty())
+    }
+
     /// The coordinates named by the last [`match_names`](Self::match_names), in its order
     /// (indices into [`names`](Self::names)); joints without a coordinate are left out.
     pub fn answer_order(&self) -> impl Iterator<Item = usize> + '_ {

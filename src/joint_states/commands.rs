@@ -1,0 +1,120 @@
+//! The commanded effort `τ_cmd` (`nv` values, model order) under which forward dynamics runs:
+//! zero until a command arrives, then the latest one, from either input the node reads:
+//!
+//! - `~/effort_command` (sensor_msgs/JointState): every coordinate joint named, `effort[]` one
+//!   value per name;
+//! - `~/commands` (std_msgs/Float64MultiArray): one value per `command_joints` entry, in that
+//!   order; coordinates not listed get zero.
+//!
+//! A floating base is never commanded (its six entries stay zero).
+
+use super::joint_map::{JointMap, Target};
+use super::Rejection;
+
+/// The latest command, and the joint order of `~/commands`.
+#[derive(Clone, Debug)]
+pub struct Commands {
+    map: JointMap,
+    /// For each `command_joints` entry, its index in the map's names.
+    slots: Vec<usize>,
+    effort: Vec<f64>,
+    scratch: Vec<f64>,
+}
+
+impl Commands {
+    /// Commands for the coordinates of `map` (`nv` values); `command_joints` orders
+    /// `~/commands` (empty: every coordinate joint, in model order).
+    pub fn new(map: &JointMap, nv: usize, command_joints: &[String]) -> Result<Commands, String> {
+        let slots = if command_joints.is_empty() {
+            (0..map.names().len()).collect()
+        } else {
+            command_joints
+                .iter()
+                .map(|n| {
+                    map.index(n).ok_or_else(|| {
+                        format!(
+                            "command_joints: unknown joint '{n}' (the model's joints: {})",
+                            map.names().join(", ")
+                        )
+                    })
+                })
+                .collect::<Result<_, _>>()?
+        };
+        Ok(Commands {
+            map: map.clone(),
+            slots,
+            effort: vec![0.0; nv],
+            scratch: vec![0.0; nv],
+        })
+    }
+
+    /// `τ_cmd`, model order.
+    pub fn effort(&self) -> &[f64] {
+        &self.effort
+    }
+
+    /// Back to zero effort.
+    pub fn clear(&mut self) {
+        self.effort.fill(0.0);
+    }
+
+    /// Names of `command_joints`, in command order.
+    pub fn names(&self) -> Vec<String> {
+        self.slots
+            .iter()
+            .map(|&i| self.map.names()[i].clone())
+            .collect()
+    }
+
+    /// The values of `x` (an `nv`-sized vector) in `command_joints` order.
+    pub fn gather(&self, x: &[f64]) -> Vec<f64> {
+        self.slots.iter().map(|&s| x[self.map.slot(s).1]).collect()
+    }
+
+    /// `~/effort_command`: `effort[k]` for joint `names[k]`. A refused message changes nothing.
+    pub fn set_effort_command(
+        &mut self,
+        names: &[String],
+        effort: &[f64],
+    ) -> Result<(), Rejection> {
+        self.map
+            .match_names(names, "name")
+            .map_err(|e| ("bad joint names", e))?;
+        self.scratch.fill(0.0);
+        self.map
+            .scatter("effort", effort, Target::Rate, false, &mut self.scratch)
+            .map_err(|e| ("bad effort", e))?;
+        self.effort.copy_from_slice(&self.scratch);
+        Ok(())
+    }
+
+    /// `~/commands`: `data[k]` for `command_joints[k]`. A refused message changes nothing.
+    pub fn set_commands(&mut self, data: &[f64]) -> Result<(), Rejection> {
+        if data.len() != self.slots.len() {
+            return Err((
+                "wrong length",
+                format!(
+                    "commands has {} values, command_joints has {} joints ({})",
+                    data.len(),
+                    self.slots.len(),
+                    self.names().join(", ")
+                ),
+            ));
+        }
+        if let Some(i) = data.iter().position(|x| !x.is_finite()) {
+            return Err((
+                "bad value",
+                format!(
+                    "commands[{i}] (joint '{}') is {}",
+                    self.map.names()[self.slots[i]],
+                    data[i]
+                ),
+            ));
+        }
+        self.effort.fill(0.0);
+        for (&slot, value) in self.slots.iter().zip(data) {
+            self.effort[self.map.slot(slot).1] = *value;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,205 @@
+//! Decoding, in bag order: joint states into blocks of samples (model coordinates, name orders
+//! and frames numbered), effort commands into the command state.
+
+use super::block::{Block, Order, Tables};
+use super::problems::Problems;
+use super::TimeSource;
+use crate::bag::{cdr, RawMessage};
+use crate::joint_states::commands::Commands;
+use crate::joint_states::differences::joins;
+use crate::joint_states::joint_map::JointMap;
+use spatial_dynamics_core::Model;
+use std::ops::Range;
+use std::sync::Arc;
+
+/// Reads joint states and commands into blocks, in bag order.
+pub struct Decoder {
+    nq: usize,
+    nv: usize,
+    map: JointMap,
+    commands: Commands,
+    time_source: TimeSource,
+    max_gap_ns: i64,
+    ranges: Vec<Range<usize>>,
+    names: Vec<String>,
+    values: Vec<f64>,
+    velocity: Vec<f64>,
+    /// The order `map` last matched (valid while `Some`).
+    current_order: Option<u32>,
+    current_frame: u32,
+    tables: Arc<Tables>,
+    /// `(t, has velocity)` of the last sample decoded.
+    prev: Option<(i64, bool)>,
+    pub problems: Problems,
+    /// Messages read, by input (index in the `wanted` list).
+    pub read: [u64; 2],
+    /// Joint states decoded so far (valid ones).
+    pub committed: u64,
+    pub last_log_time: u64,
+    pub log_time_backwards: u64,
+}
+
+impl Decoder {
+    /// A decoder for `map`'s model; `commands` holds the command state (zero effort).
+    pub fn new(
+        model: &Model,
+        map: JointMap,
+        commands: Commands,
+        time_source: TimeSource,
+        max_gap_ns: i64,
+    ) -> Decoder {
+        Decoder {
+            nq: model.nq,
+            nv: model.nv,
+            map,
+            commands,
+            time_source,
+            max_gap_ns,
+            ranges: Vec::new(),
+            names: Vec::new(),
+            values: Vec::new(),
+            current_order: None,
+            current_frame: u32::MAX,
+            tables: Arc::default(),
+            velocity: Vec::new(),
+            prev: None,
+            problems: Problems::default(),
+            read: [0; 2],
+            committed: 0,
+            last_log_time: 0,
+            log_time_backwards: 0,
+        }
+    }
+
+    /// The name orders and frames decoded so far.
+    pub fn tables(&self) -> &Arc<Tables> {
+        &self.tables
+    }
+
+    /// A joint state into slot `block.n`; on success the block has one more sample.
+    pub fn joint_state(&mut self, msg: RawMessage<'_>, block: &mut Block) {
+        let i = block.n;
+        let (nq, nv) = (self.nq, self.nv);
+        let view = match cdr::parse_joint_state(msg.data, &mut self.ranges) {
+            Ok(v) => v,
+            Err(e) => return self.skip("unreadable message", msg.log_time, e),
+        };
+        let order = match self.order_of(&view) {
+            Ok(o) => o,
+            Err((kind, e)) => return self.skip(kind, msg.log_time, e),
+        };
+        view.position.read_into(&mut self.values);
+        view.velocity.read_into(&mut self.velocity);
+        let q = &mut block.q[i * nq..(i + 1) * nq];
+        let v = &mut block.v[i * nv..(i + 1) * nv];
+        let has_velocity = match self.map.scatter_state(&self.values, &self.velocity, q, v) {
+            Ok(has) => has,
+            Err((kind, e)) => return self.skip(kind, msg.log_time, e),
+        };
+        let t = match self.time_source {
+            TimeSource::Header => i64::from(view.sec) * 1_000_000_000 + i64::from(view.nanosec),
+            TimeSource::Log => msg.log_time as i64,
+        };
+        let joins_prev = joins(self.prev, t, has_velocity, self.max_gap_ns);
+        self.prev = Some((t, has_velocity));
+        block.frame[i] = self.frame_of(view.frame_id);
+        block.order[i] = order;
+        block.log_time[i] = msg.log_time;
+        block.stamp[i] = (view.sec, view.nanosec);
+        block.t[i] = t;
+        block.has_velocity[i] = has_velocity;
+        block.joins_prev[i] = joins_prev;
+        block.command[i * nv..(i + 1) * nv].copy_from_slice(self.commands.effort());
+        block.n += 1;
+        self.committed += 1;
+    }
+
+    fn skip(&mut self, kind: &'static str, log_time: u64, message: String) {
+        self.problems.add("joint_states", kind, log_time, message);
+    }
+
+    /// The name order of a message, matching the names only when they differ from the last.
+    fn order_of(&mut self, view: &cdr::JointStateView<'_>) -> Result<u32, (&'static str, String)> {
+        if let Some(id) = self.current_order {
+            let known = &self.tables.orders[id as usize].names;
+            if known.len() == self.ranges.len()
+                && known
+                    .iter()
+                    .zip(&self.ranges)
+                    .all(|(k, r)| k.as_bytes() == view.name_bytes(r))
+            {
+                return Ok(id);
+            }
+        }
+        self.current_order = None;
+        read_names(view, &self.ranges, &mut self.names).map_err(|e| ("bad joint names", e))?;
+        self.map
+            .match_names(&self.names, "name")
+            .map_err(|e| ("bad joint names", e))?;
+        let id = match self
+            .tables
+            .orders
+            .iter()
+            .position(|o| o.names == self.names)
+        {
+            Some(id) => id,
+            None => {
+                let order = Order {
+                    names: self.names.clone(),
+                    slots: self.map.answer_order().map(|s| self.map.slot(s)).collect(),
+                    encoded_names: cdr::encode_strings(&self.map.answer_names()),
+                };
+                let tables = Arc::make_mut(&mut self.tables);
+                tables.orders.push(Arc::new(order));
+                tables.orders.len() - 1
+            }
+        } as u32;
+        self.current_order = Some(id);
+        Ok(id)
+    }
+
+    fn frame_of(&mut self, frame_id: &str) -> u32 {
+        let frames = &self.tables.frames;
+        if frames.get(self.current_frame as usize).map(String::as_str) != Some(frame_id) {
+            self.current_frame = match frames.iter().position(|f| f == frame_id) {
+                Some(k) => k as u32,
+                None => {
+                    let tables = Arc::make_mut(&mut self.tables);
+                    tables.frames.push(frame_id.to_string());
+                    (tables.frames.len() - 1) as u32
+                }
+            };
+        }
+        self.current_frame
+    }
+
+    /// An effort command (sensor_msgs/JointState, by name): it holds until the next command.
+    pub fn effort_command(&mut self, msg: RawMessage<'_>) {
+        let result = (|| {
+            let view = cdr::parse_joint_state(msg.data, &mut self.ranges)
+                .map_err(|e| ("unreadable message", e))?;
+            read_names(&view, &self.ranges, &mut self.names).map_err(|e| ("bad joint names", e))?;
+            view.effort.read_into(&mut self.values);
+            self.commands.set_effort_command(&self.names, &self.values)
+        })();
+        if let Err((kind, e)) = result {
+            self.problems.add("effort_command", kind, msg.log_time, e);
+        }
+    }
+}
+
+/// The names of a message into reusable strings (no allocation once they are long enough).
+fn read_names(
+    view: &cdr::JointStateView<'_>,
+    ranges: &[Range<usize>],
+    names: &mut Vec<String>,
+) -> Result<(), String> {
+    names.resize_with(ranges.len(), String::new);
+    for (k, (name, r)) in names.iter_mut().zip(ranges).enumerate() {
+        let text = std::str::from_utf8(view.name_bytes(r))
+            .map_err(|_| format!("name[{k}] is not UTF-8"))?;
+        name.clear();
+        name.push_str(text);
+    }
+    Ok(())
+}
