@@ -90,8 +90,8 @@ def test_remapped_input_and_output(both, ros, ref):
     accel.wait(1, 3.0, lambda m: sd.stamp_eq(m.header.stamp, got.header.stamp))
     # dyn2 does not listen on /joint_states: its counters only know /arm/joint_states.
     diag = ros.collector(DiagnosticArray, "/diagnostics")
-    report = diag.wait(1, 5.0, lambda m: sd.status_values(m, "/dyn2: dynamics") is not None)[0]
-    values = sd.status_values(report, "/dyn2: dynamics")
+    report = diag.wait(1, 5.0, lambda m: sd.status_values(m, "dyn2: dynamics") is not None)[0]
+    values = sd.status_values(report, "dyn2: dynamics")
     assert int(values["/arm/joint_states received"]) >= 2
     assert not any(k.startswith("/joint_states") for k in values), values
     assert "/arm/gravity published" in values

@@ -24,7 +24,7 @@ import sd_dds_support as sd
 from sd_dds_support import ARM_JOINTS, assert_close
 
 NODE = "/spatial_dynamics"
-STATUS = "/spatial_dynamics: dynamics"
+STATUS = "spatial_dynamics: dynamics"
 JS = "/joint_states"
 Q = [0.4, -0.6, 0.3, 1.2, -0.5, 0.8, -2.5]
 HUGE_V = [1e200] * 7
@@ -179,7 +179,7 @@ def test_simulation_driven_at_1e300_stops_and_publishes_nothing_non_finite(nodes
     commands = ros.publisher(Float64MultiArray, "/sim/commands", sd.qos_reliable(10))
 
     def status(m):
-        return next((s for s in m.status if s.name == "/sim: dynamics"), None)
+        return next((s for s in m.status if s.name == "sim: dynamics"), None)
 
     def stopped():
         return any(status(m) is not None and sd.level(status(m)) == 2 for m in diag.messages)

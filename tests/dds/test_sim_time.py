@@ -18,7 +18,7 @@ from spatial_dynamics_msgs.srv import DescribeModel
 import sd_dds_support as sd
 from sd_dds_support import ARM_JOINTS, assert_close
 
-STATUS = "/spatial_dynamics: dynamics"
+STATUS = "spatial_dynamics: dynamics"
 JS = "/joint_states"
 DROPPED = "/joint_states"  # the counter's topic name
 
@@ -232,7 +232,7 @@ def test_simulate_mode_with_use_sim_time_is_stamped_with_its_own_time(ros, nodes
     matched = [(s, stamp_of[q]) for q, s in out if q in stamp_of]
     assert len(matched) >= 0.5 * len(out), f"{len(matched)} of {len(out)} answers to a joint_states seen here"
     assert all(a == b for a, b in matched), matched
-    status_name = f"{ns}/spatial_dynamics: dynamics"
+    status_name = "spatial_dynamics: dynamics"  # diagnostic_updater: the base name, no namespace
     got = diag.wait(1, 5.0, lambda m: sd.status_values(m, status_name) is not None)[0]
     values = sd.status_values(got, status_name)
     assert values["clock"] == "own simulated time (use_sim_time, simulate mode)", values

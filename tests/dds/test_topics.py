@@ -186,7 +186,7 @@ def test_reference_gives_feedforward_effort_and_commands(ros, io, ref, with_rate
 
 
 def test_diagnostics_count_inputs_outputs_and_compute_time(ros, io):
-    status_name = "/spatial_dynamics: dynamics"
+    status_name = "spatial_dynamics: dynamics"
     # Two more joint states, then a report that includes them.
     for _ in range(2):
         send_until_answered(ros, io, lambda: joint_state(ARM_JOINTS, [0.0] * 7), "gravity")

@@ -19,7 +19,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 import sd_dds_support as sd
 from sd_dds_support import ARM_JOINTS, assert_close
 
-STATUS = "/spatial_dynamics: dynamics"
+STATUS = "spatial_dynamics: dynamics"
 JS = "/joint_states"
 EFFORT = "/spatial_dynamics/effort_command"
 COMMANDS = "/spatial_dynamics/commands"
