@@ -2,12 +2,13 @@
 //!
 //! Inputs: `joint_states`, `~/effort_command`, `~/commands`, `~/reference`, `~/base_state`,
 //! `robot_description` (latched). Outputs: `~/gravity_effort`, `~/acceleration`,
-//! `~/feedforward_effort`, `~/feedforward_commands`, `/diagnostics`. Services:
+//! `~/feedforward_effort`, `~/feedforward_commands`, `/diagnostics`, `/rosout`. Services:
 //! `~/inverse_dynamics`, `~/forward_dynamics`, `~/mass_matrix`, `~/describe_model`, and the
 //! standard parameter services. In simulate mode (`mode: simulate`) the node also publishes
 //! `joint_states`, a floating base's `~/base_state` (and `/clock` if `publish_clock`) from its
 //! own integrated state, with ground contact at `ground_contacts` if given, and serves
-//! `~/reset`, `~/pause` (std_srvs/SetBool) and `~/step` (std_srvs/Trigger). With `use_sim_time`
+//! `~/reset`, `~/pause` (std_srvs/SetBool) and `~/step` (std_srvs/Trigger); serve mode creates
+//! none of those three publishers. With `use_sim_time`
 //! (serve mode) the node reads `/clock` and stamps its outputs with it; the rules are in
 //! [`engine::clock`]. QoS (chosen on purpose):
 //!
@@ -19,6 +20,7 @@
 //! | `robot_description` | reliable | transient local | 1 |
 //! | `joint_states`, `~/base_state` (simulate), `/clock` | reliable (matches best-effort readers too) | volatile | 10, 1 |
 //! | `/clock` read (`use_sim_time`) | best effort (rclcpp's ClockQoS: matches any publisher) | volatile | 1 |
+//! | `/rosout` ([`logging`]) | reliable | transient local, lifespan 10 s | 1000 |
 //! | services | reliable | volatile | 10 |
 
 mod engine;

@@ -25,7 +25,7 @@ def describe(ros):
     return r
 
 
-def wait_model(ros, predicate, timeout=8.0):
+def wait_model(ros, predicate, timeout=sd.EVENT_S):
     last = [None]
 
     def check():
@@ -153,7 +153,7 @@ def test_robot_description_topic_after_start_and_reload(nodes, ros, latched):
     r = describe(ros)
     assert "sd_arm7" in r.message and "embedded default" in r.message
     pub = latched()
-    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, sd.EVENT_S)
     pub.publish(String(data=sd.MIMIC_GRIPPER_URDF.read_text()))
     r = wait_model(ros, lambda r: "mimic_gripper" in r.message)
     assert "robot_description topic" in r.message and list(r.joint_names) == ["wrist", "finger_left"]
@@ -168,10 +168,10 @@ def test_parameter_wins_over_the_topic_and_clearing_it_falls_back_to_the_topic(n
     nodes.start("-p", f"urdf_file:={sd.PARTICLE_URDF}", label="precedence")
     diag = ros.collector(DiagnosticArray, "/diagnostics")
     pub = latched()
-    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, sd.EVENT_S)
     pub.publish(String(data=sd.MIMIC_GRIPPER_URDF.read_text()))
     # The description arrived (counted) but the urdf_file parameter keeps the particle.
-    diag.wait(1, 6.0, lambda m: int((sd.status_values(m, "spatial_dynamics: dynamics") or {}).get("/robot_description received", 0)) >= 1)
+    diag.wait(1, sd.EVENT_S, lambda m: int((sd.status_values(m, "spatial_dynamics: dynamics") or {}).get("/robot_description received", 0)) >= 1)
     r = describe(ros)
     assert "particle" in r.message and str(sd.PARTICLE_URDF) in r.message
     check_particle(ros)

@@ -97,7 +97,7 @@ def test_unknown_parameters_in_a_params_file_give_one_warning_and_the_node_serve
     r = ros.call(DescribeModel, f"/{name}/describe_model", DescribeModel.Request())
     assert r.success and r.method == "crba" and r.gravity.z == -1.62, r
     # The start-up INFO comes after the warning (one writer, in order).
-    log.wait(1, 30.0, lambda m: m.name == name and "serving robot" in m.msg)
+    log.wait(1, sd.EVENT_S, lambda m: m.name == name and "serving robot" in m.msg)
     warnings = log.matching(lambda m: m.name == name and m.level == Log.WARN)
     assert len(warnings) == 1, [w.msg for w in warnings]
     assert "nonsense" in warnings[0].msg and "lidar_rate" in warnings[0].msg and str(params) in warnings[0].msg

@@ -37,14 +37,14 @@ def provoke_warning(ros, log, name, topic="/joint_states"):
         lambda: pub.publish(JointState(name=["no_such_joint"], position=[0.0])),
         log,
         lambda m: m.name == name and m.level == Log.WARN and f"{DROPPED}{topic}:" in m.msg,
-        timeout=30.0,
+        timeout=sd.EVENT_S,
     )
 
 
 def test_start_up_info_and_bad_input_warning_on_rosout(nodes, ros):
     log = rosout(ros)
     nodes.start(label="rosout")
-    info = log.wait(1, 30.0, lambda m: m.name == "spatial_dynamics" and STARTED in m.msg)[0]
+    info = log.wait(1, sd.EVENT_S, lambda m: m.name == "spatial_dynamics" and STARTED in m.msg)[0]
     assert info.level == Log.INFO == 20
     assert info.file.endswith("src/node/mod.rs") and info.line > 0, info
     assert info.function.endswith("node::serve"), info
@@ -82,7 +82,7 @@ def test_log_level_warn_suppresses_info(nodes, ros, ns, level_args):
 def test_default_level_is_info_and_the_namespaced_name_is_dotted(nodes, ros):
     log = rosout(ros)
     nodes.start("-r", "__ns:=/robot1", label="robot1")
-    info = log.wait(1, 30.0, lambda m: STARTED in m.msg and m.name.endswith("spatial_dynamics"))[0]
+    info = log.wait(1, sd.EVENT_S, lambda m: STARTED in m.msg and m.name.endswith("spatial_dynamics"))[0]
     assert info.name == "robot1.spatial_dynamics" and info.level == Log.INFO, info
 
 
