@@ -311,7 +311,7 @@ class Diagnostics:
 
     def arrived(self, msg):
         for status in msg.status:
-            if status.name == f"{NODE}: dynamics":
+            if status.name == f"{NODE.lstrip('/')}: dynamics":  # diagnostic_updater: no leading slash
                 self.values = {kv.key: kv.value for kv in status.values}
                 self.reports += 1
                 if "compute mean (us)" in self.values:

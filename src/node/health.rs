@@ -2,6 +2,7 @@
 //! reason), outputs published, compute time per message; and warnings limited to one a second per
 //! topic, with the number suppressed.
 
+use super::logging::{log, Logger};
 use crate::ros::msgs::{DiagnosticStatus, KeyValue};
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
@@ -18,10 +19,12 @@ pub struct Health {
     computed: u64,
     last_report: Instant,
     last_warning: BTreeMap<String, (Instant, u64)>,
+    logger: Logger,
 }
 
-impl Default for Health {
-    fn default() -> Self {
+impl Health {
+    /// Counters at zero; warnings go to `logger`.
+    pub fn new(logger: Logger) -> Self {
         Health {
             received: BTreeMap::new(),
             dropped: BTreeMap::new(),
@@ -32,6 +35,7 @@ impl Default for Health {
             computed: 0,
             last_report: Instant::now(),
             last_warning: BTreeMap::new(),
+            logger,
         }
     }
 }
@@ -69,7 +73,11 @@ impl Health {
             } else {
                 String::new()
             };
-            eprintln!("[WARN] [spatial_dynamics]: dropped a message on {topic}: {reason}{more}");
+            log!(
+                self.logger,
+                Warn,
+                "dropped a message on {topic}: {reason}{more}"
+            );
         } else {
             entry.1 += 1;
         }
@@ -92,7 +100,8 @@ impl Health {
         self.dropped.values().sum()
     }
 
-    /// The status for `/diagnostics`, and a reset of the per-period figures.
+    /// The status for `/diagnostics` (its hardware id: the robot model's name), and a reset of
+    /// the per-period figures.
     pub fn report(&mut self, name: &str, model: &str, model_ok: bool) -> DiagnosticStatus {
         let now = Instant::now();
         let period = now.duration_since(self.last_report).as_secs_f64().max(1e-9);
@@ -149,7 +158,8 @@ impl Health {
             level,
             name: name.into(),
             message,
-            hardware_id: String::new(),
+            // diagnostic_updater requires one; the dynamics are those of this robot model.
+            hardware_id: model.into(),
             values,
         }
     }
@@ -161,7 +171,7 @@ mod tests {
 
     #[test]
     fn counts_and_groups_drops() {
-        let mut h = Health::default();
+        let mut h = Health::new(Logger::new("test", crate::node::logging::Level::Info));
         h.received("joint_states");
         h.dropped("joint_states", "unknown joint 'a' in name");
         h.dropped("joint_states", "unknown joint 'b' in name");

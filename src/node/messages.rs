@@ -10,6 +10,7 @@ macro_rules! messages {
 
 messages!(
     Time,
+    Log,
     Duration,
     Header,
     StringMsg,

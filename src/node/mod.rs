@@ -2,12 +2,13 @@
 //!
 //! Inputs: `joint_states`, `~/effort_command`, `~/commands`, `~/reference`, `~/base_state`,
 //! `robot_description` (latched). Outputs: `~/gravity_effort`, `~/acceleration`,
-//! `~/feedforward_effort`, `~/feedforward_commands`, `/diagnostics`. Services:
+//! `~/feedforward_effort`, `~/feedforward_commands`, `/diagnostics`, `/rosout`. Services:
 //! `~/inverse_dynamics`, `~/forward_dynamics`, `~/mass_matrix`, `~/describe_model`, and the
 //! standard parameter services. In simulate mode (`mode: simulate`) the node also publishes
 //! `joint_states`, a floating base's `~/base_state` (and `/clock` if `publish_clock`) from its
 //! own integrated state, with ground contact at `ground_contacts` if given, and serves
-//! `~/reset`, `~/pause` (std_srvs/SetBool) and `~/step` (std_srvs/Trigger). With `use_sim_time`
+//! `~/reset`, `~/pause` (std_srvs/SetBool) and `~/step` (std_srvs/Trigger); serve mode creates
+//! none of those three publishers. With `use_sim_time`
 //! (serve mode) the node reads `/clock` and stamps its outputs with it; the rules are in
 //! [`engine::clock`]. QoS (chosen on purpose):
 //!
@@ -19,11 +20,14 @@
 //! | `robot_description` | reliable | transient local | 1 |
 //! | `joint_states`, `~/base_state` (simulate), `/clock` | reliable (matches best-effort readers too) | volatile | 10, 1 |
 //! | `/clock` read (`use_sim_time`) | best effort (rclcpp's ClockQoS: matches any publisher) | volatile | 1 |
+//! | `/rosout` ([`logging`]) | reliable | transient local, lifespan 10 s | 1000 |
 //! | services | reliable | volatile | 10 |
 
 mod engine;
 mod health;
+pub(crate) mod logging;
 mod messages;
+mod parameter_descriptors;
 mod params;
 mod ros_args;
 
@@ -33,6 +37,7 @@ use engine::clock::{self, NodeClock};
 use engine::Engine;
 use futures::StreamExt;
 use health::Health;
+use logging::{log, Logger};
 use params::Settings;
 use ros2_client::dds::rustdds::{DomainParticipantBuilder, Topic};
 use ros2_client::qos::{Durability, History, WhenFull};
@@ -58,22 +63,38 @@ pub fn run(args: &[String]) -> Result<(), String> {
         &node_name,
         &ros_args.remaps,
     );
+    let logger_name = logging::logger_name(resolver.namespace(), &node_name);
+    let logger = Logger::new(
+        &logger_name,
+        logging::level_for(&logger_name, &ros_args.log_levels),
+    );
     let mut settings = Settings::default();
     for file in &ros_args.params_files {
-        settings.apply_file(file, resolver.namespace(), &node_name)?;
+        let ignored = settings.apply_file(file, resolver.namespace(), &node_name)?;
+        if !ignored.is_empty() {
+            // rclcpp ignores overrides of parameters a node does not declare.
+            log!(
+                logger,
+                Warn,
+                "--params-file {}: ignoring parameters this node does not have: {} (its parameters: {})",
+                file.display(),
+                ignored.join(", "),
+                params::NAMES.join(", ")
+            );
+        }
     }
     for (name, value) in &ros_args.params {
         settings.apply_arg(name, value)?;
     }
     let engine = Engine::from_settings(&settings, None)?;
     for warning in &engine.model.warnings {
-        eprintln!("[WARN] [spatial_dynamics]: {warning}");
+        log!(logger, Warn, "{warning}");
     }
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
         .map_err(|e| e.to_string())?;
-    runtime.block_on(serve(settings, engine, resolver, node_name))
+    runtime.block_on(serve(settings, engine, resolver, node_name, logger))
 }
 
 /// The DDS context: `ROS_DOMAIN_ID`, and discovery on loopback only when
@@ -179,6 +200,7 @@ struct TimeSource {
     /// Simulate mode: (wall clock, simulated time in s) of the latest steps, oldest first.
     ticks: VecDeque<(ROSTime, f64)>,
     shared: Arc<Mutex<Settings>>,
+    logger: Logger,
 }
 
 /// `/clock` messages the reader keeps between two reads (more than any input gap at 1 kHz).
@@ -217,7 +239,12 @@ impl TimeSource {
             if let Ok(mut settings) = self.shared.lock() {
                 settings.use_sim_time = wanted;
             }
-            eprintln!("[INFO] [spatial_dynamics]: parameter 'use_sim_time' now in effect: {wanted}; the node's clock is the {}", clock::source_name(wanted, engine.simulated_time().is_some()));
+            log!(
+                self.logger,
+                Info,
+                "parameter 'use_sim_time' now in effect: {wanted}; the node's clock is the {}",
+                clock::source_name(wanted, engine.simulated_time().is_some())
+            );
         }
         if !self.clock.reads_clock(engine.simulated_time().is_some()) {
             self.subscription = None;
@@ -257,7 +284,7 @@ impl TimeSource {
             }
             let (_, t) = self.pending.pop_front().expect("front exists");
             if let Some(note) = self.clock.clock_received(&t) {
-                eprintln!("[INFO] [spatial_dynamics]: {note}");
+                log!(self.logger, Info, "{note}");
             }
         }
         // Simulate mode: the simulated time reached before the input arrived.
@@ -289,17 +316,21 @@ async fn serve(
     engine: Engine,
     resolver: NameResolver,
     node_name: String,
+    logger: Logger,
 ) -> Result<(), String> {
     let context = context()?;
     let shared = Arc::new(Mutex::new(settings));
     let topic_description: Arc<Mutex<Option<String>>> = Arc::new(Mutex::new(None));
     let (changes_tx, mut changes_rx) = tokio::sync::mpsc::unbounded_channel::<String>();
 
+    // The node's own /rosout publisher (below) has rcl's rosout QoS; ros2-client's keeps 1 line.
     let mut options = NodeOptions::new()
-        .enable_rosout(true)
+        .enable_rosout(false)
         .start_parameter_services(true);
     for (name, value) in shared.lock().expect("settings lock").values() {
-        options = options.declare_parameter(name, value);
+        options = options
+            .describe_parameter(parameter_descriptors::descriptor(name, &value))
+            .declare_parameter(name, value);
     }
     let (validator_settings, validator_description) = (shared.clone(), topic_description.clone());
     options = options.parameter_validator(Box::new(move |name, value| {
@@ -343,6 +374,14 @@ async fn serve(
         )
         .map_err(|e| format!("cannot create node: {e:?}"))?;
     let ends = Endpoints { resolver };
+    let rosout_qos = QosProfile {
+        lifespan: Some(Duration::from_secs(10)),
+        ..qos(true, Durability::TransientLocal, logging::ROSOUT_DEPTH)
+    };
+    logger.attach(
+        node.create_publisher::<Log>(&context.get_rosout_topic(), Some(rosout_qos))
+            .map_err(|e| format!("publisher /rosout: {e:?}"))?,
+    );
 
     macro_rules! topic {
         ($name:expr, $pkg:expr, $ty:expr, $qos:expr) => {{
@@ -500,28 +539,35 @@ async fn serve(
         "~/describe_model",
         "DescribeModel"
     );
-    let (sim_js_name, sim_js_pub) = publisher!(
-        JointState,
-        "joint_states",
-        "sensor_msgs",
-        "JointState",
-        reliable
-    );
     let (clock_name, clock_topic) = topic!(
         "/clock",
         "rosgraph_msgs",
         "Clock",
         qos(true, Durability::Volatile, 1)
     );
-    let clock_pub = node
-        .create_publisher::<Clock>(&clock_topic, None)
-        .map_err(|e| format!("publisher {clock_name}: {e:?}"))?;
-    let (sim_base_name, sim_base_pub) =
-        publisher!(Odometry, "~/base_state", "nav_msgs", "Odometry", reliable);
-    let sim_out = SimPublishers {
-        joint_states: (sim_js_name, sim_js_pub),
-        base: (sim_base_name, sim_base_pub),
-        clock: clock_pub,
+    // Only simulate mode publishes joint_states, /clock and ~/base_state (`mode` is read-only):
+    // a serve-mode node must not look like a second source of them in the graph.
+    let sim_out = if shared.lock().map_err(|e| e.to_string())?.simulate {
+        let (sim_js_name, sim_js_pub) = publisher!(
+            JointState,
+            "joint_states",
+            "sensor_msgs",
+            "JointState",
+            reliable
+        );
+        let clock_pub = node
+            .create_publisher::<Clock>(&clock_topic, None)
+            .map_err(|e| format!("publisher {clock_name}: {e:?}"))?;
+        let (sim_base_name, sim_base_pub) =
+            publisher!(Odometry, "~/base_state", "nav_msgs", "Odometry", reliable);
+        Some(SimPublishers {
+            joint_states: (sim_js_name, sim_js_pub),
+            base: (sim_base_name, sim_base_pub),
+            clock: clock_pub,
+            logger: logger.clone(),
+        })
+    } else {
+        None
     };
     let (reset_name, reset_server) = server!(ResetRequest, ResetResponse, "~/reset", "Reset");
     let (pause_name, pause_server) =
@@ -535,7 +581,9 @@ async fn serve(
     tokio::spawn(spinner.spin());
 
     let mut engine = engine;
-    let mut health = Health::default();
+    // Why the latest robot description from the topic was ignored, once logged.
+    let mut ignored_description: Option<String> = None;
+    let mut health = Health::new(logger.clone());
     let mut time = TimeSource {
         clock: NodeClock::new(&*shared.lock().map_err(|e| e.to_string())?),
         topic: clock_topic,
@@ -544,12 +592,16 @@ async fn serve(
         pending: VecDeque::with_capacity(CLOCK_READER_DEPTH),
         ticks: VecDeque::with_capacity(CLOCK_READER_DEPTH),
         shared: shared.clone(),
+        logger: logger.clone(),
     };
     // Subscribes to /clock now if simulated time is on, so that discovery starts at once.
     time.now(&mut node, &engine, &mut health, None);
-    let diagnostics_name = format!("{}: dynamics", node.fully_qualified_name());
-    eprintln!(
-        "[INFO] [spatial_dynamics]: {} serving robot '{}' ({} joints, nv = {}), method {}{}",
+    // diagnostic_updater's status name: the node's name (no namespace, no slash), ": ", the task.
+    let diagnostics_name = format!("{node_name}: dynamics");
+    log!(
+        logger,
+        Info,
+        "{} serving robot '{}' ({} joints, nv = {}), method {}{}",
         node.fully_qualified_name(),
         engine.model.name,
         engine.names().len(),
@@ -666,8 +718,18 @@ async fn serve(
                             Ok(new) => {
                                 *topic_description.lock().map_err(|e| e.to_string())? = Some(m.data);
                                 if new.source == engine::ModelSource::Topic {
-                                    eprintln!("[INFO] [spatial_dynamics]: loaded robot '{}' from {description_name}", new.model.name);
+                                    log!(logger, Info, "loaded robot '{}' from {description_name}", new.model.name);
                                     engine = new;
+                                } else {
+                                    let why = match &new.source {
+                                        engine::ModelSource::Parameter => "the robot_description parameter is set".to_string(),
+                                        engine::ModelSource::File(f) => format!("urdf_file is set ({f})"),
+                                        _ => "another source is in use".to_string(),
+                                    };
+                                    if ignored_description.as_ref() != Some(&why) {
+                                        log!(logger, Info, "ignoring the robot description on {description_name}: {why}, and it wins over the topic (the topic's description is used once neither robot_description nor urdf_file is set)");
+                                        ignored_description = Some(why);
+                                    }
                                 }
                             }
                             Err(e) => health.dropped(&description_name, &format!("unusable robot description, keeping robot '{}': {e}", engine.model.name)),
@@ -711,7 +773,9 @@ async fn serve(
             _ = async { sim_timer.as_mut().expect("guarded").tick().await }, if sim_timer.is_some() => {
                 let tick = engine.simulation_tick(Instant::now());
                 time.simulated(node.time_now_not_simulated(), engine.simulated_time());
-                sim_out.publish(tick, engine.simulated_base_state(), publish_clock(&shared), &mut health);
+                if let Some(out) = &sim_out {
+                    out.publish(tick, engine.simulated_base_state(), publish_clock(&shared), &mut health);
+                }
             }
             Some(item) = reset_stream.next() => {
                 if let Ok((id, request)) = item {
@@ -735,8 +799,8 @@ async fn serve(
                         Ok((_, stamp)) => TriggerResponse { success: true, message: format!("t = {}.{:09} s", stamp.sec, stamp.nanosec) },
                         Err(message) => TriggerResponse { success: false, message: message.clone() },
                     };
-                    if stepped.is_ok() {
-                        sim_out.publish(Some(stepped), engine.simulated_base_state(), publish_clock(&shared), &mut health);
+                    if let (true, Some(out)) = (stepped.is_ok(), &sim_out) {
+                        out.publish(Some(stepped), engine.simulated_base_state(), publish_clock(&shared), &mut health);
                     }
                     if let Err(e) = step_server.send_response(id, response) { health.dropped(&step_name, &format!("response not sent: {e:?}")); }
                 } else { health.dropped(&step_name, "unreadable request"); }
@@ -745,18 +809,20 @@ async fn serve(
                 let settings = shared.lock().map_err(|e| e.to_string())?.clone();
                 if name == "method" {
                     engine.set_method(settings.method);
+                } else if name == "publish_clock" {
+                    // Read at each simulation tick.
                 } else if params::TIME_PARAMETERS.contains(&name.as_str()) {
                     time.clock.configure(&settings);
                 } else {
                     let description = topic_description.lock().map_err(|e| e.to_string())?.clone();
                     match Engine::from_settings(&settings, description.as_deref()) {
                         Ok(new) => engine = new,
-                        Err(e) => eprintln!("[ERROR] [spatial_dynamics]: parameter '{name}' was accepted but the model could not be rebuilt, keeping robot '{}': {e}", engine.model.name),
+                        Err(e) => log!(logger, Error, "parameter '{name}' was accepted but the model could not be rebuilt, keeping robot '{}': {e}", engine.model.name),
                     }
                 }
                 sim_timer = simulation_timer(&engine);
                 time.ticks.clear();
-                eprintln!("[INFO] [spatial_dynamics]: parameter '{name}' now in effect");
+                log!(logger, Info, "parameter '{name}' now in effect");
             }
             _ = diagnostics.tick() => {
                 let now = time.now(&mut node, &engine, &mut health, None);
@@ -781,7 +847,7 @@ async fn serve(
             }
         }
     }
-    eprintln!("[INFO] [spatial_dynamics]: shutting down");
+    log!(logger, Info, "shutting down");
     Ok(())
 }
 
@@ -815,6 +881,7 @@ struct SimPublishers {
     joint_states: (String, ros2_client::Publisher<JointState>),
     base: (String, ros2_client::Publisher<Odometry>),
     clock: ros2_client::Publisher<Clock>,
+    logger: Logger,
 }
 
 impl SimPublishers {
@@ -838,7 +905,7 @@ impl SimPublishers {
                     send(&self.base.1, odometry, &self.base.0, health);
                 }
             }
-            Some(Err(why)) => eprintln!("[ERROR] [spatial_dynamics]: {why}"),
+            Some(Err(why)) => log!(self.logger, Error, "{why}"),
         }
     }
 }

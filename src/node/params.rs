@@ -29,8 +29,12 @@
 //! | `max_stamp_age` | double | `0` | drop a `joint_states` stamped more than this (s) before the node's clock; 0: off |
 //! | `future_stamp_tolerance` | double | `0` | drop a `joint_states` stamped more than this (s) after the node's clock; 0: off |
 //!
-//! Every parameter can be changed at run time and takes effect at once (model parameters
-//! rebuild the model; a change that would give an unusable model is refused). The clock and
+//! Every parameter is declared, with its description, type and range
+//! ([`super::parameter_descriptors`]). The simulate-mode parameters other than `publish_clock`
+//! are read-only: they are read when the simulation is built. Every other parameter can be
+//! changed at run time and takes effect at once (model parameters rebuild the model; a change
+//! that would give an unusable model is refused). A parameter file's entries for parameters the
+//! node does not have are ignored (the node warns once per file), as rclcpp ignores them. The clock and
 //! stamp rules are those of [`super::engine::clock`]. `use_sim_time` is kept by ros2-client's
 //! parameter store itself (every ROS node has it): our validator never sees it, so the node
 //! reads its value from the store before each use.
@@ -105,7 +109,7 @@ impl Default for Settings {
 }
 
 /// The names of all parameters, in declaration order.
-pub const NAMES: [&str; 14] = [
+pub const NAMES: [&str; 28] = [
     "robot_description",
     "urdf_file",
     "floating_base",
@@ -120,6 +124,38 @@ pub const NAMES: [&str; 14] = [
     "use_sim_time",
     "max_stamp_age",
     "future_stamp_tolerance",
+    "mode",
+    "publish_rate",
+    "sim_dt",
+    "integrator",
+    "real_time_factor",
+    "publish_clock",
+    "command_timeout",
+    "passive",
+    "initial_positions",
+    "ground_contacts",
+    "ground_height",
+    "ground_stiffness",
+    "ground_damping",
+    "ground_friction",
+];
+
+/// Parameters read only when the simulation is built (at start, and from their values then
+/// whenever a model parameter rebuilds the model): read-only, as rclcpp declares such parameters.
+pub const START_PARAMETERS: [&str; 13] = [
+    "mode",
+    "publish_rate",
+    "sim_dt",
+    "integrator",
+    "real_time_factor",
+    "command_timeout",
+    "passive",
+    "initial_positions",
+    "ground_contacts",
+    "ground_height",
+    "ground_stiffness",
+    "ground_damping",
+    "ground_friction",
 ];
 
 /// Parameters of the node's clock and stamp policy (a change touches neither the model nor the
@@ -330,8 +366,15 @@ impl Settings {
     }
 
     /// Applies a `--params-file`: the `ros__parameters` of the entries that match this node
-    /// (`/**`, `NAME`, `/NS/NAME`, `/**/NAME`), in file order.
-    pub fn apply_file(&mut self, path: &Path, namespace: &str, node: &str) -> Result<(), String> {
+    /// (`/**`, `NAME`, `/NS/NAME`, `/**/NAME`), in file order. Returns the names of the
+    /// parameters it ignored because the node does not have them.
+    pub fn apply_file(
+        &mut self,
+        path: &Path,
+        namespace: &str,
+        node: &str,
+    ) -> Result<Vec<String>, String> {
+        let mut ignored = Vec::new();
         let text = std::fs::read_to_string(path)
             .map_err(|e| format!("--params-file {}: {e}", path.display()))?;
         let doc: serde_norway::Value = serde_norway::from_str(&text)
@@ -362,6 +405,10 @@ impl Settings {
             let mut flat = Vec::new();
             flatten("", params, &mut flat);
             for (name, value) in flat {
+                if !NAMES.contains(&name.as_str()) {
+                    ignored.push(name);
+                    continue;
+                }
                 let value = parameter_value(&value).map_err(|e| {
                     format!("--params-file {}: parameter '{name}': {e}", path.display())
                 })?;
@@ -369,7 +416,7 @@ impl Settings {
                     .map_err(|e| format!("--params-file {}: {e}", path.display()))?;
             }
         }
-        Ok(())
+        Ok(ignored)
     }
 
     /// Applies `-p NAME:=VALUE` (VALUE in YAML).
@@ -464,9 +511,10 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("sd_params_{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let file = dir.join("p.yaml");
-        std::fs::write(&file, "/**:\n  ros__parameters:\n    method: crba\n    gravity: [0, 0, -1.62]\nother_node:\n  ros__parameters:\n    floating_base: true\n/robot/dyn:\n  ros__parameters:\n    locked_joints: ['joint7=0.5']\n").unwrap();
+        std::fs::write(&file, "/**:\n  ros__parameters:\n    method: crba\n    gravity: [0, 0, -1.62]\n    qos_overrides:\n      depth: 5\nother_node:\n  ros__parameters:\n    floating_base: true\n/robot/dyn:\n  ros__parameters:\n    locked_joints: ['joint7=0.5']\n    lidar_rate: 10.0\n").unwrap();
         let mut s = Settings::default();
-        s.apply_file(&file, "/robot", "dyn").unwrap();
+        let ignored = s.apply_file(&file, "/robot", "dyn").unwrap();
+        assert_eq!(ignored, vec!["qos_overrides.depth", "lidar_rate"]);
         assert_eq!(s.method, Some(ForwardDynamicsMethod::Crba));
         assert_eq!(s.gravity, [0.0, 0.0, -1.62]);
         assert!(!s.floating_base);

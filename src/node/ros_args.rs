@@ -3,8 +3,10 @@
 //!
 //! Understood: `-r/--remap FROM:=TO` (including `__node:=NAME` and `__ns:=/NS`),
 //! `-p/--param NAME:=VALUE` (VALUE in YAML, as `ros2 run` reads it), `--params-file FILE`,
-//! `--log-level LEVEL` (accepted), and `--` or `--ros-args` boundaries.
+//! `--log-level LEVEL` and `--log-level LOGGER:=LEVEL` (see [`super::logging`]), and `--` or
+//! `--ros-args` boundaries.
 
+use super::logging::Level;
 use std::path::PathBuf;
 
 /// What the ROS arguments asked for.
@@ -20,6 +22,8 @@ pub struct RosArgs {
     pub params: Vec<(String, String)>,
     /// `--params-file FILE`, in order (later files and `-p` override earlier ones).
     pub params_files: Vec<PathBuf>,
+    /// `--log-level [LOGGER:=]LEVEL`, in order (`None`: every logger's default).
+    pub log_levels: Vec<(Option<String>, Level)>,
 }
 
 impl RosArgs {
@@ -54,7 +58,13 @@ impl RosArgs {
                 }
                 "--params-file" if in_ros_args => out.params_files.push(PathBuf::from(value(arg)?)),
                 "--log-level" if in_ros_args => {
-                    value(arg)?;
+                    let setting = value(arg)?;
+                    out.log_levels.push(match setting.split_once(":=") {
+                        Some((logger, level)) if !logger.is_empty() => {
+                            (Some(logger.to_string()), Level::parse(level)?)
+                        }
+                        _ => (None, Level::parse(&setting)?),
+                    });
                 }
                 other => return Err(format!("unexpected argument '{other}' (node arguments go after --ros-args: -r, -p, --params-file)")),
             }
@@ -93,8 +103,17 @@ mod tests {
             "gravity:=[0.0, 0.0, -1.62]",
             "--log-level",
             "debug",
+            "--log-level",
+            "robot.dyn:=WARN",
         ]))
         .unwrap();
+        assert_eq!(
+            args.log_levels,
+            vec![
+                (None, Level::Debug),
+                (Some("robot.dyn".to_string()), Level::Warn)
+            ]
+        );
         assert_eq!(args.node_name.as_deref(), Some("dyn"));
         assert_eq!(args.namespace.as_deref(), Some("/robot"));
         assert_eq!(
@@ -115,5 +134,10 @@ mod tests {
         assert!(RosArgs::parse(&strings(&["--ros-args", "-r"]))
             .unwrap_err()
             .contains("needs a value"));
+        assert!(
+            RosArgs::parse(&strings(&["--ros-args", "--log-level", "loud"]))
+                .unwrap_err()
+                .contains("unknown severity 'loud'")
+        );
     }
 }

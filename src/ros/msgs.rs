@@ -78,6 +78,8 @@ ros_message! {
     MassMatrixResponse { success: bool, message: String, name: Vec<String>, matrix: Vec<f64> }
     /// rosgraph_msgs/Clock
     Clock { clock: Time }
+    /// rcl_interfaces/Log (what `/rosout` carries; `level` is rcutils' severity: 10 … 50)
+    Log { stamp: Time, level: u8, name: String, msg: String, file: String, function: String, line: u32 }
     /// std_srvs/SetBool request
     SetBoolRequest { data: bool }
     /// std_srvs/SetBool response

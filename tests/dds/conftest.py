@@ -99,7 +99,7 @@ class NodeLauncher:
         if not expect_exit:
             # A new server: the session's clients must settle again before their first request.
             if not self.session.wait_new_node(before):
-                raise AssertionError(f"the node was not discovered within 10 s:\n{node.describe()}")
+                raise AssertionError(f"the node was not discovered within {sd.EVENT_S} s:\n{node.describe()}")
         return node
 
     def close(self):
@@ -170,7 +170,7 @@ def latched(ros):
         pub = ros.node.create_publisher(String, "/robot_description", sd.QOS_LATCHED)
         pubs.append(pub)
         if subscribed:
-            assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0), "robot_description not subscribed"
+            assert ros.spin_until(lambda: pub.get_subscription_count() > 0, sd.EVENT_S), "robot_description not subscribed"
         return pub
 
     yield make

@@ -41,6 +41,10 @@ LAMP_URDF = MODELS / "lamp.urdf"
 ARM_JOINTS = [f"joint{i}" for i in range(1, 8)]
 NODE = "/spatial_dynamics"
 REL_TOL = 1e-9
+# Upper bound of every wait for an event (a message, a report, a service, a node): waits end as
+# soon as the event happens, so the bound only matters when it never does. Generous, so that a
+# busy machine (CI shares 2 cores) delays a test instead of failing it.
+EVENT_S = 60.0
 
 # --------------------------------------------------------------------------------------------
 # Locating things
@@ -208,7 +212,7 @@ class Collector:
     def matching(self, predicate=None):
         return [m for m in self.messages if predicate is None or predicate(m)]
 
-    def wait(self, n=1, timeout=5.0, predicate=None):
+    def wait(self, n=1, timeout=EVENT_S, predicate=None):
         """Waits until `n` messages (satisfying `predicate`) have arrived; returns them."""
         ok = self.session.spin_until(lambda: len(self.matching(predicate)) >= n, timeout)
         got = self.matching(predicate)
@@ -219,7 +223,7 @@ class Collector:
             )
         return got[:n] if n else got
 
-    def wait_publisher(self, timeout=10.0):
+    def wait_publisher(self, timeout=EVENT_S):
         if not self.session.spin_until(lambda: self.sub.get_publisher_count() > 0, timeout):
             raise AssertionError(f"no publisher on {self.topic} within {timeout} s")
 
@@ -296,13 +300,13 @@ class RosSession:
         included until their lease runs out)."""
         return {bytes(i.endpoint_gid) for i in self.node.get_publishers_info_by_topic("/rosout")}
 
-    def wait_new_node(self, before, timeout=10.0):
+    def wait_new_node(self, before, timeout=EVENT_S):
         """Waits until a node not in `before` (rosout_writers()) has been discovered."""
         ok = self.spin_until(lambda: bool(self.rosout_writers() - before), timeout)
         self._node_seen = time.monotonic()
         return ok
 
-    def wait_for_service(self, srv_type, name, timeout=10.0):
+    def wait_for_service(self, srv_type, name, timeout=EVENT_S):
         client = self.client(srv_type, name)
         if not self.spin_until(client.service_is_ready, timeout):
             raise AssertionError(f"service {name} not available within {timeout} s")
@@ -325,7 +329,7 @@ class RosSession:
     def collector(self, msg_type, topic, qos=None):
         return Collector(self, msg_type, topic, qos or qos_reliable())
 
-    def publisher(self, msg_type, topic, qos=None, wait=True, timeout=10.0):
+    def publisher(self, msg_type, topic, qos=None, wait=True, timeout=EVENT_S):
         qos = qos or qos_reliable(depth=10)
         key = (msg_type, topic, qos.reliability, qos.durability)
         pub = self._publishers.get(key)
@@ -342,7 +346,7 @@ class RosSession:
                 del self._publishers[key]
         self.node.destroy_publisher(pub)
 
-    def exchange(self, publish, collector, predicate, timeout=8.0, period=0.25):
+    def exchange(self, publish, collector, predicate, timeout=EVENT_S, period=0.25):
         """Publishes (by calling `publish()`) every `period` s until a message satisfying
         `predicate` arrives on `collector`; returns it. For inputs whose first samples may be lost
         while discovery settles (best-effort topics, freshly matched readers)."""

@@ -141,16 +141,17 @@ def test_replayed_bag_is_answered_in_bag_time_like_pinocchio(ros, node, tmp_path
     states, commands = write_input_bag(tmp_path / "input", storage)
     recorder = Recorder(ros, tmp_path / "output", [(GRAVITY, JointState, "sensor_msgs/msg/JointState"),
                                                    (ACCEL, JointDynamics, "spatial_dynamics_msgs/msg/JointDynamics")])
-    ros.spin_until(lambda: all(s.get_publisher_count() > 0 for s in recorder.subs), 10.0)
+    ros.spin_until(lambda: all(s.get_publisher_count() > 0 for s in recorder.subs), sd.EVENT_S)
     player = subprocess.Popen(
         [sys.executable, str(REPO / "launch_scripts" / "play_bag.py"), str(tmp_path / "input"),
          "--clock-topics", "/joint_states", "--wait-for-subscribers", "10", "--delay", "0.5"],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
     )
-    ros.spin_until(lambda: player.poll() is not None, 30.0)
+    ros.spin_until(lambda: player.poll() is not None, 3 * sd.EVENT_S)
     report = player.communicate(timeout=10)[0]
     assert player.returncode == 0, report
-    ros.spin_until(lambda: recorder.count[ACCEL] >= len(states), 1.0)
+    # Every answer, or as many as arrive (joint_states is best effort) within a bound.
+    ros.spin_until(lambda: recorder.count[ACCEL] >= len(states), 10.0)
     recorder.close(ros)
     assert f"/joint_states: {len(states)}" in report, report
 
@@ -235,12 +236,13 @@ def test_player_rate_offset_topics_clock_and_loop(ros, tmp_path):
     # Second half of the bag at twice the speed, joint_states only, /clock at 50 Hz.
     player = play(tmp_path / "bag", "--rate", "2", "--start-offset", "1.0", "--topics", "/joint_states",
                   "--clock", "50", "--wait-for-subscribers", "10", "--delay", "0.3", *remap)
-    ros.spin_until(lambda: player.poll() is not None, 20.0)
+    ros.spin_until(lambda: player.poll() is not None, 3 * sd.EVENT_S)
     report = player.communicate(timeout=5)[0]
-    ros.spin_for(0.2)
+    second_half = [n for n in states if n >= T0 + NS]
+    # Every message, or as many as arrive (best effort) within a bound.
+    ros.spin_until(lambda: len(received) >= len(second_half), 10.0)
     print(report)
     assert player.returncode == 0, report
-    second_half = [n for n in states if n >= T0 + NS]
     assert len(received) >= 0.95 * len(second_half), (len(received), report)
     assert not cmd.messages, "--topics left out the effort commands"
     firsts = [m.header.stamp.sec * NS + m.header.stamp.nanosec + HEADER_LAG for _, m in received]
@@ -258,7 +260,7 @@ def test_player_rate_offset_topics_clock_and_loop(ros, tmp_path):
     player = play(tmp_path / "bag", "--loop", "--rate", "4", "--start-offset", "1.5", "--clock-topics-all",
                   "--wait-for-subscribers", "10", *remap)
     ros.spin_until(lambda: sum(1 for a, b in zip(clock.messages, clock.messages[1:])
-                               if b.clock.sec * NS + b.clock.nanosec < a.clock.sec * NS + a.clock.nanosec) >= 2, 15.0)
+                               if b.clock.sec * NS + b.clock.nanosec < a.clock.sec * NS + a.clock.nanosec) >= 2, sd.EVENT_S)
     player.send_signal(2)
     report = player.communicate(timeout=5)[0]
     assert player.returncode == 0, report

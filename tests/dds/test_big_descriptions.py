@@ -20,7 +20,7 @@ from sd_dds_support import ARM_JOINTS, assert_close
 
 DM = "/spatial_dynamics/describe_model"
 ID = "/spatial_dynamics/inverse_dynamics"
-STATUS = "/spatial_dynamics: dynamics"
+STATUS = "spatial_dynamics: dynamics"
 BIG = 50 << 20
 LINKS = 10_000
 

@@ -255,7 +255,7 @@ def test_base_state_topic_sets_the_base_for_gravity_effort(ros, topic_case):
     got = ros.exchange(
         publish, c["gravity_out"],
         lambda m: any(sd.stamp_eq(m.header.stamp, s) for s in stamps) and _close(m.effort, c["want_g"]),
-        timeout=8.0,
+        timeout=sd.EVENT_S,
     )
     assert list(got.name) == c["names"]
     assert_close(got.effort, c["want_g"], "gravity effort at the base pose")
@@ -275,7 +275,7 @@ def _check_command_drives_joints_only(ros, c, command, send_command):
         publish, c["accel_out"],
         lambda m: any(sd.stamp_eq(m.header.stamp, s) for s in stamps[1:]) and list(m.effort) == want_effort
         and any(sd.stamp_eq(g.header.stamp, m.header.stamp) and _close(g.effort, c["want_g"]) for g in c["gravity_out"].messages),
-        timeout=8.0,
+        timeout=sd.EVENT_S,
     )
     assert list(acc.name) == c["names"]
     assert_close(acc.velocity, c["v"], "velocity echo")

@@ -25,7 +25,7 @@ def describe(ros):
     return r
 
 
-def wait_model(ros, predicate, timeout=8.0):
+def wait_model(ros, predicate, timeout=sd.EVENT_S):
     last = [None]
 
     def check():
@@ -92,11 +92,12 @@ def test_urdf_file_parameter(nodes, ros):
     r = describe(ros)
     assert "lamp" in r.message and str(sd.LAMP_URDF) in r.message
     assert ros.get_parameters(["urdf_file"]) == {"urdf_file": str(sd.LAMP_URDF)}
-    assert list(r.joint_names) == ["base", "hinge1", "hinge2"]
-    assert list(r.joint_types) == ["planar", "revolute", "revolute"]
+    # The planar joint is described by the names requests take: one per coordinate.
+    assert list(r.joint_names) == ["base/x", "base/y", "base/theta", "hinge1", "hinge2"]
+    assert list(r.joint_types) == ["planar"] * 3 + ["revolute"] * 2
     assert (r.nq, r.nv) == (5, 5)
-    assert list(r.position_lower) == [-math.inf, -2.5, -2.5] and list(r.position_upper) == [math.inf, 2.5, 2.5]
-    assert list(r.velocity_limit)[1:] == [10.0, 10.0] and list(r.effort_limit)[1:] == [20.0, 20.0]
+    assert list(r.position_lower) == [-math.inf] * 3 + [-2.5, -2.5] and list(r.position_upper) == [math.inf] * 3 + [2.5, 2.5]
+    assert list(r.velocity_limit)[3:] == [10.0, 10.0] and list(r.effort_limit)[3:] == [20.0, 20.0]
     assert list(r.link_names) == sd.urdf_links(sd.LAMP_URDF)
     assert list(r.fused_links) == ["head"]
 
@@ -107,11 +108,30 @@ def test_describe_joint_without_limit_tag_has_infinite_velocity_and_effort_limit
     (a zero velocity/effort limit would tell a user the joint cannot move)."""
     nodes.start("-p", f"urdf_file:={sd.LAMP_URDF}", label="lamp_limits")
     r = describe(ros)
-    assert r.joint_names[0] == "base"
-    assert (r.position_lower[0], r.position_upper[0]) == (-math.inf, math.inf)
-    assert (r.velocity_limit[0], r.effort_limit[0]) == (math.inf, math.inf), (
-        f"base: velocity_limit {r.velocity_limit[0]}, effort_limit {r.effort_limit[0]}"
-    )
+    assert list(r.joint_names[:3]) == ["base/x", "base/y", "base/theta"]
+    for i in range(3):
+        assert (r.position_lower[i], r.position_upper[i]) == (-math.inf, math.inf)
+        assert (r.velocity_limit[i], r.effort_limit[i]) == (math.inf, math.inf), (
+            f"{r.joint_names[i]}: velocity_limit {r.velocity_limit[i]}, effort_limit {r.effort_limit[i]}"
+        )
+
+
+@pytest.mark.parametrize("urdf", ["lamp", "default_arm", "mimic_gripper"])
+def test_described_joint_names_are_the_names_requests_take(nodes, ros, urdf):
+    """~/describe_model lists exactly the names the services accept: a request naming them all
+    (in reverse order) succeeds and answers for each; the joint's own name of a planar joint is
+    refused (its coordinates are named J/x, J/y, J/theta)."""
+    path = {"lamp": sd.LAMP_URDF, "default_arm": sd.DEFAULT_ARM_URDF, "mimic_gripper": sd.MIMIC_GRIPPER_URDF}[urdf]
+    nodes.start("-p", f"urdf_file:={path}", label=f"names_{urdf}")
+    r = describe(ros)
+    names = list(reversed(r.joint_names))
+    assert len(names) == r.nv, (names, r.nv)
+    resp = ros.call(InverseDynamics, ID, InverseDynamics.Request(name=names, position=[0.1] * len(names)))
+    assert resp.success, resp.message
+    assert list(resp.name) == names
+    if urdf == "lamp":
+        resp = ros.call(InverseDynamics, ID, InverseDynamics.Request(name=["base", "hinge1", "hinge2"], position=[0.0] * 3))
+        assert not resp.success and "base" in resp.message, resp
 
 
 # ---- robot_description topic ------------------------------------------------------------------
@@ -133,7 +153,7 @@ def test_robot_description_topic_after_start_and_reload(nodes, ros, latched):
     r = describe(ros)
     assert "sd_arm7" in r.message and "embedded default" in r.message
     pub = latched()
-    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, sd.EVENT_S)
     pub.publish(String(data=sd.MIMIC_GRIPPER_URDF.read_text()))
     r = wait_model(ros, lambda r: "mimic_gripper" in r.message)
     assert "robot_description topic" in r.message and list(r.joint_names) == ["wrist", "finger_left"]
@@ -148,10 +168,10 @@ def test_parameter_wins_over_the_topic_and_clearing_it_falls_back_to_the_topic(n
     nodes.start("-p", f"urdf_file:={sd.PARTICLE_URDF}", label="precedence")
     diag = ros.collector(DiagnosticArray, "/diagnostics")
     pub = latched()
-    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0, sd.EVENT_S)
     pub.publish(String(data=sd.MIMIC_GRIPPER_URDF.read_text()))
     # The description arrived (counted) but the urdf_file parameter keeps the particle.
-    diag.wait(1, 6.0, lambda m: int((sd.status_values(m, "/spatial_dynamics: dynamics") or {}).get("/robot_description received", 0)) >= 1)
+    diag.wait(1, sd.EVENT_S, lambda m: int((sd.status_values(m, "spatial_dynamics: dynamics") or {}).get("/robot_description received", 0)) >= 1)
     r = describe(ros)
     assert "particle" in r.message and str(sd.PARTICLE_URDF) in r.message
     check_particle(ros)
@@ -191,14 +211,13 @@ def test_params_file_by_node_name_and_wildcard_with_p_overriding(nodes, ros, tmp
 
 @pytest.mark.parametrize(
     "case",
-    ["unknown_method", "bad_gravity", "missing_urdf_file", "unknown_parameter_in_file", "unknown_locked_joint"],
+    ["unknown_method", "bad_gravity", "missing_urdf_file", "unknown_locked_joint"],
 )
 def test_invalid_start_up_configuration_exits_non_zero_with_a_reason(nodes, tmp_path, case):
     args, word = {
         "unknown_method": (["-p", "method:=magic"], "magic"),
         "bad_gravity": (["-p", "gravity:=[1.0, 2.0]"], "gravity"),
         "missing_urdf_file": (["-p", "urdf_file:=/nonexistent/robot.urdf"], "/nonexistent/robot.urdf"),
-        "unknown_parameter_in_file": (["--params-file", write_params(tmp_path / "bad.yaml", "/**:\n  ros__parameters:\n    nonsense: 1\n")], "nonsense"),
         "unknown_locked_joint": (["-p", "locked_joints:=['elbow=0.1']"], "elbow"),
     }[case]
     node = nodes.start(*args, label=case, expect_exit=True)

@@ -31,7 +31,7 @@ def both(module_nodes, ros, workdir):
     return a, b
 
 
-def gravity_roundtrip(ros, ref, in_topic, out_topic, timeout=8.0):
+def gravity_roundtrip(ros, ref, in_topic, out_topic, timeout=sd.EVENT_S):
     out = ros.collector(JointState, out_topic)
     out.wait_publisher()
     pub = ros.publisher(JointState, in_topic, sd.qos_reliable(10))
@@ -87,11 +87,11 @@ def test_remapped_input_and_output(both, ros, ref):
     accel = ros.collector(JointDynamics, "/dyn2/acceleration")
     accel.wait_publisher()
     got = gravity_roundtrip(ros, ref, "/arm/joint_states", "/arm/gravity")
-    accel.wait(1, 3.0, lambda m: sd.stamp_eq(m.header.stamp, got.header.stamp))
+    accel.wait(1, sd.EVENT_S, lambda m: sd.stamp_eq(m.header.stamp, got.header.stamp))
     # dyn2 does not listen on /joint_states: its counters only know /arm/joint_states.
     diag = ros.collector(DiagnosticArray, "/diagnostics")
-    report = diag.wait(1, 5.0, lambda m: sd.status_values(m, "/dyn2: dynamics") is not None)[0]
-    values = sd.status_values(report, "/dyn2: dynamics")
+    report = diag.wait(1, sd.EVENT_S, lambda m: sd.status_values(m, "dyn2: dynamics") is not None)[0]
+    values = sd.status_values(report, "dyn2: dynamics")
     assert int(values["/arm/joint_states received"]) >= 2
     assert not any(k.startswith("/joint_states") for k in values), values
     assert "/arm/gravity published" in values
@@ -124,7 +124,7 @@ def test_robot_description_topic_under_the_namespace(both, ros):
             r = ros.call(DescribeModel, "/robot1/spatial_dynamics/describe_model", DescribeModel.Request())
             return "particle" in r.message
 
-        assert ros.spin_until(loaded, 8.0)
+        assert ros.spin_until(loaded, sd.EVENT_S)
         r = ros.call(DescribeModel, "/dyn2/describe_model", DescribeModel.Request())
         assert "sd_arm7" in r.message, "dyn2 listens on /robot_description, not /robot1/robot_description"
     finally:

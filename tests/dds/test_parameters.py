@@ -82,7 +82,7 @@ def set_ok(ros, name, value):
     assert result.successful, f"set {name}={value!r} refused: {result.reason}"
 
 
-def wait_model(ros, predicate, timeout=5.0):
+def wait_model(ros, predicate, timeout=sd.EVENT_S):
     """Parameter changes take effect in the node's loop: poll DescribeModel briefly."""
     last = [None]
 

@@ -105,7 +105,7 @@ def test_another_client_is_served_while_one_floods_bad_requests(arm, ros, other,
         q = [float(x) for x in rng.uniform(-1, 1, 7)]
         id_good(other, ref, q)  # B, while A's requests are queued at the node
         good += 1
-        ros.spin_until(lambda: all(f.done() for f in pending), 10.0)
+        ros.spin_until(lambda: all(f.done() for f in pending), sd.EVENT_S)
         for future in pending:
             assert future.done(), "a bad request went unanswered"
             resp = future.result()

@@ -67,7 +67,7 @@ def test_a_free_body_falls_and_spins_as_the_closed_form_says(nodes, ros, tmp_pat
     states.wait_publisher()
     for _ in range(steps):
         assert ros.call(Trigger, f"{NODE}/step", Trigger.Request()).success
-    last = states.wait(n=steps, timeout=10)[-1]
+    last = states.wait(n=steps, timeout=sd.EVENT_S)[-1]
     t = steps * DT
     assert last.header.frame_id == "world" and last.child_frame_id == "box"
     p, o = last.pose.pose.position, last.pose.pose.orientation
@@ -85,13 +85,13 @@ def test_the_box_rests_on_the_ground_at_the_static_penetration(nodes, ros, tmp_p
     start(nodes, ros, tmp_path, "ground", f"    ground_contacts: {contacts}\n    ground_stiffness: {K}\n")
     states = ros.collector(Odometry, f"{NODE}/base_state", sd.qos_best_effort())
     # Dropped at z = 0 (touching): after 1.5 simulated s the damped springs have settled.
-    last = states.wait(timeout=15, predicate=lambda m: seconds(m.header.stamp) > 1.5)[-1]
+    last = states.wait(timeout=sd.EVENT_S, predicate=lambda m: seconds(m.header.stamp) > 1.5)[-1]
     sink = MASS * G / (4 * K)
     p = last.pose.pose.position
     assert p.z == pytest.approx(-sink, rel=0.02), (p.z, -sink)
     assert abs(p.x) < 1e-6 and abs(p.y) < 1e-6
     diagnostics = ros.collector(DiagnosticArray, "/diagnostics")
-    array = diagnostics.wait(n=2, timeout=5)[-1]
+    array = diagnostics.wait(n=2, timeout=sd.EVENT_S)[-1]
     values = {kv.key: kv.value for status in array.status for kv in status.values}
     assert float(values["deepest ground penetration (m)"]) >= sink * 0.98, values
 

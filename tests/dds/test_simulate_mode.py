@@ -56,8 +56,8 @@ def offline(tmp_path):
 def test_runs_in_real_time_with_clock(ros, sim):
     states = ros.collector(JointState, "/joint_states", sd.qos_best_effort())
     clocks = ros.collector(Clock, "/clock", sd.qos_best_effort())
-    states.wait(n=20, timeout=10)
-    clocks.wait(n=20, timeout=10)
+    states.wait(n=20, timeout=sd.EVENT_S)
+    clocks.wait(n=20, timeout=sd.EVENT_S)
     stamps = [m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in states.messages]
     steps = np.diff(stamps)
     # publish_rate 50 Hz with real_time_factor 1: the simulated time advances 20 ms per message.
@@ -66,7 +66,7 @@ def test_runs_in_real_time_with_clock(ros, sim):
     assert all(np.isfinite(m.position).all() and np.isfinite(m.velocity).all() for m in states.messages)
     # /diagnostics reports the simulation: time, real-time factor (about 1 here), clamps.
     diagnostics = ros.collector(DiagnosticArray, "/diagnostics")
-    array = diagnostics.wait(n=2, timeout=5)[-1]
+    array = diagnostics.wait(n=2, timeout=sd.EVENT_S)[-1]
     values = {kv.key: kv.value for status in array.status for kv in status.values}
     assert float(values["simulated time (s)"]) > 0
     assert 0.5 < float(values["real-time factor"]) < 1.5, values
@@ -82,12 +82,12 @@ def test_commands_drive_the_arm_like_the_offline_simulator(ros, sim, tmp_path):
         # it (the first samples of a fresh writer can be lost while discovery settles).
         commands = ros.publisher(Float64MultiArray, f"{NODE}/commands")
         diagnostics = ros.collector(DiagnosticArray, "/diagnostics")
-        ros.exchange(lambda: commands.publish(Float64MultiArray(data=EFFORT)), diagnostics, commands_counted, timeout=10, period=0.3)
+        ros.exchange(lambda: commands.publish(Float64MultiArray(data=EFFORT)), diagnostics, commands_counted, timeout=sd.EVENT_S, period=0.3)
         states = ros.collector(JointState, "/joint_states", sd.qos_reliable())
         for _ in range(STEPS):
             answer = ros.call(Trigger, f"{NODE}/step", Trigger.Request())
             assert answer.success, answer.message
-        last = states.wait(n=STEPS, timeout=10)[-1]
+        last = states.wait(n=STEPS, timeout=sd.EVENT_S)[-1]
         assert list(last.effort) == EFFORT, "the command in force is echoed as effort"
         q, v = offline(tmp_path)
         np.testing.assert_allclose(last.position, q, rtol=0, atol=1e-9)

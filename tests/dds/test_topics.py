@@ -51,7 +51,7 @@ def joint_state(names, q, v=(), frame_id="base"):
     return msg
 
 
-def send_until_answered(ros, io, make_msg, output, extra=None, timeout=8.0, accept=None, pub="js"):
+def send_until_answered(ros, io, make_msg, output, extra=None, timeout=sd.EVENT_S, accept=None, pub="js"):
     """Publishes make_msg() (a fresh stamp each time) until `output` answers one of them (and
     `accept(answer)` holds); returns (input message, answer)."""
     sent = []
@@ -125,7 +125,7 @@ def _accel_check(ros, io, ref, names, q, v, command_by_name, send_command):
     want = ref.pick(ref.aba(ref.q(names, q), ref.v(names, v), tau), names)
     assert_close(got.acceleration, want, "acceleration")
     # The gravity effort of the same message was published too, with the same stamp.
-    g = io["gravity"].wait(1, timeout=3.0, predicate=lambda m: sd.stamp_eq(m.header.stamp, sent.header.stamp))[0]
+    g = io["gravity"].wait(1, timeout=sd.EVENT_S, predicate=lambda m: sd.stamp_eq(m.header.stamp, sent.header.stamp))[0]
     assert_close(g.effort, ref.pick(ref.gravity(ref.q(names, q)), names), "gravity effort")
 
 
@@ -180,18 +180,18 @@ def test_reference_gives_feedforward_effort_and_commands(ros, io, ref, with_rate
     assert_close(got.effort, ref.pick(tau, names), "feedforward effort")
     # ~/feedforward_commands: the same efforts in command_joints order (default: model order).
     want = ref.pick(tau, ARM_JOINTS)
-    ffc = io["ffc"].wait(1, timeout=3.0, predicate=lambda m: len(m.data) == 7 and np.allclose(m.data, want, rtol=0, atol=1e-6))[0]
+    ffc = io["ffc"].wait(1, timeout=sd.EVENT_S, predicate=lambda m: len(m.data) == 7 and np.allclose(m.data, want, rtol=0, atol=1e-6))[0]
     assert_close(ffc.data, want, "feedforward commands")
     assert [d.size for d in ffc.layout.dim] == [7]
 
 
 def test_diagnostics_count_inputs_outputs_and_compute_time(ros, io):
-    status_name = "/spatial_dynamics: dynamics"
+    status_name = "spatial_dynamics: dynamics"
     # Two more joint states, then a report that includes them.
     for _ in range(2):
         send_until_answered(ros, io, lambda: joint_state(ARM_JOINTS, [0.0] * 7), "gravity")
     io["diag"].clear()
-    report = io["diag"].wait(1, timeout=5.0, predicate=lambda m: sd.status_values(m, status_name) is not None)[0]
+    report = io["diag"].wait(1, timeout=sd.EVENT_S, predicate=lambda m: sd.status_values(m, status_name) is not None)[0]
     values = sd.status_values(report, status_name)
     status = next(s for s in report.status if s.name == status_name)
     assert sd.level(status) == 0 and status.message == "ok", status

@@ -305,21 +305,18 @@ impl Engine {
             method: self.method.name().into(),
             ..Default::default()
         };
-        let base = self.map.base().map(|(q, _)| q);
-        for joint in self
-            .model
-            .coordinate_joints()
-            .filter(|j| Some(j.q_index) != base)
-        {
-            let limits = &self
+        // The names requests take (a planar joint J as J/x, J/y, J/theta), each with the type
+        // and limits of the joint it belongs to.
+        for (index, name) in self.map.names().iter().enumerate() {
+            let (q, _) = self.map.slot(index);
+            let joint = self
                 .model
-                .bodies
-                .iter()
-                .find(|b| b.joint.name == joint.name)
-                .expect("a coordinate joint has a body")
-                .joint
-                .limits;
-            r.joint_names.push(joint.name.to_string());
+                .joint_of_q(q)
+                .and_then(|(joint, _)| self.model.bodies.iter().find(|b| b.joint.name == joint))
+                .map(|b| &b.joint)
+                .expect("a named coordinate belongs to a joint");
+            let limits = &joint.limits;
+            r.joint_names.push(name.clone());
             r.joint_types.push(joint.kind.type_name().to_string());
             r.position_lower.push(limits.lower);
             r.position_upper.push(limits.upper);

@@ -1,0 +1,111 @@
+//! What `describe_parameters` says of each parameter: a description, its constraints in words,
+//! a numeric range where the value is one number, and whether it is read-only (see
+//! [`super::params`] for the values and their checks; the ranges here are the ones those checks
+//! enforce).
+
+use super::params::START_PARAMETERS;
+use ros2_client::parameters::{NumericRange, ParameterDescriptor};
+use ros2_client::ParameterValue;
+
+/// A range `[from, to]` of doubles (rcl_interfaces/FloatingPointRange: inclusive, step 0 = any).
+const fn doubles(from: f64, to: f64) -> Option<(f64, f64)> {
+    Some((from, to))
+}
+
+/// Seconds ≥ 0.
+const SECONDS: Option<(f64, f64)> = doubles(0.0, f64::MAX);
+/// A positive number (the smallest positive double is the inclusive bound of "> 0").
+const POSITIVE: Option<(f64, f64)> = doubles(f64::MIN_POSITIVE, f64::MAX);
+
+/// `(description, additional constraints, range)` of parameter `name`.
+fn text(name: &str) -> (&'static str, &'static str, Option<(f64, f64)>) {
+    match name {
+        "robot_description" => ("URDF text of the robot. When set it wins over urdf_file and over the robot_description topic.", "URDF XML; a value that does not give a usable model is refused", None),
+        "urdf_file" => ("Path of a URDF file, used when robot_description is empty (it wins over the robot_description topic).", "a readable URDF file; a value that does not give a usable model is refused", None),
+        "floating_base" => ("Add a floating (free 6-DoF) joint between the world and the root link, for legged robots and humanoids.", "", None),
+        "ignore_mimic" => ("Treat <mimic> joints as independent joints instead of followers of their leader.", "", None),
+        "locked_joints" => ("Joints held at a fixed position and fused into their parent body, as NAME=POSITION (rad or m).", "each entry NAME=POSITION naming a joint of the model", None),
+        "root_link" => ("Keep only the subtree of this link, which becomes the fixed base; empty: the URDF's root.", "a link of the URDF or empty", None),
+        "tip_links" => ("Keep only the joints from the root to these links; bodies beyond a tip are lumped onto it.", "links of the URDF", None),
+        "prune_massless" => ("Remove moving joints whose whole subtree has no mass.", "", None),
+        "gravity" => ("Gravity acceleration in the world frame [x, y, z], m/s^2.", "three finite numbers", None),
+        "method" => ("Forward-dynamics method: aba, crba, rnea_columns, or auto (the fastest one that agrees with aba to 1e-10 on this model, measured when the model loads).", "one of auto, aba, crba, rnea_columns", None),
+        "command_joints" => ("Order of the joints in ~/commands and ~/feedforward_commands; empty: every joint in model order.", "coordinate names of the model (a planar joint J as J/x, J/y, J/theta)", None),
+        "use_sim_time" => ("The node's clock is ROS simulated time: the latest /clock (in simulate mode, its own simulated time); outputs are stamped with it.", "", None),
+        "max_stamp_age" => ("Drop a joint_states message stamped more than this before the node's clock, s; 0: no limit.", "seconds >= 0", SECONDS),
+        "future_stamp_tolerance" => ("Drop a joint_states message stamped more than this after the node's clock, s; 0: no limit.", "seconds >= 0", SECONDS),
+        "mode" => ("serve: the dynamics of the measured state (joint_states in, efforts and accelerations out); simulate: the node owns the state, integrates it and publishes joint_states.", "serve or simulate", None),
+        "publish_rate" => ("Simulate mode: joint_states messages per second, Hz.", "> 0", POSITIVE),
+        "sim_dt" => ("Simulate mode: integration step, s.", "> 0", POSITIVE),
+        "integrator" => ("Simulate mode: explicit_euler, semi_implicit_euler, rk4 or implicit_euler.", "one of explicit_euler, semi_implicit_euler, rk4, implicit_euler", None),
+        "real_time_factor" => ("Simulate mode: simulated seconds per wall-clock second.", "> 0", POSITIVE),
+        "publish_clock" => ("Simulate mode: publish the simulated time on /clock.", "", None),
+        "command_timeout" => ("Simulate mode: an effort command older than this (wall-clock s) drops to zero effort; 0: never.", "seconds >= 0", SECONDS),
+        "passive" => ("Simulate mode: the URDF's passive forces applied: damping, friction, effort_limits, position_limits (or all, none).", "names from damping, friction, effort_limits, position_limits, all, none", None),
+        "initial_positions" => ("Simulate mode: the state at start and on reset, as NAME=POSITION (rad or m); other joints start at zero.", "each entry NAME=POSITION naming a joint of the model", None),
+        "ground_contacts" => ("Simulate mode: points LINK:X,Y,Z (link frame, m) that touch a ground plane; empty: no ground.", "each entry LINK:X,Y,Z naming a link of the model", None),
+        "ground_height" => ("Simulate mode: the ground plane is z = ground_height in the world frame, m.", "finite", doubles(-f64::MAX, f64::MAX)),
+        "ground_stiffness" => ("Simulate mode: contact stiffness per point, N/m.", "> 0", POSITIVE),
+        "ground_damping" => ("Simulate mode: contact damping per point, N*s/m.", ">= 0", doubles(0.0, f64::MAX)),
+        "ground_friction" => ("Simulate mode: Coulomb friction coefficient of the contacts.", ">= 0", doubles(0.0, f64::MAX)),
+        _ => ("", "", None),
+    }
+}
+
+/// The descriptor of parameter `name` holding `value` (its type is the value's).
+pub fn descriptor(name: &str, value: &ParameterValue) -> ParameterDescriptor {
+    let (description, constraints, range) = text(name);
+    let read_only = START_PARAMETERS.contains(&name);
+    let mut additional_constraints = constraints.to_string();
+    if read_only {
+        if !additional_constraints.is_empty() {
+            additional_constraints += "; ";
+        }
+        additional_constraints += "read-only: read when the simulation is built";
+    }
+    ParameterDescriptor {
+        description: description.to_string(),
+        additional_constraints,
+        read_only,
+        range: range.map_or(NumericRange::NotSpecified, |(from_value, to_value)| {
+            NumericRange::FloatingPointRange {
+                from_value,
+                to_value,
+                step: 0.0,
+            }
+        }),
+        ..ParameterDescriptor::from_value(name, value)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::node::params::{Settings, NAMES};
+
+    #[test]
+    fn every_parameter_is_described_and_ranges_hold_the_defaults() {
+        let settings = Settings::default();
+        for name in NAMES {
+            let value = settings.get(name).expect("every parameter has a value");
+            let d = descriptor(name, &value);
+            assert!(!d.description.is_empty(), "{name} has no description");
+            if let NumericRange::FloatingPointRange {
+                from_value,
+                to_value,
+                ..
+            } = d.range
+            {
+                let ParameterValue::Double(x) = value else {
+                    panic!("{name}: a range on a parameter that is not a double");
+                };
+                assert!(
+                    from_value <= x && x <= to_value,
+                    "{name} = {x} out of its range"
+                );
+            }
+        }
+        assert!(descriptor("mode", &ParameterValue::String("serve".into())).read_only);
+        assert!(!descriptor("publish_clock", &ParameterValue::Boolean(false)).read_only);
+    }
+}
