@@ -436,3 +436,47 @@ fn open_directory(dir: &Path) -> Result<(Storage, Vec<PathBuf>, Vec<TopicInfo>),
     }
     Ok((storage, files, metadata_topics))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn old_type_names_gain_their_msg() {
+        assert_eq!(
+            ros2_type_name("sensor_msgs/JointState"),
+            "sensor_msgs/msg/JointState"
+        );
+        assert_eq!(
+            ros2_type_name("sensor_msgs/msg/JointState"),
+            "sensor_msgs/msg/JointState"
+        );
+        assert_eq!(ros2_type_name("JointState"), "JointState");
+        assert_eq!(ros2_type_name("/x"), "/x");
+        let wanted = [Wanted {
+            topic: "/j",
+            type_name: "sensor_msgs/msg/JointState",
+        }];
+        assert_eq!(
+            match_topic(&wanted, "/j", "sensor_msgs/JointState", "cdr"),
+            Ok(Some(0))
+        );
+        assert!(match_topic(&wanted, "/j", "std_msgs/String", "cdr").is_err());
+    }
+
+    #[test]
+    fn split_files_are_ordered_by_their_index() {
+        let mut files: Vec<PathBuf> = ["b_10.db3", "b_2.db3", "b_0.db3.zstd", "b_1.db3"]
+            .iter()
+            .map(PathBuf::from)
+            .collect();
+        files.sort_by_key(|p| split_index(p));
+        let names: Vec<_> = files.iter().map(|p| p.to_str().unwrap()).collect();
+        assert_eq!(names, ["b_0.db3.zstd", "b_1.db3", "b_2.db3", "b_10.db3"]);
+        assert_eq!(
+            storage_of_name(Path::new("x.mcap.zstd")),
+            Some(Storage::Mcap)
+        );
+        assert_eq!(storage_of_name(Path::new("x.yaml")), None);
+    }
+}

@@ -178,3 +178,73 @@ pub fn read(path: &Path, wanted: &[Wanted<'_>], visit: &mut Visitor<'_>) -> Resu
     }
     Ok(continued)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A rosbag2-shaped database in WAL mode (as a live recorder leaves it), with a Dashing-era
+    /// type name, and a topic whose name is not UTF-8.
+    #[test]
+    fn databases_are_read_in_place_and_bad_text_is_named() {
+        let dir = std::env::temp_dir().join(format!("sd_sqlite_test_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("bag_0.db3");
+        {
+            let db = Connection::open(&path).unwrap();
+            db.execute_batch(
+                "PRAGMA journal_mode=WAL;
+                 CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+                     serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+                 CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
+                     timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+                 INSERT INTO topics VALUES (1, '/s', 'std_msgs/String', 'cdr', '');
+                 INSERT INTO messages VALUES (1, 1, 20, X'000100000300000068690000');
+                 INSERT INTO messages VALUES (2, 1, 10, X'000100000300000061620000');
+                 PRAGMA wal_checkpoint(TRUNCATE);",
+            )
+            .unwrap();
+        }
+        for extra in ["-wal", "-shm"] {
+            let _ = std::fs::remove_file(dir.join(format!("bag_0.db3{extra}")));
+        }
+        let listing = || {
+            let mut names: Vec<_> = std::fs::read_dir(&dir)
+                .unwrap()
+                .map(|e| e.unwrap().file_name())
+                .collect();
+            names.sort();
+            names
+        };
+        let before = listing();
+        let wanted = [Wanted {
+            topic: "/s",
+            type_name: "std_msgs/msg/String",
+        }];
+        let mut got = Vec::new();
+        read(&path, &wanted, &mut |m| {
+            got.push((
+                m.log_time,
+                crate::bag::cdr::parse_string(m.data)?.to_string(),
+            ));
+            Ok(Flow::Continue)
+        })
+        .unwrap();
+        assert_eq!(got, [(10, "ab".to_string()), (20, "hi".to_string())]);
+        assert_eq!(listing(), before, "nothing created beside the database");
+
+        let db = Connection::open(&path).unwrap();
+        db.execute_batch(
+            "PRAGMA journal_mode=DELETE;
+             INSERT INTO topics VALUES (7, CAST(X'2fff41' AS TEXT), 'std_msgs/msg/String', 'cdr', '');",
+        )
+        .unwrap();
+        drop(db);
+        let err = topics(&path).unwrap_err();
+        assert!(
+            err.contains("table topics, column name, row with id 7") && err.contains("UTF-8"),
+            "{err}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
