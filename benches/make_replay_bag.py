@@ -10,6 +10,7 @@ Messages are packed into a CDR template made once by rosbags (only stamps and nu
 so writing a million takes seconds, not minutes.
 
 Usage: .venv/bin/python benches/make_replay_bag.py --out DIR [--messages N] [--storage mcap|sqlite3] [--zstd]
+           [--zstd-mode file|message]
 """
 
 import argparse
@@ -51,6 +52,11 @@ def main():
     ap.add_argument("--messages", type=int, default=1_000_000, help="joint states (default 1e6)")
     ap.add_argument("--storage", choices=["mcap", "sqlite3"], default="mcap")
     ap.add_argument("--zstd", action="store_true", help="zstd-compressed MCAP chunks (as rosbag2's presets write)")
+    ap.add_argument(
+        "--zstd-mode",
+        choices=["file", "message"],
+        help="rosbag2's zstd compression mode: each storage file, or each message (either storage)",
+    )
     args = ap.parse_args()
 
     if args.out.exists():
@@ -76,6 +82,10 @@ def main():
         if args.storage != "mcap":
             ap.error("--zstd is for MCAP chunks")
         writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+    if args.zstd_mode:
+        if args.zstd:
+            ap.error("--zstd and --zstd-mode are one compression each")
+        writer.set_compression(CompressionMode[args.zstd_mode.upper()], CompressionFormat.ZSTD)
     with writer:
         c_desc = writer.add_connection("/robot_description", "std_msgs/msg/String", typestore=TS)
         c_js = writer.add_connection("/joint_states", JS, typestore=TS)

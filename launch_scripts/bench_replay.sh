@@ -7,7 +7,8 @@
 #
 # Usage: launch_scripts/bench_replay.sh
 #   Environment: MESSAGES (1000000) joint states; STORAGE (mcap) or sqlite3; ZSTD_IN (1): the
-#   input MCAP has zstd chunks; COMPRESSION (zstd) of the output; ZSTD_LEVEL (replay's default)
+#   input MCAP has zstd chunks; ZSTD_MODE (none) file or message: rosbag2's zstd compression of
+#   the input (whole storage files, or each message; implies ZSTD_IN=0); COMPRESSION (zstd) of the output; ZSTD_LEVEL (replay's default)
 #   of the output; REPEATS (3, the best is kept);
 #   SKIP_BUILD=1 uses target/release/spatial_dynamics as it is; BIN=PATH measures another
 #   binary (e.g. an older build, for a before/after comparison); KEEP=1 keeps the bags in
@@ -19,7 +20,9 @@ repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$repo"
 messages="${MESSAGES:-1000000}"
 storage="${STORAGE:-mcap}"
+zstd_mode="${ZSTD_MODE:-}"
 zstd_in="${ZSTD_IN:-1}"
+[[ -n "$zstd_mode" ]] && zstd_in=0
 compression="${COMPRESSION:-zstd}"
 level_flags=()
 [[ -n "${ZSTD_LEVEL:-}" ]] && level_flags=(--zstd-level="$ZSTD_LEVEL")
@@ -37,11 +40,14 @@ fi
 command -v taskset >/dev/null || { echo "bench_replay.sh: taskset (util-linux) is needed" >&2; exit 1; }
 
 mkdir -p "$work"
-bag="$work/bag_${storage}_${messages}$([[ "$storage" == mcap && "$zstd_in" == 1 ]] && echo _zstd)"
+chunks=""
+if [[ "$storage" == mcap && "$zstd_in" == 1 ]]; then chunks=_zstd; fi
+bag="$work/bag_${storage}_${messages}${chunks}${zstd_mode:+_zstd_$zstd_mode}"
 if [[ ! -f "$bag/metadata.yaml" ]]; then
     log "writing $bag"
     flags=()
     [[ "$storage" == mcap && "$zstd_in" == 1 ]] && flags+=(--zstd)
+    [[ -n "$zstd_mode" ]] && flags+=(--zstd-mode "$zstd_mode")
     "$repo/.venv/bin/python" "$repo/benches/make_replay_bag.py" --out "$bag" --messages "$messages" \
         --storage "$storage" "${flags[@]}" >&2
 fi
@@ -72,6 +78,6 @@ echo "|---|---:|---:|"
 echo "| 1 core, --jobs 1 | $one | $one_cpu |"
 echo "| $cores cores, --jobs $cores | $all | $all_cpu |"
 echo
-echo "input: $messages joint states, $storage$([[ "$storage" == mcap && "$zstd_in" == 1 ]] && echo ' (zstd chunks)'), $size_in; output ($compression${ZSTD_LEVEL:+ level $ZSTD_LEVEL}): $size_out, 3 messages per joint state"
+echo "input: $messages joint states, $storage${chunks:+ (zstd chunks)}${zstd_mode:+ (zstd $zstd_mode mode)}, $size_in; output ($compression${ZSTD_LEVEL:+ level $ZSTD_LEVEL}): $size_out, 3 messages per joint state"
 echo "load average while measuring: $(cut -d' ' -f1-3 /proc/loadavg) (other work on the machine lowers the wall-clock rates, less the CPU-second ones)"
 if [[ "${KEEP:-0}" != 1 ]]; then rm -f "$work/out.mcap"; fi

@@ -25,13 +25,13 @@ if [[ "${SD_FUZZ_SECONDS:-60}" != "0" ]]; then
     fi
     fuzz_corpus="$(mktemp -d)"
     trap 'rm -rf "$fuzz_corpus"' EXIT
-    for target in urdf_model eval_request node_engine; do
+    for target in urdf_model eval_request node_engine bag_readers; do
         mkdir -p "$fuzz_corpus/$target"
         cp tests/fuzz/corpus/"$target"/* "$fuzz_corpus/$target/"
     done
     cp config/models/*.urdf tests/models/*.urdf "$fuzz_corpus/urdf_model/"
     cargo fuzz build --fuzz-dir tests/fuzz -s none
-    for target in urdf_model eval_request node_engine; do
+    for target in urdf_model eval_request node_engine bag_readers; do
         if ! cargo fuzz run --fuzz-dir tests/fuzz -s none "$target" "$fuzz_corpus/$target" -- \
             -max_total_time="${SD_FUZZ_SECONDS:-60}" -timeout=20 -rss_limit_mb=4096 -print_final_stats=1 \
             >"$fuzz_corpus/$target.log" 2>&1; then

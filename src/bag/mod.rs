@@ -1,21 +1,32 @@
 //! rosbag2 bags on disk, read and written without ROS or DDS.
 //!
-//! A bag is a rosbag2 directory (`metadata.yaml` naming its storage files) or one storage file:
-//! MCAP (`.mcap`, chunks uncompressed, zstd or lz4) or sqlite3 (`.db3`). Messages come out in
-//! storage order (MCAP: file order; sqlite3: by log time, then by insertion, as `ros2 bag play`
-//! reads them), as CDR bytes borrowed for the duration of one call, so reading allocates nothing
-//! per message. Output is an MCAP file with the ROS 2 profile ([`McapWriter`]).
+//! A bag is a rosbag2 directory (`metadata.yaml` naming its storage files; without one, the
+//! storage files found in it, in split order) or one storage file: MCAP (`.mcap`, chunks
+//! uncompressed, zstd or lz4) or sqlite3 (`.db3`). rosbag2's zstd compression is undone on the
+//! way: `file` mode (`.mcap.zstd`, `.db3.zstd`) and `message` mode (each message a zstd frame).
+//! Messages come out in storage order (MCAP: file order; sqlite3: by log time, then by
+//! insertion, as `ros2 bag play` reads them), as CDR bytes borrowed for the duration of one
+//! call, so reading allocates nothing per message. Output is an MCAP file with the ROS 2 profile
+//! ([`McapWriter`]).
+//!
+//! Bad input is an error naming the file and the byte offset, record or row, never a panic; an
+//! MCAP file cut short (a killed recorder) gives every complete message before the cut, with a
+//! warning. Nothing is written beside the bag.
 //!
 //! Kept apart from the dynamics: this module knows topics, bytes and time stamps only.
 
 pub mod cdr;
-mod mcap_file;
+mod compression;
+mod mcap_reader;
+mod mcap_writer;
 pub mod msgdefs;
 mod sqlite_file;
 
-pub use mcap_file::{ChunkBuilder, Compression, FinishedChunk, McapWriter};
-use std::collections::HashMap;
+use compression::TempCopy;
+pub use mcap_writer::{ChunkBuilder, Compression, FinishedChunk, McapWriter};
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// The storage format of a bag.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -67,73 +78,133 @@ pub type Visitor<'v> = dyn FnMut(RawMessage<'_>) -> Result<Flow, String> + 'v;
 #[derive(Clone, Debug)]
 pub struct Bag {
     pub storage: Storage,
-    /// Storage files, in order.
+    /// Storage files, in order (as given: `.zstd` ones still compressed).
     pub files: Vec<PathBuf>,
-    /// Message counts by topic from `metadata.yaml`, if there was one.
-    metadata_counts: HashMap<String, u64>,
+    /// Decompressed copies of `file`-mode compressed sqlite3 files, by index in `files`.
+    copies: Vec<Option<Arc<TempCopy>>>,
+    /// Topics (with counts) from `metadata.yaml`, if there was one.
+    metadata_topics: Vec<TopicInfo>,
 }
 
 impl Bag {
-    /// Opens a bag directory (with `metadata.yaml`) or a single `.mcap` or `.db3` file.
+    /// Opens a bag directory (with or without `metadata.yaml`) or a single storage file.
     pub fn open(path: &Path) -> Result<Bag, String> {
-        if path.is_dir() {
-            return open_directory(path);
-        }
-        let storage = sniff(path)?;
+        let (storage, files, metadata_topics) = if path.is_dir() {
+            open_directory(path)?
+        } else {
+            (sniff(path)?, vec![path.to_path_buf()], Vec::new())
+        };
+        let copies = files
+            .iter()
+            .map(|file| {
+                if storage == Storage::Sqlite3 && compression::is_zstd_file(file) {
+                    compression::decompress_to_temp(file).map(|c| Some(Arc::new(c)))
+                } else {
+                    Ok(None)
+                }
+            })
+            .collect::<Result<_, _>>()?;
         Ok(Bag {
             storage,
-            files: vec![path.to_path_buf()],
-            metadata_counts: HashMap::new(),
+            files,
+            copies,
+            metadata_topics,
         })
     }
 
-    /// The topics of the bag with their types (and counts when known). `None` when the bag does
-    /// not list them up front (an MCAP file without a summary, e.g. from an interrupted recording).
+    /// The topics of the bag with their types (`pkg/msg/Type`) and counts when known. `None`
+    /// when neither the storage files nor `metadata.yaml` list them up front (an MCAP file
+    /// without a summary, e.g. from an interrupted recording).
     pub fn topics(&self) -> Result<Option<Vec<TopicInfo>>, String> {
         let mut all: Vec<TopicInfo> = Vec::new();
-        for file in &self.files {
+        let mut listed = true;
+        for (k, file) in self.files.iter().enumerate() {
             let topics = match self.storage {
-                Storage::Mcap => match mcap_file::topics(file)? {
-                    Some(t) => t,
-                    None => return Ok(None),
-                },
-                Storage::Sqlite3 => sqlite_file::topics(file)?,
+                Storage::Mcap => mcap_reader::topics(file),
+                Storage::Sqlite3 => sqlite_file::topics(self.local(k)).map(Some),
+            }
+            .map_err(|e| format!("{}: {e}", file.display()))?;
+            let Some(topics) = topics else {
+                listed = false;
+                break;
             };
             for t in topics {
                 match all.iter_mut().find(|a| a.name == t.name) {
-                    Some(a) => {
-                        a.count = match (a.count, t.count) {
-                            (Some(x), Some(y)) => Some(x + y),
-                            _ => None,
-                        }
-                    }
+                    Some(a) => a.count = a.count.zip(t.count).map(|(x, y)| x + y),
                     None => all.push(t),
                 }
             }
         }
-        for t in &mut all {
-            if let Some(&n) = self.metadata_counts.get(&t.name) {
-                t.count = Some(n);
+        if !listed {
+            if self.metadata_topics.is_empty() {
+                return Ok(None);
             }
+            all = self.metadata_topics.clone();
+        }
+        for t in &mut all {
+            if let Some(m) = self.metadata_topics.iter().find(|m| m.name == t.name) {
+                t.count = m.count.or(t.count);
+            }
+            t.type_name = ros2_type_name(&t.type_name).into_owned();
         }
         Ok(Some(all))
     }
 
     /// Calls `visit` for every message on a `wanted` topic, in storage order, until it returns
     /// [`Flow::Stop`] or an error. A wanted topic recorded with another type, or not as CDR, is
-    /// an error naming both types.
+    /// an error naming both types. A file cut short gives its complete messages and a warning on
+    /// standard error (see [`Bag::read_noting`]).
     pub fn read(&self, wanted: &[Wanted<'_>], visit: &mut Visitor<'_>) -> Result<(), String> {
-        for file in &self.files {
-            let flow = match self.storage {
-                Storage::Mcap => mcap_file::read(file, wanted, visit),
-                Storage::Sqlite3 => sqlite_file::read(file, wanted, visit),
+        let mut notes = Vec::new();
+        let result = self.read_noting(wanted, visit, &mut notes);
+        for note in notes {
+            warn(&note);
+        }
+        result
+    }
+
+    /// [`Bag::read`], the warnings (a file cut short: which, where, the last log time reached)
+    /// pushed to `notes` instead of printed.
+    pub fn read_noting(
+        &self,
+        wanted: &[Wanted<'_>],
+        visit: &mut Visitor<'_>,
+        notes: &mut Vec<String>,
+    ) -> Result<(), String> {
+        for (k, file) in self.files.iter().enumerate() {
+            let ended = match self.storage {
+                Storage::Mcap => mcap_reader::read(file, wanted, visit),
+                Storage::Sqlite3 => sqlite_file::read(self.local(k), wanted, visit),
             }
             .map_err(|e| format!("{}: {e}", file.display()))?;
-            if flow == Flow::Stop {
+            if let Some(cut) = ended.cut {
+                notes.push(format!("{}: {cut}", file.display()));
+            }
+            if ended.flow == Flow::Stop {
                 break;
             }
         }
         Ok(())
+    }
+
+    /// The file to open for storage file `k`: its decompressed copy, if it has one.
+    fn local(&self, k: usize) -> &Path {
+        self.copies[k].as_ref().map_or(&self.files[k], |c| &c.path)
+    }
+}
+
+/// Prints a warning the way the command line does.
+fn warn(text: &str) {
+    eprintln!("spatial_dynamics: warning: {text}");
+}
+
+/// A ROS 2 type name as `pkg/msg/Type`: Dashing- and Eloquent-era bags wrote `pkg/Type`.
+pub fn ros2_type_name(name: &str) -> Cow<'_, str> {
+    match name.split_once('/') {
+        Some((pkg, ty)) if !pkg.is_empty() && !ty.is_empty() && !ty.contains('/') => {
+            Cow::Owned(format!("{pkg}/msg/{ty}"))
+        }
+        _ => Cow::Borrowed(name),
     }
 }
 
@@ -148,6 +219,7 @@ fn match_topic(
     let Some(i) = wanted.iter().position(|w| w.topic == topic) else {
         return Ok(None);
     };
+    let type_name = ros2_type_name(type_name);
     if type_name != wanted[i].type_name {
         return Err(format!(
             "topic {topic} has type {type_name}, expected {}",
@@ -162,35 +234,101 @@ fn match_topic(
     Ok(Some(i))
 }
 
+/// The storage of a file, from its first bytes (after zstd decompression for `.zstd` files).
 fn sniff(path: &Path) -> Result<Storage, String> {
     use std::io::Read;
-    let mut magic = [0u8; 16];
-    let mut file =
-        std::fs::File::open(path).map_err(|e| format!("cannot open {}: {e}", path.display()))?;
-    let n = file
-        .read(&mut magic)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    if magic[..n].starts_with(b"\x89MCAP0\r\n") {
+    let mut magic = Vec::with_capacity(16);
+    let result = if compression::is_zstd_file(path) {
+        compression::zstd_file_reader(path)?
+            .take(16)
+            .read_to_end(&mut magic)
+    } else {
+        std::fs::File::open(path)
+            .map_err(|e| format!("cannot open {}: {e}", path.display()))?
+            .take(16)
+            .read_to_end(&mut magic)
+    };
+    result.map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    if magic.starts_with(b"\x89MCAP0\r\n") {
         Ok(Storage::Mcap)
-    } else if magic[..n].starts_with(b"SQLite format 3\0") {
+    } else if magic.starts_with(b"SQLite format 3\0") {
         Ok(Storage::Sqlite3)
     } else {
         Err(format!(
-            "{} is neither an MCAP file nor an sqlite3 database (nor a bag directory with metadata.yaml)",
+            "{} is neither an MCAP file nor an sqlite3 database (nor a bag directory)",
             path.display()
         ))
     }
 }
 
-fn open_directory(dir: &Path) -> Result<Bag, String> {
+/// The storage of a file from its name: `.mcap` / `.db3`, optionally followed by `.zstd`.
+fn storage_of_name(path: &Path) -> Option<Storage> {
+    let name = path.file_name()?.to_str()?;
+    let name = name.strip_suffix(".zstd").unwrap_or(name);
+    if name.ends_with(".mcap") {
+        Some(Storage::Mcap)
+    } else if name.ends_with(".db3") {
+        Some(Storage::Sqlite3)
+    } else {
+        None
+    }
+}
+
+/// The split index of a storage file (`name_3.db3` → 3), for ordering.
+fn split_index(path: &Path) -> (u64, String) {
+    let name = path
+        .file_name()
+        .map_or(String::new(), |n| n.to_string_lossy().into_owned());
+    let stem = name.split('.').next().unwrap_or("");
+    let index = stem
+        .rsplit_once('_')
+        .and_then(|(_, n)| n.parse().ok())
+        .unwrap_or(0);
+    (index, name)
+}
+
+/// The storage files of a directory, in split order.
+fn storage_files(dir: &Path) -> Result<Vec<PathBuf>, String> {
+    let entries =
+        std::fs::read_dir(dir).map_err(|e| format!("cannot read {}: {e}", dir.display()))?;
+    let mut files: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && storage_of_name(p).is_some())
+        .collect();
+    files.sort_by_key(|p| split_index(p));
+    Ok(files)
+}
+
+/// A bag directory: from `metadata.yaml`, or without one (a recording killed before writing
+/// it, the case of `ros2 bag reindex`) from its storage files.
+fn open_directory(dir: &Path) -> Result<(Storage, Vec<PathBuf>, Vec<TopicInfo>), String> {
     let path = dir.join("metadata.yaml");
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        format!(
-            "{} is not a bag directory: {}: {e}",
+    if !path.exists() {
+        let files = storage_files(dir)?;
+        let Some(first) = files.first() else {
+            return Err(format!(
+                "{} is not a bag directory: no metadata.yaml and no .mcap or .db3 file",
+                dir.display()
+            ));
+        };
+        let storage = storage_of_name(first).expect("a storage file");
+        if let Some(other) = files.iter().find(|f| storage_of_name(f) != Some(storage)) {
+            return Err(format!(
+                "{}: no metadata.yaml, and both {} and {} are in it: which is the bag?",
+                dir.display(),
+                first.display(),
+                other.display()
+            ));
+        }
+        let names: Vec<_> = files.iter().map(|f| split_index(f).1).collect();
+        warn(&format!(
+            "{}: no metadata.yaml: reading the storage files in it, in split order: {}",
             dir.display(),
-            path.display()
-        )
-    })?;
+            names.join(", ")
+        ));
+        return Ok((storage, files, Vec::new()));
+    }
+    let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
     let yaml: serde_norway::Value =
         serde_norway::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     let info = &yaml["rosbag2_bagfile_information"];
@@ -211,15 +349,21 @@ fn open_directory(dir: &Path) -> Result<Bag, String> {
         }
     };
     let mode = info["compression_mode"].as_str().unwrap_or("");
-    if !(mode.is_empty() || mode.eq_ignore_ascii_case("none")) {
+    let format = info["compression_format"].as_str().unwrap_or("");
+    let compressed = !(mode.is_empty() || mode.eq_ignore_ascii_case("none"));
+    if compressed && !format.eq_ignore_ascii_case("zstd") {
         return Err(format!(
-            "{}: compression_mode {mode} ({}) is not supported: decompress the bag first \
-             (MCAP chunk compression, zstd or lz4, needs no such step)",
-            path.display(),
-            info["compression_format"].as_str().unwrap_or("?")
+            "{}: compression format '{format}' ({mode} mode) is not supported: rosbag2 writes zstd",
+            path.display()
         ));
     }
-    let files = info["relative_file_paths"]
+    if compressed && !(mode.eq_ignore_ascii_case("file") || mode.eq_ignore_ascii_case("message")) {
+        return Err(format!(
+            "{}: compression mode '{mode}' is not supported (file, message)",
+            path.display()
+        ));
+    }
+    let mut files = info["relative_file_paths"]
         .as_sequence()
         .ok_or_else(|| format!("{}: no relative_file_paths", path.display()))?
         .iter()
@@ -232,8 +376,12 @@ fn open_directory(dir: &Path) -> Result<Bag, String> {
                 .file_name()
                 .map(|n| dir.join(n))
                 .ok_or_else(|| format!("{}: bad file path '{name}'", path.display()))?;
+            // In `file` mode the listed name may or may not carry the `.zstd`.
+            let zstd = PathBuf::from(format!("{}.zstd", file.display()));
             if file.is_file() {
                 Ok(file)
+            } else if zstd.is_file() {
+                Ok(zstd)
             } else {
                 Err(format!(
                     "{}: file {} is missing",
@@ -243,20 +391,92 @@ fn open_directory(dir: &Path) -> Result<Bag, String> {
             }
         })
         .collect::<Result<Vec<_>, String>>()?;
-    let mut metadata_counts = HashMap::new();
+    // A metadata.yaml left from before a split (a killed recorder): the later files of the
+    // same bag (same name, higher split index) are read too.
+    let base = |p: &Path| {
+        let (_, name) = split_index(p);
+        let stem = name.split('.').next().unwrap_or("").to_string();
+        stem.rsplit_once('_')
+            .map_or(stem.clone(), |(b, _)| b.to_string())
+    };
+    let bases: Vec<String> = files.iter().map(|f| base(f)).collect();
+    let last = files.iter().map(|f| split_index(f).0).max().unwrap_or(0);
+    let extra: Vec<PathBuf> = storage_files(dir)?
+        .into_iter()
+        .filter(|f| {
+            storage_of_name(f) == Some(storage)
+                && bases.contains(&base(f))
+                && split_index(f).0 > last
+                && !files.contains(f)
+        })
+        .collect();
+    if !extra.is_empty() {
+        let names: Vec<_> = extra.iter().map(|f| split_index(f).1).collect();
+        warn(&format!(
+            "{}: out of date: also reading {}, not listed in it",
+            path.display(),
+            names.join(", ")
+        ));
+        files.extend(extra);
+    }
+    let mut metadata_topics = Vec::new();
     if let Some(topics) = info["topics_with_message_count"].as_sequence() {
         for t in topics {
-            if let (Some(name), Some(n)) = (
+            if let (Some(name), Some(type_name)) = (
                 t["topic_metadata"]["name"].as_str(),
-                t["message_count"].as_u64(),
+                t["topic_metadata"]["type"].as_str(),
             ) {
-                metadata_counts.insert(name.to_string(), n);
+                metadata_topics.push(TopicInfo {
+                    name: name.to_string(),
+                    type_name: type_name.to_string(),
+                    count: t["message_count"].as_u64(),
+                });
             }
         }
     }
-    Ok(Bag {
-        storage,
-        files,
-        metadata_counts,
-    })
+    Ok((storage, files, metadata_topics))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn old_type_names_gain_their_msg() {
+        assert_eq!(
+            ros2_type_name("sensor_msgs/JointState"),
+            "sensor_msgs/msg/JointState"
+        );
+        assert_eq!(
+            ros2_type_name("sensor_msgs/msg/JointState"),
+            "sensor_msgs/msg/JointState"
+        );
+        assert_eq!(ros2_type_name("JointState"), "JointState");
+        assert_eq!(ros2_type_name("/x"), "/x");
+        let wanted = [Wanted {
+            topic: "/j",
+            type_name: "sensor_msgs/msg/JointState",
+        }];
+        assert_eq!(
+            match_topic(&wanted, "/j", "sensor_msgs/JointState", "cdr"),
+            Ok(Some(0))
+        );
+        assert!(match_topic(&wanted, "/j", "std_msgs/String", "cdr").is_err());
+    }
+
+    #[test]
+    fn split_files_are_ordered_by_their_index() {
+        let mut files: Vec<PathBuf> = ["b_10.db3", "b_2.db3", "b_0.db3.zstd", "b_1.db3"]
+            .iter()
+            .map(PathBuf::from)
+            .collect();
+        files.sort_by_key(|p| split_index(p));
+        let names: Vec<_> = files.iter().map(|p| p.to_str().unwrap()).collect();
+        assert_eq!(names, ["b_0.db3.zstd", "b_1.db3", "b_2.db3", "b_10.db3"]);
+        assert_eq!(
+            storage_of_name(Path::new("x.mcap.zstd")),
+            Some(Storage::Mcap)
+        );
+        assert_eq!(storage_of_name(Path::new("x.yaml")), None);
+    }
 }

@@ -1,132 +1,11 @@
-//! MCAP files: streamed with the `mcap` crate's sans-io reader (chunks uncompressed, zstd or
-//! lz4; memory bounded by the largest chunk), and written with its writer in the ROS 2 profile.
+//! MCAP files written in the ROS 2 profile: chunks built and compressed by the replay's
+//! workers ([`ChunkBuilder`]), appended with their indexes, then a summary and footer
+//! ([`McapWriter`]). Reading is `mcap_reader`'s.
 
-use super::{match_topic, Flow, RawMessage, TopicInfo, Visitor, Wanted};
-use mcap::records::{op, Record};
-use mcap::sans_io::{LinearReadEvent, LinearReader, SummaryReadEvent, SummaryReader};
-use mcap::sans_io::{LinearReaderOptions, SummaryReaderOptions};
-use std::collections::HashMap;
+use mcap::records::op;
 use std::fs::File;
-use std::io::{BufWriter, Read, Seek};
+use std::io::BufWriter;
 use std::path::Path;
-
-fn open(path: &Path) -> Result<File, String> {
-    File::open(path).map_err(|e| format!("cannot open: {e}"))
-}
-
-/// The topics listed in the file's summary; `None` without a summary.
-pub fn topics(path: &Path) -> Result<Option<Vec<TopicInfo>>, String> {
-    let mut file = open(path)?;
-    let size = file.metadata().map_err(|e| e.to_string())?.len();
-    let mut reader =
-        SummaryReader::new_with_options(SummaryReaderOptions::default().with_file_size(size));
-    while let Some(event) = reader.next_event() {
-        match event.map_err(|e| format!("{}: {e}", path.display()))? {
-            SummaryReadEvent::ReadRequest(n) => {
-                let read = file.read(reader.insert(n)).map_err(|e| e.to_string())?;
-                reader.notify_read(read);
-            }
-            SummaryReadEvent::SeekRequest(to) => {
-                let pos = file.seek(to).map_err(|e| e.to_string())?;
-                reader.notify_seeked(pos);
-            }
-        }
-    }
-    let Some(summary) = reader.finish() else {
-        return Ok(None);
-    };
-    let counts = summary
-        .stats
-        .as_ref()
-        .map(|s| s.channel_message_counts.clone());
-    let mut channels: Vec<_> = summary.channels.values().collect();
-    channels.sort_by_key(|c| c.id);
-    let mut topics: Vec<TopicInfo> = Vec::new();
-    for c in channels {
-        let count = counts.as_ref().map(|m| m.get(&c.id).copied().unwrap_or(0));
-        match topics.iter_mut().find(|t| t.name == c.topic) {
-            Some(t) => t.count = t.count.zip(count).map(|(a, b)| a + b),
-            None => topics.push(TopicInfo {
-                name: c.topic.clone(),
-                type_name: c.schema.as_ref().map_or(String::new(), |s| s.name.clone()),
-                count,
-            }),
-        }
-    }
-    Ok(Some(topics))
-}
-
-/// Streams the messages of the wanted topics in file order (the data section; the summary is
-/// not needed).
-pub fn read(path: &Path, wanted: &[Wanted<'_>], visit: &mut Visitor<'_>) -> Result<Flow, String> {
-    let mut file = open(path)?;
-    // The data section CRC and chunk CRCs are checked when the file has them.
-    let mut reader = LinearReader::new_with_options(
-        LinearReaderOptions::default()
-            .with_validate_chunk_crcs(true)
-            .with_skip_end_magic(true),
-    );
-    let mut schema_names: HashMap<u16, String> = HashMap::new();
-    // Channel id → index in `wanted` (None: not wanted).
-    let mut channels: HashMap<u16, Option<usize>> = HashMap::new();
-    let mut last = (u16::MAX, None);
-    while let Some(event) = reader.next_event() {
-        let (opcode, data) = match event.map_err(|e| e.to_string())? {
-            LinearReadEvent::ReadRequest(n) => {
-                let read = file
-                    .read(reader.insert(n))
-                    .map_err(|e| format!("read failed: {e}"))?;
-                reader.notify_read(read);
-                continue;
-            }
-            LinearReadEvent::Record { opcode, data } => (opcode, data),
-        };
-        match opcode {
-            op::MESSAGE => {
-                // channel_id u16, sequence u32, log_time u64, publish_time u64, then the data.
-                if data.len() < 22 {
-                    return Err(format!("a message record of {} bytes", data.len()));
-                }
-                let channel = u16::from_le_bytes([data[0], data[1]]);
-                if channel != last.0 {
-                    let Some(&index) = channels.get(&channel) else {
-                        return Err(format!("a message on unknown channel {channel}"));
-                    };
-                    last = (channel, index);
-                }
-                if let Some(topic) = last.1 {
-                    let log_time = u64::from_le_bytes(data[6..14].try_into().expect("8 bytes"));
-                    let message = RawMessage {
-                        topic,
-                        log_time,
-                        data: &data[22..],
-                    };
-                    if visit(message)? == Flow::Stop {
-                        return Ok(Flow::Stop);
-                    }
-                }
-            }
-            op::SCHEMA | op::CHANNEL => match mcap::parse_record(opcode, data) {
-                Ok(Record::Schema { header, .. }) => {
-                    schema_names.insert(header.id, header.name);
-                }
-                Ok(Record::Channel(c)) => {
-                    let type_name = schema_names.get(&c.schema_id).map_or("", String::as_str);
-                    let index = match_topic(wanted, &c.topic, type_name, &c.message_encoding)?;
-                    channels.insert(c.id, index);
-                    if last.0 == c.id {
-                        last = (c.id, index);
-                    }
-                }
-                Ok(_) => {}
-                Err(e) => return Err(e.to_string()),
-            },
-            op::DATA_END => break,
-            _ => {}
-        }
-    }
-    Ok(Flow::Continue)
-}
 
 /// Chunk compression of the written file.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -568,13 +447,19 @@ impl McapWriter {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
-    use crate::bag::{cdr, Bag, Storage};
+    use crate::bag::{cdr, Bag, Flow, Storage, Wanted};
+    use mcap::records::Record;
+    use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
+    use std::io::Read;
 
     /// Writes 5000 string messages on two topics in chunks of 700, each message's log time
     /// `1000 + 7 i`; returns the expected `(topic, log time, text)` in order.
-    fn write_file(path: &Path, compression: Compression) -> Vec<(String, u64, String)> {
+    pub(in crate::bag) fn write_file(
+        path: &Path,
+        compression: Compression,
+    ) -> Vec<(String, u64, String)> {
         let mut w = McapWriter::create(path, compression).unwrap();
         let a = w
             .add_topic("/a", "std_msgs/msg/String", "string data\n")

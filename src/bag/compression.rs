@@ -1,0 +1,233 @@
+//! rosbag2's zstd compression, undone within limits: `compression_mode: message` (each message's
+//! bytes one zstd frame) and `compression_mode: file` (each storage file one zstd stream,
+//! `name.mcap.zstd` / `name.db3.zstd`), plus the zstd and lz4 chunks of MCAP files.
+//!
+//! Nothing is allocated from a size the input declares without checking it against a limit
+//! first, and decompressed output is checked against the size declared for it.
+
+use std::io::{BufReader, Read, Write};
+use std::path::{Path, PathBuf};
+
+/// The most bytes one record, chunk or message may take once decompressed (1 GiB).
+pub const MAX_RECORD: u64 = 1 << 30;
+
+/// The first bytes of a zstd frame. A CDR message starts with `0x00` (its encapsulation), so a
+/// message starting with these is a `message`-mode compressed one.
+pub const ZSTD_MAGIC: [u8; 4] = [0x28, 0xb5, 0x2f, 0xfd];
+
+/// Whether `data` starts like a zstd frame.
+pub fn is_zstd(data: &[u8]) -> bool {
+    data.starts_with(&ZSTD_MAGIC)
+}
+
+/// Decompresses one zstd frame (a `message`-mode message, an MCAP chunk) into `out` (cleared
+/// first). `expected` is the size the container declares, if any: the frame must decompress to
+/// exactly that many bytes. At most [`MAX_RECORD`] bytes.
+pub fn zstd_into(
+    zstd: &mut Option<zstd::bulk::Decompressor<'static>>,
+    src: &[u8],
+    expected: Option<u64>,
+    out: &mut Vec<u8>,
+) -> Result<(), String> {
+    out.clear();
+    let declared = match zstd::zstd_safe::get_frame_content_size(src) {
+        Ok(size) => size,
+        Err(_) => return Err("not a zstd frame".into()),
+    };
+    if let (Some(d), Some(e)) = (declared, expected) {
+        if d != e {
+            return Err(format!(
+                "zstd frame says {d} bytes, its container {e} bytes"
+            ));
+        }
+    }
+    match declared.or(expected) {
+        Some(size) => {
+            if size > MAX_RECORD {
+                return Err(format!(
+                    "zstd frame of {size} bytes: more than the limit of {MAX_RECORD} bytes"
+                ));
+            }
+            if zstd.is_none() {
+                *zstd = Some(zstd::bulk::Decompressor::new().map_err(|e| format!("zstd: {e}"))?);
+            }
+            // The capacity is kept from one frame to the next: no allocation once it suffices.
+            out.reserve(size as usize);
+            let n = zstd
+                .as_mut()
+                .expect("made above")
+                .decompress_to_buffer(src, out)
+                .map_err(|e| format!("zstd: {e}"))?;
+            if n as u64 != size {
+                return Err(format!(
+                    "zstd frame decompressed to {n} bytes, declared {size}"
+                ));
+            }
+        }
+        None => {
+            // No size anywhere: streamed, growing with what actually comes out.
+            let decoder =
+                zstd::stream::read::Decoder::with_buffer(src).map_err(|e| format!("zstd: {e}"))?;
+            bounded_read(decoder, out, "zstd frame")?;
+        }
+    }
+    Ok(())
+}
+
+/// Decompresses an LZ4 frame (an MCAP chunk) of `expected` bytes into `out` (cleared first).
+pub fn lz4_into(src: &[u8], expected: u64, out: &mut Vec<u8>) -> Result<(), String> {
+    out.clear();
+    if expected > MAX_RECORD {
+        return Err(format!(
+            "lz4 data of {expected} bytes: more than the limit of {MAX_RECORD} bytes"
+        ));
+    }
+    let decoder = lz4::Decoder::new(src).map_err(|e| format!("lz4: {e}"))?;
+    bounded_read(decoder, out, "lz4 frame")?;
+    if out.len() as u64 != expected {
+        return Err(format!(
+            "lz4 frame decompressed to {} bytes, declared {expected}",
+            out.len()
+        ));
+    }
+    Ok(())
+}
+
+/// Reads `from` to its end into `out`, failing past [`MAX_RECORD`] bytes.
+fn bounded_read(from: impl Read, out: &mut Vec<u8>, what: &str) -> Result<(), String> {
+    let n = from
+        .take(MAX_RECORD + 1)
+        .read_to_end(out)
+        .map_err(|e| format!("{what}: {e}"))?;
+    if n as u64 > MAX_RECORD {
+        return Err(format!(
+            "{what} decompresses to more than the limit of {MAX_RECORD} bytes"
+        ));
+    }
+    Ok(())
+}
+
+/// Whether a storage file is `file`-mode compressed (its name ends in `.zstd`).
+pub fn is_zstd_file(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e == "zstd")
+}
+
+/// A `file`-mode compressed storage file, decompressed as it is read.
+pub fn zstd_file_reader(path: &Path) -> Result<impl Read, String> {
+    let file =
+        std::fs::File::open(path).map_err(|e| format!("cannot open {}: {e}", path.display()))?;
+    zstd::stream::read::Decoder::with_buffer(BufReader::with_capacity(1 << 20, file))
+        .map_err(|e| format!("{}: zstd: {e}", path.display()))
+}
+
+/// A decompressed copy of a `file`-mode compressed storage file in the temporary directory
+/// (never beside the bag), removed when dropped. Used for sqlite3, which needs a file.
+#[derive(Debug)]
+pub struct TempCopy {
+    pub path: PathBuf,
+}
+
+impl Drop for TempCopy {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// The most a `file`-mode compressed file may grow to: 100 times its compressed size, and at
+/// least 1 GiB (sqlite3 databases compress 3-10 times; a larger ratio is a zstd bomb).
+fn file_limit(compressed: u64) -> u64 {
+    compressed.saturating_mul(100).max(1 << 30)
+}
+
+/// Decompresses a `file`-mode compressed storage file into a [`TempCopy`], streaming.
+pub fn decompress_to_temp(path: &Path) -> Result<TempCopy, String> {
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let compressed = std::fs::metadata(path)
+        .map_err(|e| format!("cannot open {}: {e}", path.display()))?
+        .len();
+    let limit = file_limit(compressed);
+    let stem = path
+        .file_stem()
+        .map_or("bag".into(), |s| s.to_string_lossy().into_owned());
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let copy = TempCopy {
+        path: std::env::temp_dir().join(format!(
+            "spatial_dynamics_{}_{n}_{stem}",
+            std::process::id()
+        )),
+    };
+    let mut out = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&copy.path)
+        .map_err(|e| format!("cannot create {}: {e}", copy.path.display()))?;
+    let mut reader = zstd_file_reader(path)?.take(limit + 1);
+    let mut buf = vec![0u8; 1 << 20];
+    let mut total = 0u64;
+    loop {
+        let n = match reader.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => {
+                return Err(format!(
+                    "{}: zstd, after {total} decompressed bytes: {e}",
+                    path.display()
+                ))
+            }
+        };
+        total += n as u64;
+        if total > limit {
+            return Err(format!(
+                "{}: decompresses to more than {limit} bytes (100 times its size): refused",
+                path.display()
+            ));
+        }
+        out.write_all(&buf[..n])
+            .map_err(|e| format!("cannot write {}: {e}", copy.path.display()))?;
+    }
+    Ok(copy)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_decompress_to_their_declared_size_only() {
+        let data: Vec<u8> = (0..100_000u32)
+            .flat_map(|i| (i % 251).to_le_bytes())
+            .collect();
+        let frame = zstd::bulk::compress(&data, 3).unwrap();
+        let mut ctx = None;
+        let mut out = Vec::new();
+        zstd_into(&mut ctx, &frame, None, &mut out).unwrap();
+        assert_eq!(out, data);
+        zstd_into(&mut ctx, &frame, Some(data.len() as u64), &mut out).unwrap();
+        assert_eq!(out, data);
+        let err = zstd_into(&mut ctx, &frame, Some(10), &mut out).unwrap_err();
+        assert!(err.contains("container 10 bytes"), "{err}");
+        // A frame whose header declares 2^40 bytes is refused before anything is allocated.
+        // (Frame header: magic, descriptor 0xe0 = single segment with an 8-byte content size.)
+        let mut huge = ZSTD_MAGIC.to_vec();
+        huge.push(0xe0);
+        huge.extend_from_slice(&(1u64 << 40).to_le_bytes());
+        huge.extend_from_slice(&frame[6..]);
+        let err = zstd_into(&mut ctx, &huge, None, &mut out).unwrap_err();
+        assert!(err.contains("limit"), "{err}");
+        // Not zstd at all; truncated.
+        assert!(zstd_into(&mut ctx, b"\0\x01\0\0abc", None, &mut out).is_err());
+        assert!(zstd_into(&mut ctx, &frame[..frame.len() / 2], None, &mut out).is_err());
+        // lz4: its declared size is checked.
+        let mut enc = lz4::EncoderBuilder::new().build(Vec::new()).unwrap();
+        enc.write_all(&data).unwrap();
+        let (lz, r) = enc.finish();
+        r.unwrap();
+        lz4_into(&lz, data.len() as u64, &mut out).unwrap();
+        assert_eq!(out, data);
+        assert!(lz4_into(&lz, 5, &mut out).is_err());
+        assert!(lz4_into(&lz, 1 << 41, &mut out)
+            .unwrap_err()
+            .contains("limit"));
+    }
+}
