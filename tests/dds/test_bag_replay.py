@@ -11,6 +11,7 @@ recorded into a bag with rosbags' writer from an rclpy subscriber, read back, an
   aba(q, v, τ_cmd) for the input with that stamp.
 """
 
+import collections
 import math
 import subprocess
 import sys
@@ -175,9 +176,11 @@ def test_replayed_bag_is_answered_in_bag_time_like_pinocchio(ros, node, tmp_path
             answered = by_position.get(np.asarray(m.position).tobytes())
             assert answered is not None, f"{topic}: at {n / NS} s, the position of no input"
             # Its /clock, or a later one if the next joint_states' /clock had arrived before the
-            # node got to it (then the stamp is that later bag time, never an earlier one).
+            # node got to it. DDS orders samples within a topic, not across topics: on a loaded
+            # machine an input can overtake its own /clock, and is then stamped with the
+            # previous input's bag time, never earlier.
             lag = bag_times.index(n) - bag_times.index(answered)
-            assert lag >= 0, f"{topic}: input of {answered / NS} s stamped earlier, {n / NS} s"
+            assert lag >= -1, f"{topic}: input of {answered / NS} s stamped {n / NS} s"
             lags[topic].append(lag)
             q_in, v_in = states[answered]
             q = ref.q(ARM_JOINTS, q_in)
@@ -193,8 +196,8 @@ def test_replayed_bag_is_answered_in_bag_time_like_pinocchio(ros, node, tmp_path
                 sd.assert_close(m.acceleration, want, f"acceleration at {n / NS} s")
         # Stamped with the /clock that arrived just before their own input (the node takes the
         # /clock received before the input, however late it gets to it).
-        late = sum(lag > 0 for lag in lags[topic])
-        assert late <= 0.01 * len(messages), f"{topic}: {late} stamped late; lags {np.bincount(lags[topic])}"
+        off = sum(lag != 0 for lag in lags[topic])
+        assert off <= 0.01 * len(messages), f"{topic}: {off} stamped off their input; lags {sorted(collections.Counter(lags[topic]).items())}"
     # ... and mostly the latest one before that joint_states. DDS orders nothing across topics,
     # the node applies a command when it processes it, and a reliable sample lost to RustDDS's
     # discovery race holds back the later ones until it is repaired: on a loaded machine an
