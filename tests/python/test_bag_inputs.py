@@ -263,6 +263,9 @@ def test_damaged_bags_never_crash(tmp_path):
             )
             runs += 1
             assert run.returncode in (0, 1) and "panicked" not in run.stderr, (storage, k, run.returncode, run.stderr)
+            # Exit 1 is an error naming the file, or a bag whose damage left no joint state to
+            # answer (a topic or type name changed), which replay reports with its counts.
             if run.returncode == 1:
-                assert str(bad) in run.stderr or "bad." in run.stderr, run.stderr
+                named = str(bad) in run.stderr or "bad." in run.stderr
+                assert named or "no joint state was answered" in run.stderr, run.stderr
     assert runs == 320

@@ -29,10 +29,11 @@ mod joint_states;
 #[allow(dead_code)]
 #[path = "../../../src/node/params.rs"]
 mod params;
+#[allow(dead_code)]
+#[path = "../../../src/ros/msgs.rs"]
+mod ros_msgs;
 mod ros {
-    #[allow(dead_code)]
-    #[path = "../../../../src/ros/msgs.rs"]
-    pub mod msgs;
+    pub(crate) use super::ros_msgs as msgs;
 }
 mod node {
     pub(crate) use super::{engine, params};
