@@ -7,8 +7,8 @@ from crates.io: the repository's committed files (``git archive HEAD``) are clon
 --cargo-args --release`` in WS. The checks:
 
 * colcon finds exactly ``spatial_dynamics`` (ament_cargo) and ``spatial_dynamics_msgs``
-  (ament_cmake), and nothing under src/core, src/vendor/rustdds or tests/fuzz even when pointed
-  at them;
+  (ament_cmake), and nothing in any other directory holding a Cargo.toml or package.xml (src/core,
+  src/vendor/*, tests/fuzz) even when pointed at it;
 * both packages are in the ament index, the node's executable ``spatial_dynamics_node`` is in
   ``lib/spatial_dynamics/`` (found as ``ros2 run`` finds it: ament_index_python with the
   AMENT_PREFIX_PATH that ``install/setup.bash`` sets), the launch file and config/ in share/;
@@ -134,9 +134,13 @@ def colcon_list(ws, *base_paths):
 
 def test_colcon_finds_exactly_the_two_packages(workspace):
     assert colcon_list(workspace, "src", "src/spatial_dynamics/msg") == PACKAGES
-    inner = ["src/spatial_dynamics/src/core", "src/spatial_dynamics/src/vendor/rustdds",
-             "src/spatial_dynamics/tests/fuzz", "src/spatial_dynamics/src", "src/spatial_dynamics/tests"]
-    assert colcon_list(workspace, *inner) == {}
+    # Pointed at every other directory of the clone that holds a manifest (the library crate,
+    # vendored crates, the fuzz crate), colcon finds nothing.
+    clone = workspace / "src" / "spatial_dynamics"
+    manifests = {p.parent for name in ("Cargo.toml", "package.xml") for p in clone.rglob(name)}
+    inner = sorted(str(d.relative_to(workspace)) for d in manifests - {clone, clone / "msg"})
+    assert "src/spatial_dynamics/src/core" in inner
+    assert colcon_list(workspace, *inner, "src/spatial_dynamics/src", "src/spatial_dynamics/tests") == {}
 
 
 def installed_env(ws):
