@@ -19,9 +19,8 @@ use nalgebra::{DMatrix, DVector};
 ///
 /// Every update runs down a column, contiguous in column-major storage and independent entry by
 /// entry; the sum of each entry takes its terms in the order `k = 0, 1, …` of the textbook dot
-/// products. Those dot products ran along rows, `n` entries a step, and for `n` a multiple of 64
-/// every step missed the L1 cache (`fd_rnea_columns` on a 256-link chain took 1.6× the time of
-/// a 248-link one).
+/// products, which would run along rows instead, `n` entries a step: for `n` a multiple of 64
+/// every such step misses the L1 cache.
 ///
 /// The lower triangle is the one to read when `H` comes from n+1 RNEA calls: its column `k` is
 /// `RNEA(e_k) − C`, and `H_ij` loses digits against body `i`'s bias `C_i`, small below
