@@ -1,8 +1,8 @@
 //! The joint-space inertia matrix `H(q)` by the composite rigid-body algorithm (Featherstone,
 //! RBDA Table 6.2). With `λ(i)` the parent of body `i`, `S_i` its joint's motion subspace and
-//! `ⁱX_λ` the motion transform from the parent's frame to body `i`'s (`ⁱX_λᵀ = ᵏX_i*`, the
-//! force transform from body `i` to the parent), every quantity in the frame of the body it is
-//! indexed by:
+//! `ⁱX_λ` the motion transform from the parent's frame to body `i`'s (its transpose
+//! `ⁱX_λᵀ = ᵏX_i*`, `ᵏ` standing for `λ(i)`, carries a force from body `i` to the parent), and
+//! every quantity in the frame of the body it is indexed by:
 //!
 //! ```text
 //! composite inertias:  I^c_i = I_i;   for i = n−1 … 0:  I^c_λ(i) += ⁱX_λᵀ I^c_i ⁱX_λ
