@@ -11,6 +11,7 @@
 //! `v = [linear; angular]` in the base frame; SI units throughout.
 
 pub mod algorithms;
+pub mod double_double;
 pub mod error;
 pub mod model;
 pub mod plan;

@@ -129,8 +129,8 @@ pub(crate) fn mirror_by_tiles(n: usize) -> bool {
 /// travel) after which a body starts a new aligned frame, in multiples `s` of the model's
 /// longest offset `ℓ`: a body's origin is at most `(s + 1) ℓ` from its frame's (a slide that
 /// can travel farther starts a frame at its body), so its inertia carries
-/// terms up to about `(s + 1)² = 25` times those about its own origin. Measured on chains of
-/// 256 equal links (relative error of ABA's `q̈`): 3.7e-15 at `s = 1`, 1.0e-14 at 2, 3.8e-14
+/// terms up to about `(s + 1)² = 25` times those about its own origin. On chains of 256 equal
+/// links the relative error of ABA's `q̈` is 3.7e-15 at `s = 1`, 1.0e-14 at 2, 3.8e-14
 /// at 4, 7.1e-14 at 8, 1.8e-12 without interior anchors; at 4 none of the benchmark robots
 /// (UR5 … TALOS) needs one, so they pay nothing for it.
 pub(crate) const ANCHOR_SPACING: f64 = 4.0;
@@ -297,9 +297,9 @@ mod tests {
     }
 
     /// The mirror is copied by tiles where a row's stores, `8n` bytes apart, fall in too few L1
-    /// sets: every size measured 2–3× slow with the mirror beside each entry (chains of 128,
-    /// 192 and 256 links) and every size beyond 512; not below 128, nor the sizes measured
-    /// faster with the mirror beside each entry (112, 120, 136, 200, 300).
+    /// sets: the sizes where the mirror beside each entry is 2–3× slower (chains of 128, 192
+    /// and 256 links) and every size beyond 512; not below 128, nor the sizes where the mirror
+    /// beside each entry is the faster (112, 120, 136, 200, 300).
     #[test]
     fn mirror_by_tiles_where_strides_conflict() {
         for n in [128, 192, 256].into_iter().chain(513..600) {

@@ -10,12 +10,12 @@
 //! ([`reference::forward_dynamics`]); its time is `bench`'s median ns per call on the same model
 //! ([`bench::time_kernels`], `fd_aba`, `fd_crba`, `fd_rnea_columns`).
 
-use super::dd::DoubleDouble;
 use super::reference::{self, Chain, G};
 use super::svg::{Figure, Line, Marker, Panel, Series, Style, COLORS};
 use super::Table;
 use crate::cli::bench::{self, Settings};
 use spatial_dynamics_core::algorithms::forward_dynamics;
+use spatial_dynamics_core::double_double::DoubleDouble;
 use spatial_dynamics_core::sampling::Rng;
 use spatial_dynamics_core::{urdf, Externals, ForwardDynamicsMethod, ModelOptions, Workspace};
 

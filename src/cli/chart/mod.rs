@@ -12,7 +12,6 @@
 //! numbers are then not worth plotting.
 
 mod accuracy;
-mod dd;
 mod reference;
 mod svg;
 mod timing;
@@ -190,7 +189,9 @@ fn reference_eval() -> Result<(), String> {
     Ok(())
 }
 
-fn answer_reference(line: &str) -> Result<Vec<dd::DoubleDouble>, String> {
+fn answer_reference(
+    line: &str,
+) -> Result<Vec<spatial_dynamics_core::double_double::DoubleDouble>, String> {
     let request: Value = serde_json::from_str(line).map_err(|e| format!("bad JSON: {e}"))?;
     let numbers = |key: &str| -> Result<Vec<f64>, String> {
         request[key]

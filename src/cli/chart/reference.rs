@@ -30,7 +30,7 @@
 // The loops index matrices the way the formulas do.
 #![allow(clippy::needless_range_loop)]
 
-use super::dd::DoubleDouble as Dd;
+use spatial_dynamics_core::double_double::DoubleDouble as Dd;
 
 /// Gravity along −z (m/s²): the model's default `(0, 0, −9.81)`, the same double.
 pub const G: f64 = 9.81;

@@ -17,19 +17,17 @@
 //! vectoriser emits are not counted by the lane: a packed instruction whose second lane
 //! computes nothing needed is one operation here, two in the executed count.
 //!
-//! **How this was checked** (`benches/count_flops.py`, `tests/python/test_flop_counts.py`):
+//! **How it is checked** (`benches/count_flops.py`, `tests/python/test_flop_counts.py`):
 //! valgrind (callgrind) counts how often each machine instruction of `benches/flop_harness.rs`
-//! runs while it calls a kernel; `objdump` says which are floating-point arithmetic. Built
-//! without LLVM's vectorisers (`--scalar`, one operation per instruction), the measurement
-//! equals this table exactly for every building block below and for every kernel on the
-//! default arm (fixed and floating), a 12-link chain, `tests/models/tree.urdf` and the mimic
-//! gripper, but for `fd_crba` on `tree.urdf` (6 additions apart; 12 and 24 on
-//! `tests/models/quarter_turns.urdf`, fixed and floating; not chased). The release
-//! build as shipped executes more: its packed instructions waste lanes (RNEA and the n+1 RNEA
-//! method about +15 %, gravity +10 %, CRBA with `LᵀL` +7 to +9 %, ABA +6 %, CRBA alone under
-//! +2.5 %).
+//! runs while it calls a kernel, and `objdump` says which are floating-point arithmetic. Built
+//! without LLVM's vectorisers (`--scalar`, one operation per instruction), the count executed
+//! is this table's for every building block below and every kernel on the default arm (fixed
+//! and floating), a 12-link chain, `tests/models/tree.urdf` and the mimic gripper, but for
+//! `fd_crba` on `tree.urdf` and `tests/models/quarter_turns.urdf`, a few additions apart. The
+//! release build executes more, since its packed instructions compute lanes nobody needs
+//! (`docs/performance.md` lists how much more per kernel).
 //!
-//! Costs of the building blocks (multiplications m, additions a), each measured alone too
+//! Costs of the building blocks (multiplications m, additions a), each also checked alone
 //! (`count_flops.py --ops`):
 //!
 //! | operation | code | m | a |

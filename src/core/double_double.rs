@@ -10,7 +10,8 @@
 //! root, Karp's trick) and sine/cosine (argument reduced by `π/2` held as three doubles, then
 //! Taylor series on `|t| ≤ π/4`), as in Hida, Li and Bailey's QD library.
 //!
-//! Only for the reference solutions of the charts: nothing here is on a hot path.
+//! For reference solutions (the charts' 50-digit baselines) and accuracy tests, such as
+//! `spatial::sin_cos`'s: nothing here is on a hot path.
 
 use std::cmp::Ordering;
 use std::ops::{Add, Div, Mul, Neg, Sub};
@@ -57,7 +58,6 @@ impl DoubleDouble {
     pub const ZERO: DoubleDouble = DoubleDouble { hi: 0.0, lo: 0.0 };
     pub const ONE: DoubleDouble = DoubleDouble { hi: 1.0, lo: 0.0 };
     /// π/2 to double-double precision (the first two of the three parts below).
-    #[cfg(test)]
     pub const FRAC_PI_2: DoubleDouble = DoubleDouble {
         hi: PI_2_PARTS[0],
         lo: PI_2_PARTS[1],
@@ -90,7 +90,7 @@ impl DoubleDouble {
         DoubleDouble { hi, lo }
     }
 
-    #[cfg(test)]
+    /// `|self|`.
     pub fn abs(self) -> DoubleDouble {
         if self.hi < 0.0 {
             -self
@@ -334,56 +334,5 @@ mod tests {
         // π/6 in double-double: sin = 1/2.
         let (s, _) = Dd::FRAC_PI_2.div_f64(3.0).sin_cos();
         assert!((s - Dd::from_f64(0.5)).abs().to_f64() < 1e-31);
-    }
-
-    /// The library's inlined `sin_cos` (`spatial::sin_cos`) against this double-double one:
-    /// within one unit in the last place of the true value, over joint angles in any quadrant,
-    /// arguments a few units from multiples of π/2 (where the reduction cancels), tiny ones, and
-    /// both sides of the fast reduction's limit. Checked to fail with the reduction's tail `δ`
-    /// dropped (1.2 ulp).
-    #[test]
-    fn library_sin_cos_within_one_ulp() {
-        use spatial_dynamics_core::sampling::Rng;
-        use spatial_dynamics_core::spatial::sin_cos;
-        let ulps = |got: f64, exact: Dd| {
-            let v = exact.to_f64().abs();
-            let ulp = f64::from_bits(v.to_bits() + 1) - v;
-            (Dd::from_f64(got) - exact).abs().to_f64() / ulp
-        };
-        let mut rng = Rng::new(7);
-        let mut angles: Vec<f64> = (0..20_000)
-            .map(|k| {
-                let scale = [4.0, 40.0, 2e5][k % 3];
-                scale * (2.0 * rng.uniform() - 1.0)
-            })
-            .collect();
-        for k in (-2000..=2000).filter(|&k| k != 0) {
-            let near = (Dd::FRAC_PI_2.mul_f64(f64::from(k))).to_f64();
-            for step in -3i64..=3 {
-                angles.push(f64::from_bits((near.to_bits() as i64 + step) as u64));
-            }
-        }
-        angles.extend([
-            0.0,
-            -0.0,
-            1e-300,
-            -1e-12,
-            3e-8,
-            std::f64::consts::FRAC_PI_4,
-            99999.99,
-            1e5,
-        ]);
-        let mut worst = (0.0, 0.0);
-        for &x in &angles {
-            let (s, c) = sin_cos(x);
-            let (s_ref, c_ref) = Dd::from_f64(x).sin_cos();
-            let (es, ec) = (ulps(s, s_ref), ulps(c, c_ref));
-            assert!(
-                es <= 1.0 && ec <= 1.0,
-                "x = {x:e}: sin {es} ulp, cos {ec} ulp"
-            );
-            worst = (f64::max(worst.0, es), f64::max(worst.1, ec));
-        }
-        eprintln!("sin_cos: worst sin {} ulp, cos {} ulp", worst.0, worst.1);
     }
 }
