@@ -2,6 +2,7 @@
 //! every call so that no call allocates.
 
 use crate::algorithms::crba::{mirror_by_tiles, CrbaFrames};
+use crate::algorithms::frames::FrameScratch;
 use crate::algorithms::kinematics::frame_anchors;
 use crate::algorithms::ltl::Ancestors;
 use crate::model::{Model, MotionSubspace, UpShape};
@@ -107,6 +108,8 @@ pub struct Workspace {
     pub(crate) bias: DVector<f64>,
     /// Unit acceleration `e_k` (n+1 RNEA method).
     pub(crate) unit: DVector<f64>,
+    /// Scratch of the frame algorithms (placements, Jacobians, centre of mass).
+    pub(crate) frame_scratch: FrameScratch,
 }
 
 impl Workspace {
@@ -178,6 +181,7 @@ impl Workspace {
             dof_ancestors: model.dof_parent.as_deref().and_then(Ancestors::new),
             bias: DVector::zeros(nv),
             unit: DVector::zeros(nv),
+            frame_scratch: FrameScratch::new(model),
         }
     }
 
