@@ -339,6 +339,7 @@ fn bench_prints_the_json_contract() {
     assert!(ok, "{err}");
     let v: Value = serde_json::from_str(out.trim()).unwrap();
     assert_eq!(v["nv"], 3);
+    assert_eq!(v["frame"], "link3", "frame_jacobian times the deepest link");
     for kernel in [
         "rnea",
         "crba",
@@ -346,6 +347,8 @@ fn bench_prints_the_json_contract() {
         "fd_crba",
         "fd_rnea_columns",
         "gravity",
+        "frame_jacobian",
+        "center_of_mass",
     ] {
         let ns = v["ns_per_call"][kernel]
             .as_f64()
