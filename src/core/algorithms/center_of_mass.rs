@@ -19,7 +19,8 @@
 //! `Σ (m_i l + a × d_i) / M` over the joints with that coordinate (a mimic follower's scaled by
 //! its multiplier).
 
-use super::frames::place_all;
+use super::frames::{all_finite, place_all};
+use super::jacobian::world_axes;
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::Model;
@@ -58,13 +59,13 @@ pub fn center_of_mass_jacobian<'w>(
     let com = center_of_mass(model, ws, q)?;
     let scratch = &mut ws.frame_scratch;
     let jacobian = &mut scratch.com_jacobian;
-    jacobian.fill(0.0);
+    jacobian.as_mut_slice().fill(0.0);
     for (i, body) in model.bodies.iter().enumerate() {
         let (x, s, c) = (&scratch.x_world[i], &ws.s[i], body.joint.coords);
         let (m, d) = (scratch.subtree_mass[i], &scratch.subtree_moment[i]);
         let weight = c.scale / com.mass;
         for k in 0..s.nv {
-            let (a, l) = (x.rot.tr_mul(&s.cols[k].ang), x.rot.tr_mul(&s.cols[k].lin));
+            let (a, l) = world_axes(&x.rot, &s.cols[k], ws.s_axes[i][k]);
             let col = (l * m + a.cross(d)) * weight;
             let mut out = jacobian.column_mut(c.v_index + k);
             for r in 0..3 {
@@ -72,7 +73,10 @@ pub fn center_of_mass_jacobian<'w>(
             }
         }
     }
-    if let Some(k) = (0..model.nv).find(|&k| !jacobian.column(k).iter().all(|x| x.is_finite())) {
+    if all_finite(jacobian.as_slice()) {
+        return Ok((com, &ws.frame_scratch.com_jacobian));
+    }
+    if let Some(k) = (0..model.nv).find(|&k| !all_finite(jacobian.column(k).as_slice())) {
         return Err(DynamicsError::NonFiniteResult {
             quantity: "centre-of-mass Jacobian",
             coordinate: model.v_name(k),

@@ -95,7 +95,7 @@ pub fn frame_classical_acceleration(
         model,
         frame,
         "frame acceleration",
-        result.ang.iter().chain(result.lin.iter()),
+        result.to_vector().as_slice(),
     )?;
     Ok(result)
 }

@@ -20,11 +20,11 @@
 //! [`center_of_mass`](super::center_of_mass)) place every body. Their scratch is the
 //! workspace's [`FrameScratch`].
 
-use super::kinematics::{update_joint, update_joints, with_up_transform};
+use super::kinematics::{read_joint, update_joints, update_up, with_up_transform};
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::{Model, MotionSubspace};
-use crate::spatial::{Motion, Transform, Vector3};
+use crate::spatial::{sin_cos_all, Motion, Transform, Vector3};
 use crate::Workspace;
 use nalgebra::DMatrix;
 
@@ -72,12 +72,10 @@ pub fn frame_placement(
     check_q(model, q)?;
     place_support(model, ws, q, frame.body);
     let x = placement_of(&ws.frame_scratch, frame);
-    check_finite(
-        model,
-        frame,
-        "frame placement",
-        x.rot.iter().chain(x.trans.iter()),
-    )?;
+    let mut values = [0.0; 12];
+    values[..9].copy_from_slice(x.rot.as_slice());
+    values[9..].copy_from_slice(x.trans.as_slice());
+    check_finite(model, frame, "frame placement", &values)?;
     Ok(x)
 }
 
@@ -89,6 +87,10 @@ pub struct FrameScratch {
     /// The bodies supporting the last frame asked for, root first (each body's parent just
     /// before it).
     pub(crate) support: Vec<usize>,
+    /// The turn angles of the support's joints, their sines and cosines (support order).
+    pub(crate) angles: Vec<f64>,
+    pub(crate) sines: Vec<f64>,
+    pub(crate) cosines: Vec<f64>,
     /// `ⁱX_0` (world → body) of the bodies placed by the last frame call.
     pub(crate) x_world: Vec<Transform>,
     /// Each joint's motion subspace in world axes at its body's origin, `R_i S_i` with
@@ -115,6 +117,9 @@ impl FrameScratch {
         let (n, nv) = (model.nbodies(), model.nv);
         FrameScratch {
             support: Vec::with_capacity(n),
+            angles: vec![0.0; n],
+            sines: vec![0.0; n],
+            cosines: vec![0.0; n],
             x_world: vec![Transform::identity(); n],
             axes: vec![MotionSubspace::default(); n],
             v: vec![Motion::zero(); n],
@@ -140,9 +145,24 @@ pub(crate) fn place_support(model: &Model, ws: &mut Workspace, q: &[f64], body: 
         next = model.bodies[i].parent;
     }
     support.reverse();
-    for k in 0..ws.frame_scratch.support.len() {
+    // As `update_joints` does for the whole tree: the turn angles first, their sines and cosines
+    // two at a time, then each joint's transform and the body's placement.
+    let n = ws.frame_scratch.support.len();
+    for k in 0..n {
         let i = ws.frame_scratch.support[k];
-        update_joint(model, ws, q, i);
+        ws.frame_scratch.angles[k] = read_joint(&model.bodies[i], ws, i, q);
+    }
+    let FrameScratch {
+        angles,
+        sines,
+        cosines,
+        ..
+    } = &mut ws.frame_scratch;
+    sin_cos_all(&angles[..n], &mut sines[..n], &mut cosines[..n]);
+    for k in 0..n {
+        let i = ws.frame_scratch.support[k];
+        let turn = (ws.frame_scratch.sines[k], ws.frame_scratch.cosines[k]);
+        update_up(&model.bodies[i], ws, i, turn);
         place_body(model, ws, i);
     }
 }
@@ -176,13 +196,13 @@ pub(crate) fn placement_of(scratch: &FrameScratch, frame: &Frame) -> Transform {
 }
 
 /// An error naming the frame's link when a result is not finite (finite inputs can overflow).
-pub(crate) fn check_finite<'a>(
+pub(crate) fn check_finite(
     model: &Model,
     frame: &Frame,
     quantity: &'static str,
-    mut values: impl Iterator<Item = &'a f64>,
+    values: &[f64],
 ) -> Result<(), DynamicsError> {
-    if values.all(|x| x.is_finite()) {
+    if all_finite(values) {
         Ok(())
     } else {
         Err(DynamicsError::NonFiniteResult {
@@ -190,4 +210,20 @@ pub(crate) fn check_finite<'a>(
             coordinate: model.links[frame.link].name.clone(),
         })
     }
+}
+
+/// True when every value is finite, without a branch per value: `x · 0` is zero for a finite
+/// `x` and NaN otherwise, summed in four independent lanes (which vectorise).
+pub(crate) fn all_finite(values: &[f64]) -> bool {
+    let mut lanes = [0.0f64; 4];
+    let chunks = values.chunks_exact(4);
+    for (k, x) in chunks.remainder().iter().enumerate() {
+        lanes[k] += x * 0.0;
+    }
+    for chunk in chunks {
+        for k in 0..4 {
+            lanes[k] += chunk[k] * 0.0;
+        }
+    }
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) == 0.0
 }

@@ -81,12 +81,11 @@ pub fn frame_jacobian<'w>(
         jacobian,
         ..
     } = &mut ws.frame_scratch;
-    jacobian.fill(0.0);
+    jacobian.as_mut_slice().fill(0.0);
     for &i in support.iter() {
         let (x, s, c) = (&x_world[i], &ws.s[i], model.bodies[i].joint.coords);
         for k in 0..s.nv {
-            let col = &s.cols[k];
-            let (a, l) = (x.rot.tr_mul(&col.ang), x.rot.tr_mul(&col.lin));
+            let (a, l) = world_axes(&x.rot, &s.cols[k], ws.s_axes[i][k]);
             add_column(
                 jacobian,
                 c.v_index + k,
@@ -95,7 +94,7 @@ pub fn frame_jacobian<'w>(
             );
         }
     }
-    check_finite(model, frame, "frame Jacobian", jacobian.iter())?;
+    check_finite(model, frame, "frame Jacobian", jacobian.as_slice())?;
     Ok(&ws.frame_scratch.jacobian)
 }
 
@@ -122,8 +121,8 @@ pub fn joint_jacobians<'w>(
         let axes = &mut scratch.axes[i];
         axes.nv = s.nv;
         for k in 0..s.nv {
-            let col = &s.cols[k];
-            axes.cols[k] = Motion::new(x.rot.tr_mul(&col.ang), x.rot.tr_mul(&col.lin));
+            let (a, l) = world_axes(&x.rot, &s.cols[k], ws.s_axes[i][k]);
+            axes.cols[k] = Motion::new(a, l);
         }
     }
     Ok(JointJacobians { model, scratch })
@@ -155,7 +154,7 @@ impl JointJacobians<'_> {
             jacobian,
             ..
         } = &mut *self.scratch;
-        jacobian.fill(0.0);
+        jacobian.as_mut_slice().fill(0.0);
         let mut next = frame.body;
         while let Some(i) = next {
             let body = &self.model.bodies[i];
@@ -170,8 +169,26 @@ impl JointJacobians<'_> {
             }
             next = body.parent;
         }
-        check_finite(self.model, frame, "frame Jacobian", jacobian.iter())?;
+        check_finite(self.model, frame, "frame Jacobian", jacobian.as_slice())?;
         Ok(&self.scratch.jacobian)
+    }
+}
+
+/// A motion-subspace column `s` (body coordinates) in world axes, `(R s_ω, R s_v)` with
+/// `R = Eᵀ`: a column along a coordinate axis (`axis`, [`JointKind::subspace_axes`]) is a signed
+/// row of `E`, with no product.
+///
+/// [`JointKind::subspace_axes`]: crate::model::JointKind::subspace_axes
+#[inline(always)]
+pub(crate) fn world_axes(
+    e: &Matrix3,
+    s: &Motion,
+    axis: Option<(usize, f64)>,
+) -> (Vector3, Vector3) {
+    match axis {
+        Some((j, sign)) if j < 3 => (e.row(j).transpose() * sign, Vector3::zeros()),
+        Some((j, sign)) => (Vector3::zeros(), e.row(j - 3).transpose() * sign),
+        None => (e.tr_mul(&s.ang), e.tr_mul(&s.lin)),
     }
 }
 

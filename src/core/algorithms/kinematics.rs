@@ -4,7 +4,7 @@
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::{turn_up, turn_up_unrotated, Body, Joint, JointKind, Model, UpShape};
-use crate::spatial::{sin_cos, sin_cos_all, Force, Motion, Transform, Translation, Vector3};
+use crate::spatial::{sin_cos_all, Force, Motion, Transform, Translation, Vector3};
 use crate::Workspace;
 
 /// Evaluates `$body` with `$x` bound to body `$i`'s `ⁱX_λ` (`ws.x_up[i]`, a `&Transform`) in
@@ -64,18 +64,10 @@ pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     }
 }
 
-/// [`update_joints`] for body `i` alone (`q` already validated): for the passes that need only
-/// the bodies supporting one frame. Leaves every other body's entries as they were.
-pub(crate) fn update_joint(model: &Model, ws: &mut Workspace, q: &[f64], i: usize) {
-    let body = &model.bodies[i];
-    let angle = read_joint(body, ws, i, q);
-    update_up(body, ws, i, sin_cos(angle));
-}
-
 /// Body `i`'s turn angle `σ q` when its joint turns about a coordinate axis (`ws.turn_axes`),
 /// else 0 with the joint's own coordinates read into `ws.q_joint[i]`.
 #[inline(always)]
-fn read_joint(body: &Body, ws: &mut Workspace, i: usize, q: &[f64]) -> f64 {
+pub(crate) fn read_joint(body: &Body, ws: &mut Workspace, i: usize, q: &[f64]) -> f64 {
     match ws.turn_axes[i] {
         Some((_, sign)) => sign * joint_position(&body.joint, q, 0),
         None => {
@@ -88,7 +80,7 @@ fn read_joint(body: &Body, ws: &mut Workspace, i: usize, q: &[f64]) -> f64 {
 /// `ws.x_up[i]` (and `ws.s[i]` for a joint whose `S` varies) from the sine and cosine of body
 /// `i`'s turn angle and, for other joints, `ws.q_joint[i]`.
 #[inline(always)]
-fn update_up(body: &Body, ws: &mut Workspace, i: usize, turn: (f64, f64)) {
+pub(crate) fn update_up(body: &Body, ws: &mut Workspace, i: usize, turn: (f64, f64)) {
     match (ws.turn_axes[i], ws.up_shapes[i]) {
         (Some(_), UpShape::AxisTurn(k)) => {
             turn_up_unrotated(k, turn, &body.x_tree, &mut ws.x_up[i])
