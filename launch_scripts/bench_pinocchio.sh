@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Times our algorithms against Pinocchio (C++) on the same URDFs in the same run, and prints a
+# Times our algorithms against Pinocchio (C++) on the same URDFs in the same run (dynamics, and
+# frame_jacobian / center_of_mass against computeFrameJacobian / jacobianCenterOfMass), and prints a
 # markdown table: per robot and algorithm, our ns per call, Pinocchio's, and Pinocchio / ours
 # (> 1: we are faster).
 #
@@ -128,9 +129,11 @@ run_robot() {  # NAME FLOATING(0|1) URDF [FALLBACK_URDF]
     local name="$1" floating="$2" urdf="$robots/$3" fallback="${4:-}"
     local extra=()
     [[ "$floating" == 1 ]] && extra=(--floating-base)
-    local ours_json pin_json
+    local ours_json pin_json frame
+    # Pinocchio times frame_jacobian on the link ours did (its JSON's "frame").
     if ! ours_json="$("$ours" bench --urdf "$urdf" --ignore-mimic "${extra[@]}" --json "${bench_args[@]}")" \
-        || ! pin_json="$("$build/bench" "$urdf" "${extra[@]}" "${bench_args[@]}")"; then
+        || ! frame="$(printf '%s' "$ours_json" | "$venv/bin/python" -c 'import json, sys; print(json.load(sys.stdin)["frame"])')" \
+        || ! pin_json="$("$build/bench" "$urdf" "${extra[@]}" --frame "$frame" "${bench_args[@]}")"; then
         if [[ -n "$fallback" ]]; then
             log "$name: $3 failed; trying $fallback"
             run_robot "$name" "$floating" "$fallback"
@@ -157,7 +160,8 @@ done
 import json, statistics, sys
 
 runs = [json.loads(line) for line in open(sys.argv[1])]
-kernels = ["rnea", "crba", "fd_aba", "fd_crba", "fd_rnea_columns", "gravity"]
+kernels = ["rnea", "crba", "fd_aba", "fd_crba", "fd_rnea_columns", "gravity", "frame_jacobian",
+           "center_of_mass"]
 
 # One row per robot: per kernel the median time of each library over the rounds and the median
 # of the rounds' ratios (each round times ours and Pinocchio back to back).
@@ -208,5 +212,6 @@ for r in rows:
 d = rows[0]["pinocchio"]["detail"]["pinocchio"] if rows else "?"
 print()
 print(f"Pinocchio {d}; crba, fd_aba and fd_crba: the faster of its LOCAL and WORLD conventions "
-      f"(both in {sys.argv[1]}).")
+      f"(both in {sys.argv[1]}); frame_jacobian: the WORLD Jacobian of the link our bench names "
+      f"(per robot: {', '.join(r['robot'] + ' ' + r['ours']['frame'] for r in rows)}).")
 EOF

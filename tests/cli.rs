@@ -339,6 +339,7 @@ fn bench_prints_the_json_contract() {
     assert!(ok, "{err}");
     let v: Value = serde_json::from_str(out.trim()).unwrap();
     assert_eq!(v["nv"], 3);
+    assert_eq!(v["frame"], "link3", "frame_jacobian times the deepest link");
     for kernel in [
         "rnea",
         "crba",
@@ -346,6 +347,8 @@ fn bench_prints_the_json_contract() {
         "fd_crba",
         "fd_rnea_columns",
         "gravity",
+        "frame_jacobian",
+        "center_of_mass",
     ] {
         let ns = v["ns_per_call"][kernel]
             .as_f64()
@@ -406,5 +409,74 @@ fn bench_prints_the_json_contract() {
             (up - full / ours).abs() <= 0.005 + 0.01 * up,
             "{kernel}: {out}"
         );
+    }
+}
+
+/// The frame requests' contract: shapes, the rotation printed by rows (link axes in world
+/// coordinates, checked on a pendulum turned by θ about y: `R_y(θ)`), `[linear; angular]`
+/// rows, and errors that name the unknown link (listing the known ones) or reference.
+#[test]
+fn eval_answers_frame_requests() {
+    let t: f64 = 0.3;
+    let requests = [
+        format!(r#"{{"op":"frame_placement","q":[{t}],"frame":"link1"}}"#),
+        format!(r#"{{"op":"frame_jacobian","q":[{t}],"frame":"link1","reference":"local"}}"#),
+        format!(
+            r#"{{"op":"frame_acceleration","q":[{t}],"v":[2],"a":[0],"frame":"link1","reference":"local_world_aligned"}}"#
+        ),
+        format!(r#"{{"op":"center_of_mass","q":[{t}]}}"#),
+        format!(r#"{{"op":"frame_placement","q":[{t}],"frame":"hand"}}"#),
+        format!(r#"{{"op":"frame_jacobian","q":[{t}],"frame":"link1","reference":"body"}}"#),
+        format!(
+            r#"{{"op":"frame_acceleration","q":[{t}],"v":[0],"a":[0],"frame":"link1","reference":"world"}}"#
+        ),
+        format!(r#"{{"op":"frame_jacobian","q":[{t}],"frame":"link1"}}"#),
+    ];
+    let (ok, out, _) = run(
+        &["eval", "--builtin", "pendulum:1"],
+        &(requests.join("\n") + "\n"),
+    );
+    assert!(ok);
+    let answers: Vec<Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(answers.len(), requests.len(), "{out}");
+    let (s, c) = t.sin_cos();
+    let rotation = serde_json::json!([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]);
+    let close = |a: &Value, b: &Value| {
+        let (a, b) = (a.as_array().unwrap(), b.as_array().unwrap());
+        a.len() == b.len()
+            && a.iter()
+                .zip(b)
+                .all(|(x, y)| match (x.as_f64(), y.as_f64()) {
+                    (Some(x), Some(y)) => (x - y).abs() < 1e-15,
+                    _ => x.is_array() && y.is_array(),
+                })
+    };
+    let got = &answers[0]["rotation"];
+    assert!((0..3).all(|r| close(&got[r], &rotation[r])), "{got}");
+    assert!(close(
+        &answers[0]["translation"],
+        &serde_json::json!([0.0, 0.0, 0.0])
+    ));
+    // One revolute joint about y at the link origin: J = [0 0 0 0 1 0]ᵀ in its own axes.
+    let j = answers[1]["J"].as_array().unwrap();
+    assert_eq!(j.len(), 6);
+    let column: Vec<f64> = j.iter().map(|row| row[0].as_f64().unwrap()).collect();
+    assert_eq!(column, [0.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    assert_eq!(answers[2]["acceleration"].as_array().unwrap().len(), 6);
+    assert_eq!(answers[3]["J"].as_array().unwrap().len(), 3);
+    assert!(answers[3]["mass"].as_f64().unwrap() > 0.0);
+    for (i, expected) in [
+        (4, "no link named 'hand'; its links are: world, link1"),
+        (5, "unknown reference 'body'"),
+        (6, "'world'"),
+        (7, "missing field `reference`"),
+    ] {
+        let error = answers[i]["error"]
+            .as_str()
+            .unwrap_or_else(|| panic!("line {i}: {}", answers[i]));
+        assert!(error.contains(expected), "line {i}: {error}");
     }
 }

@@ -3,7 +3,9 @@
 //! in the process while it counts).
 
 use spatial_dynamics_core::algorithms::{
-    aba, bias, crba, forward_dynamics, gravity, rnea, rnea_with,
+    aba, bias, center_of_mass_jacobian, crba, find_frame, forward_dynamics,
+    frame_classical_acceleration, frame_jacobian, frame_placement, gravity, joint_jacobians, rnea,
+    rnea_with, ReferenceFrame,
 };
 use spatial_dynamics_core::spatial::Force;
 use spatial_dynamics_core::{urdf, Externals, ForwardDynamicsMethod, ModelOptions, Workspace};
@@ -41,6 +43,12 @@ fn algorithms_do_not_allocate() {
             wrenches: Some(&wrenches),
             ..Default::default()
         };
+        let hand = find_frame(&model, "right_hand").unwrap();
+        let references = [
+            ReferenceFrame::World,
+            ReferenceFrame::Local,
+            ReferenceFrame::LocalWorldAligned,
+        ];
         let run_all = |ws: &mut Workspace| {
             rnea(&model, ws, &q, &v, &a).unwrap();
             rnea_with(&model, ws, &q, &v, &a, &ext).unwrap();
@@ -50,6 +58,17 @@ fn algorithms_do_not_allocate() {
             aba(&model, ws, &q, &v, &a, &ext).unwrap();
             for method in ForwardDynamicsMethod::ALL {
                 forward_dynamics(&model, ws, &q, &v, &a, method, &ext).unwrap();
+            }
+            frame_placement(&model, ws, &q, &hand).unwrap();
+            for reference in references {
+                frame_jacobian(&model, ws, &q, &hand, reference).unwrap();
+            }
+            let local = ReferenceFrame::Local;
+            frame_classical_acceleration(&model, ws, &q, &v, &a, &hand, local).unwrap();
+            center_of_mass_jacobian(&model, ws, &q).unwrap();
+            let mut all = joint_jacobians(&model, ws, &q).unwrap();
+            for reference in references {
+                all.frame_jacobian(&hand, reference).unwrap();
             }
         };
         run_all(&mut ws);

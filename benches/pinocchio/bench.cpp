@@ -1,7 +1,7 @@
 // The Pinocchio reference for `spatial_dynamics bench`: the same kernels, timed the same way,
 // printed as the same JSON object.
 //
-//   bench URDF [--floating-base] [--states N] [--repeats N] [--min-time SECONDS]
+//   bench URDF [--floating-base] [--frame LINK] [--states N] [--repeats N] [--min-time SECONDS]
 //
 // Kernels (Pinocchio's own algorithms, compiled from its headers):
 //   rnea            pinocchio::rnea(q, v, a)
@@ -12,6 +12,10 @@
 //   fd_rnea_columns C = nonLinearEffects(q, v), column k of M = rnea(q, v, e_k) - C, then a
 //                   dense Eigen LLT: the same method as ours, built from Pinocchio's rnea
 //   gravity         computeGeneralizedGravity(q)
+//   frame_jacobian  computeFrameJacobian(q, LINK, WORLD) of the BODY frame of --frame (our bench
+//                   names its link as "frame"); null without --frame
+//   center_of_mass  jacobianCenterOfMass(q): the centre of mass (subtree ones too) and its
+//                   3 × nv Jacobian
 // crba, aba (and so fd_crba) take a Convention (LOCAL, the default, or WORLD); both are timed,
 // the faster is reported under the main key and both under "detail".
 //
@@ -22,8 +26,10 @@
 // one clock read around many calls; the median repeat is reported.
 
 #include <pinocchio/algorithm/aba.hpp>
+#include <pinocchio/algorithm/center-of-mass.hpp>
 #include <pinocchio/algorithm/cholesky.hpp>
 #include <pinocchio/algorithm/crba.hpp>
+#include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/joint-configuration.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
@@ -93,8 +99,8 @@ double measure(const std::vector<State> &states, const Settings &settings, F &&c
 
 [[noreturn]] void usage(const char *message) {
   std::fprintf(stderr,
-               "bench: %s\nusage: bench URDF [--floating-base] [--states N] [--repeats N] "
-               "[--min-time SECONDS]\n",
+               "bench: %s\nusage: bench URDF [--floating-base] [--frame LINK] [--states N] "
+               "[--repeats N] [--min-time SECONDS]\n",
                message);
   std::exit(2);
 }
@@ -102,7 +108,7 @@ double measure(const std::vector<State> &states, const Settings &settings, F &&c
 }  // namespace
 
 int main(int argc, char **argv) {
-  std::string urdf;
+  std::string urdf, frame;
   bool floating_base = false;
   Settings settings;
   for (int i = 1; i < argc; ++i) {
@@ -113,6 +119,8 @@ int main(int argc, char **argv) {
     };
     if (arg == "--floating-base") {
       floating_base = true;
+    } else if (arg == "--frame") {
+      frame = value();
     } else if (arg == "--states") {
       settings.states = std::atoi(value());
     } else if (arg == "--repeats") {
@@ -200,11 +208,32 @@ int main(int argc, char **argv) {
     escape(data.g.data());
   });
 
+  double frame_jacobian_ns = -1.0;
+  if (!frame.empty()) {
+    if (!model.existFrame(frame, pinocchio::BODY)) usage(("no link named " + frame).c_str());
+    const pinocchio::FrameIndex id = model.getFrameId(frame, pinocchio::BODY);
+    Eigen::MatrixXd jacobian = Eigen::MatrixXd::Zero(6, nv);
+    frame_jacobian_ns = measure(states, settings, [&](const State &s) {
+      pinocchio::computeFrameJacobian(model, data, s.q, id, pinocchio::WORLD, jacobian);
+      escape(jacobian.data());
+    });
+  }
+  double center_of_mass_ns = measure(states, settings, [&](const State &s) {
+    pinocchio::jacobianCenterOfMass(model, data, s.q);
+    escape(data.Jcom.data());
+  });
+
   auto best = [](const double (&x)[2]) { return std::min(x[0], x[1]); };
   std::printf("{\"nv\": %d, \"ns_per_call\": {\"rnea\": %.1f, \"crba\": %.1f, \"fd_aba\": %.1f, "
-              "\"fd_crba\": %.1f, \"fd_rnea_columns\": %.1f, \"gravity\": %.1f}, ",
+              "\"fd_crba\": %.1f, \"fd_rnea_columns\": %.1f, \"gravity\": %.1f, ",
               nv, rnea_ns, best(crba_ns), best(aba_ns), best(fd_crba_ns), fd_rnea_columns_ns,
               gravity_ns);
+  if (frame_jacobian_ns < 0.0) {
+    std::printf("\"frame_jacobian\": null, ");
+  } else {
+    std::printf("\"frame_jacobian\": %.1f, ", frame_jacobian_ns);
+  }
+  std::printf("\"center_of_mass\": %.1f}, ", center_of_mass_ns);
   std::printf("\"detail\": {\"pinocchio\": \"%s\", \"nq\": %d", PINOCCHIO_VERSION, model.nq);
   for (int c = 0; c < 2; ++c) {
     std::printf(", \"crba_%s\": %.1f, \"aba_%s\": %.1f, \"fd_crba_%s\": %.1f", convention_names[c],

@@ -4,13 +4,18 @@
 //! before any timing and cycled through, so the caches and branch predictors see changing
 //! inputs. Each kernel is warmed up, then timed over several repeats of whole passes through the
 //! states (one `Instant` around many calls); the median repeat is reported.
+//!
+//! Besides the dynamics [`KERNELS`], the [`KINEMATICS_KERNELS`]: `frame_jacobian` (the
+//! `world` Jacobian of one link, the one carried by the body deepest in the tree, named in the
+//! JSON as `"frame"`) and `center_of_mass` (the centre of mass with its Jacobian).
 
 use super::ModelArgs;
 use clap::Args;
 use serde_json::{json, Map, Value};
 use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics_core::algorithms::{
-    choose_method, crba, flop_table, forward_dynamics, gravity, rnea,
+    center_of_mass_jacobian, choose_method, crba, find_frame, flop_table, forward_dynamics,
+    frame_jacobian, gravity, rnea, ReferenceFrame,
 };
 use spatial_dynamics_core::sampling::{random_q, Rng};
 use spatial_dynamics_core::{
@@ -64,15 +69,33 @@ pub const KERNELS: [&str; 6] = [
     "gravity",
 ];
 
+/// The kinematics kernels, reported after [`KERNELS`] (see the module documentation).
+pub const KINEMATICS_KERNELS: [&str; 2] = ["frame_jacobian", "center_of_mass"];
+
+/// The link `frame_jacobian` is timed on: the one of the body with the most bodies above it
+/// (the first such in model order), or the root link when nothing moves.
+pub fn deepest_link(model: &Model) -> &str {
+    let mut depth = vec![0usize; model.nbodies()];
+    let mut deepest: Option<usize> = None;
+    for (i, body) in model.bodies.iter().enumerate() {
+        depth[i] = body.parent.map_or(1, |p| depth[p] + 1);
+        if deepest.is_none_or(|d| depth[i] > depth[d]) {
+            deepest = Some(i);
+        }
+    }
+    deepest.map_or(model.root_link.as_str(), |i| model.bodies[i].name.as_str())
+}
+
 /// Times every kernel and prints the result; with a reduction asked for, the full model too and
 /// the speed-up; and the method `auto` would choose.
 pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), String> {
     settings.check()?;
     let model = args.load()?;
-    let times = time_kernels(&model, &KERNELS, settings)?;
+    let all: Vec<&str> = KERNELS.iter().chain(&KINEMATICS_KERNELS).copied().collect();
+    let times = time_kernels(&model, &all, settings)?;
     let full = if args.reduces() {
         let full = args.without_reductions().load()?;
-        let full_times = time_kernels(&full, &KERNELS, settings)?;
+        let full_times = time_kernels(&full, &all, settings)?;
         Some((full, full_times))
     } else {
         None
@@ -83,21 +106,21 @@ pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), S
         (Some((_, f)), Some(ours)) => f[k].map(|f| f / ours),
         _ => None,
     };
-    let results: Vec<(&str, Option<f64>)> = KERNELS.into_iter().zip(times.clone()).collect();
+    let results: Vec<(&str, Option<f64>)> = all.iter().copied().zip(times.clone()).collect();
     let (flops, gflops) = flops_per_call(&model, &results);
     if as_json {
         let per_call = |t: &[Option<f64>]| -> Map<String, Value> {
-            KERNELS
-                .iter()
+            all.iter()
                 .zip(t)
                 .map(|(k, ns)| (k.to_string(), json!(ns)))
                 .collect()
         };
         let mut out = json!({"nv": model.nv, "ns_per_call": per_call(&times), "flops_per_call": flops,
-                             "gflops": gflops, "auto_method": auto.method.name()});
+                             "gflops": gflops, "auto_method": auto.method.name(),
+                             "frame": deepest_link(&model)});
         if let Some((full, full_times)) = &full {
             out["full"] = json!({"nv": full.nv, "ns_per_call": per_call(full_times)});
-            out["speedup"] = KERNELS
+            out["speedup"] = all
                 .iter()
                 .enumerate()
                 .map(|(k, name)| {
@@ -126,7 +149,7 @@ pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), S
                 format!("full nv={}", full.nv),
                 "speed-up"
             );
-            for (k, name) in KERNELS.iter().enumerate() {
+            for (k, name) in all.iter().enumerate() {
                 let up = speedup(k).map_or(String::new(), |x| format!("{x:.2}×"));
                 println!(
                     "{name:<16} {:>12} {:>16} {up:>9}",
@@ -152,6 +175,7 @@ pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), S
             }
         }
     }
+    println!("frame_jacobian times link '{}'", deepest_link(&model));
     println!("method auto would choose: {}", auto.summary());
     Ok(())
 }
@@ -199,7 +223,7 @@ pub fn time_kernels(
     kernels
         .iter()
         .map(|&name| {
-            if !KERNELS.contains(&name) {
+            if !KERNELS.contains(&name) && !KINEMATICS_KERNELS.contains(&name) {
                 return Err(format!("bench: unknown kernel '{name}'"));
             }
             let ns = time_kernel(model, &states, name, settings)
@@ -242,6 +266,16 @@ fn time_kernel(
         "fd_crba" => measure(states, settings, |s| fd(ws, s, Crba)),
         "fd_rnea_columns" => measure(states, settings, |s| fd(ws, s, RneaColumns)),
         "gravity" => measure(states, settings, |s| gravity(model, ws, &s.q).map(sink)),
+        "frame_jacobian" => {
+            let frame = find_frame(model, deepest_link(model))?;
+            let world = ReferenceFrame::World;
+            measure(states, settings, |s| {
+                frame_jacobian(model, ws, &s.q, &frame, world).map(sink)
+            })
+        }
+        "center_of_mass" => measure(states, settings, |s| {
+            center_of_mass_jacobian(model, ws, &s.q).map(sink)
+        }),
         _ => unreachable!("unknown kernel {name}"),
     }
 }

@@ -59,6 +59,14 @@ pub enum DynamicsError {
         quantity: &'static str,
         coordinate: String,
     },
+    /// A frame was asked of a link the model does not have: never in the description, or
+    /// `pruned` with a massless subtree (then nothing places it). `known` lists the links that
+    /// are frames.
+    UnknownLink {
+        link: String,
+        pruned: bool,
+        known: Vec<String>,
+    },
 }
 
 impl fmt::Display for DynamicsError {
@@ -98,6 +106,16 @@ impl fmt::Display for DynamicsError {
             DynamicsError::NonFiniteResult { quantity, coordinate } => {
                 write!(f, "{quantity} at '{coordinate}' overflowed to a non-finite value")
             }
+            DynamicsError::UnknownLink { link, pruned: true, known } => write!(
+                f,
+                "link '{link}' was pruned with a massless subtree, so no body carries its frame; the model's links are: {}",
+                known.join(", ")
+            ),
+            DynamicsError::UnknownLink { link, pruned: false, known } => write!(
+                f,
+                "the model has no link named '{link}'; its links are: {}",
+                known.join(", ")
+            ),
         }
     }
 }

@@ -6,12 +6,27 @@
 //! {"op":"forward_dynamics","q":[..],"v":[..],"tau":[..],"method":"aba"} → {"a":[..]}
 //! {"op":"mass_matrix","q":[..]}                                          → {"M":[[..],..]}
 //! {"op":"gravity","q":[..]}                                              → {"tau":[..]}
+//! {"op":"frame_placement","q":[..],"frame":"LINK"}
+//!     → {"translation":[x,y,z],"rotation":[[r00,r01,r02],[r10,r11,r12],[r20,r21,r22]]}
+//! {"op":"frame_jacobian","q":[..],"frame":"LINK","reference":"world"}  → {"J":[[..nv..] × 6]}
+//! {"op":"frame_acceleration","q":[..],"v":[..],"a":[..],"frame":"LINK","reference":"local"}
+//!     → {"acceleration":[6]}
+//! {"op":"center_of_mass","q":[..]}                → {"mass":m,"com":[x,y,z],"J":[[..nv..] × 3]}
 //! ```
 //! `q`, `v`, `a` and `tau` follow [`Model::coordinate_joints`]; `method` is `aba`, `crba` or
 //! `rnea_columns` (default `aba`). A bad request answers `{"error": "..."}` naming the problem.
+//!
+//! Frames are URDF links ([`find_frame`]): the rotation, by rows, maps link-frame vectors to
+//! world ones and the translation is the link origin in the world; Jacobian rows and
+//! accelerations are `[linear; angular]`; `reference` is `world`, `local` or
+//! `local_world_aligned` ([`ReferenceFrame`]; the classical acceleration takes the last two).
 
-use crate::algorithms::{crba, forward_dynamics, gravity, rnea};
+use crate::algorithms::{
+    center_of_mass_jacobian, crba, find_frame, forward_dynamics, frame_classical_acceleration,
+    frame_jacobian, frame_placement, gravity, rnea, ReferenceFrame,
+};
 use crate::{Externals, ForwardDynamicsMethod, Model, Workspace};
+use nalgebra::DMatrix;
 use serde::Deserialize;
 use serde_json::{json, Value};
 
@@ -35,6 +50,25 @@ enum Request {
     Gravity {
         q: Vec<f64>,
     },
+    FramePlacement {
+        q: Vec<f64>,
+        frame: String,
+    },
+    FrameJacobian {
+        q: Vec<f64>,
+        frame: String,
+        reference: String,
+    },
+    FrameAcceleration {
+        q: Vec<f64>,
+        v: Vec<f64>,
+        a: Vec<f64>,
+        frame: String,
+        reference: String,
+    },
+    CenterOfMass {
+        q: Vec<f64>,
+    },
 }
 
 /// The answer to one request line (UTF-8 JSON): the result, or `{"error": "..."}`. Never panics.
@@ -55,11 +89,51 @@ fn answer(model: &Model, ws: &mut Workspace, request: Request) -> Result<Value, 
             let method: ForwardDynamicsMethod = method.as_deref().unwrap_or("aba").parse()?;
             json!({ "a": forward_dynamics(model, ws, &q, &v, &tau, method, &Externals::none()).map_err(text)? })
         }
-        Request::MassMatrix { q } => {
-            let h = crba(model, ws, &q).map_err(text)?;
-            let rows: Vec<Vec<f64>> = h.row_iter().map(|r| r.iter().copied().collect()).collect();
-            json!({ "M": rows })
-        }
+        Request::MassMatrix { q } => json!({ "M": rows(crba(model, ws, &q).map_err(text)?) }),
         Request::Gravity { q } => json!({ "tau": gravity(model, ws, &q).map_err(text)? }),
+        Request::FramePlacement { q, frame } => {
+            let frame = find_frame(model, &frame).map_err(text)?;
+            let x = frame_placement(model, ws, &q, &frame).map_err(text)?;
+            // `x.rot` maps world coordinates to link ones: its columns are the rows of R.
+            let rotation: Vec<Vec<f64>> = x
+                .rot
+                .column_iter()
+                .map(|c| c.iter().copied().collect())
+                .collect();
+            json!({ "translation": x.trans.as_slice(), "rotation": rotation })
+        }
+        Request::FrameJacobian {
+            q,
+            frame,
+            reference,
+        } => {
+            let (frame, reference) = (find_frame(model, &frame).map_err(text)?, reference.parse()?);
+            json!({ "J": rows(frame_jacobian(model, ws, &q, &frame, reference).map_err(text)?) })
+        }
+        Request::FrameAcceleration {
+            q,
+            v,
+            a,
+            frame,
+            reference,
+        } => {
+            let (frame, reference) = (
+                find_frame(model, &frame).map_err(text)?,
+                reference.parse::<ReferenceFrame>()?,
+            );
+            let m = frame_classical_acceleration(model, ws, &q, &v, &a, &frame, reference)
+                .map_err(text)?;
+            let acceleration: Vec<f64> = m.lin.iter().chain(m.ang.iter()).copied().collect();
+            json!({ "acceleration": acceleration })
+        }
+        Request::CenterOfMass { q } => {
+            let (com, j) = center_of_mass_jacobian(model, ws, &q).map_err(text)?;
+            json!({ "mass": com.mass, "com": com.position.as_slice(), "J": rows(j) })
+        }
     })
+}
+
+/// A matrix as a list of its rows.
+fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
+    m.row_iter().map(|r| r.iter().copied().collect()).collect()
 }

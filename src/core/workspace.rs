@@ -1,6 +1,7 @@
 //! Scratch buffers for the algorithms (Pinocchio's `Data`): sized once from a model, reused by
 //! every call so that no call allocates.
 
+use crate::algorithms::frames::FrameScratch;
 use crate::model::{Model, MotionSubspace};
 use crate::plan::Plan;
 use crate::spatial::{Force, Inertia, Matrix6, Motion, Transform, Vector3};
@@ -80,6 +81,8 @@ pub struct Workspace {
     pub(crate) bias: DVector<f64>,
     /// Unit acceleration `e_k` (n+1 RNEA method).
     pub(crate) unit: DVector<f64>,
+    /// Scratch of the frame algorithms (placements, Jacobians, centre of mass).
+    pub(crate) frame_scratch: FrameScratch,
 }
 
 impl Workspace {
@@ -132,6 +135,7 @@ impl Workspace {
             factor: DMatrix::from_vec(nv, nv, vec![0.0; nv * nv]),
             bias: DVector::zeros(nv),
             unit: DVector::zeros(nv),
+            frame_scratch: FrameScratch::new(model),
         }
     }
 

@@ -50,4 +50,6 @@ messages!(
     ResetResponse,
     DescribeModelRequest,
     DescribeModelResponse,
+    FrameKinematicsRequest,
+    FrameKinematicsResponse,
 );

@@ -3,8 +3,9 @@
 //! Inputs: `joint_states`, `~/effort_command`, `~/commands`, `~/reference`, `~/base_state`,
 //! `robot_description` (latched). Outputs: `~/gravity_effort`, `~/acceleration`,
 //! `~/feedforward_effort`, `~/feedforward_commands`, `/diagnostics`, `/rosout`. Services:
-//! `~/inverse_dynamics`, `~/forward_dynamics`, `~/mass_matrix`, `~/describe_model`, and the
-//! standard parameter services. In simulate mode (`mode: simulate`) the node also publishes
+//! `~/inverse_dynamics`, `~/forward_dynamics`, `~/mass_matrix`, `~/describe_model`,
+//! `~/frame_kinematics`, and the standard parameter services. In simulate mode (`mode: simulate`)
+//! the node also publishes
 //! `joint_states`, a floating base's `~/base_state` (and `/clock` if `publish_clock`) from its
 //! own integrated state, with ground contact at `ground_contacts` if given, and serves
 //! `~/reset`, `~/pause` (std_srvs/SetBool) and `~/step` (std_srvs/Trigger); serve mode creates
@@ -539,6 +540,12 @@ async fn serve(
         "~/describe_model",
         "DescribeModel"
     );
+    let (fk_name, fk_server) = server!(
+        FrameKinematicsRequest,
+        FrameKinematicsResponse,
+        "~/frame_kinematics",
+        "FrameKinematics"
+    );
     let (clock_name, clock_topic) = topic!(
         "/clock",
         "rosgraph_msgs",
@@ -623,6 +630,7 @@ async fn serve(
     let fd_stream = fd_server.receive_request_stream();
     let mm_stream = mm_server.receive_request_stream();
     let dm_stream = dm_server.receive_request_stream();
+    let fk_stream = fk_server.receive_request_stream();
     let reset_stream = reset_server.receive_request_stream();
     let pause_stream = pause_server.receive_request_stream();
     let step_stream = step_server.receive_request_stream();
@@ -637,6 +645,7 @@ async fn serve(
         fd_stream,
         mm_stream,
         dm_stream,
+        fk_stream,
         reset_stream,
         pause_stream,
         step_stream
@@ -764,6 +773,11 @@ async fn serve(
                     }
                     if let Err(e) = mm_server.send_response(id, response) { health.dropped(&mm_name, &format!("response not sent: {e:?}")); }
                 } else { health.dropped(&mm_name, "unreadable request"); }
+            }
+            Some(item) = fk_stream.next() => {
+                if let Ok((id, request)) = item {
+                    if let Err(e) = fk_server.send_response(id, engine.frame_kinematics(&request)) { health.dropped(&fk_name, &format!("response not sent: {e:?}")); }
+                } else { health.dropped(&fk_name, "unreadable request"); }
             }
             Some(item) = dm_stream.next() => {
                 if let Ok((id, _)) = item {

@@ -101,6 +101,17 @@ ros_message! {
         link_names: Vec<String>, nq: u32, nv: u32, floating_base: bool, gravity: Vector3, method: String,
         locked_joints: Vec<String>, fused_links: Vec<String>
     }
+    /// spatial_dynamics_msgs/FrameKinematics request
+    FrameKinematicsRequest {
+        name: Vec<String>, position: Vec<f64>, velocity: Vec<f64>, acceleration: Vec<f64>,
+        base_pose: Pose, base_twist: Twist, base_accel: Accel, links: Vec<String>, reference: String
+    }
+    /// spatial_dynamics_msgs/FrameKinematics response
+    FrameKinematicsResponse {
+        success: bool, message: String, links: Vec<String>, poses: Vec<Pose>, columns: Vec<String>,
+        jacobians: Vec<f64>, accelerations: Vec<Accel>, mass: f64, center_of_mass: Point,
+        center_of_mass_jacobian: Vec<f64>
+    }
 }
 
 /// geometry_msgs/Quaternion; its default is the identity (`w = 1`), as the .msg declares.

@@ -3,7 +3,7 @@
 
 use super::validate::check_q;
 use crate::error::DynamicsError;
-use crate::model::{turn_up, turn_up_unrotated, Joint, Model, UpShape};
+use crate::model::{turn_up, turn_up_unrotated, Body, Joint, Model, UpShape};
 use crate::spatial::{sin_cos_all, Force, Motion, Transform, Translation, Vector3};
 use crate::Workspace;
 
@@ -55,30 +55,44 @@ pub(crate) use with_up_transform;
 /// is constant, set when the workspace was made.
 pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     for (i, body) in model.bodies.iter().enumerate() {
-        ws.turn_angles[i] = match ws.plan.turn_axes[i] {
-            Some((_, sign)) => sign * joint_position(&body.joint, q, 0),
-            None => {
-                joint_positions(&body.joint, q, &mut ws.q_joint[i]);
-                0.0
-            }
-        };
+        ws.turn_angles[i] = read_joint(body, ws, i, q);
     }
     sin_cos_all(&ws.turn_angles, &mut ws.turn_sines, &mut ws.turn_cosines);
     for (i, body) in model.bodies.iter().enumerate() {
         let turn = (ws.turn_sines[i], ws.turn_cosines[i]);
-        match (ws.plan.turn_axes[i], ws.plan.up_shapes[i]) {
-            (Some(_), UpShape::AxisTurn(k)) => {
-                turn_up_unrotated(k, turn, &body.x_tree, &mut ws.x_up[i])
-            }
-            (Some((k, _)), _) => turn_up(k, turn, &body.x_tree, &mut ws.x_up[i]),
-            (None, _) => body.joint.kind.jcalc_up_turned(
-                &ws.q_joint[i][..body.joint.kind.nq()],
-                turn,
-                &body.x_tree,
-                &mut ws.s[i],
-                &mut ws.x_up[i],
-            ),
+        update_up(body, ws, i, turn);
+    }
+}
+
+/// Body `i`'s turn angle `σ q` when its joint turns about a coordinate axis (`ws.plan.turn_axes`),
+/// else 0 with the joint's own coordinates read into `ws.q_joint[i]`.
+#[inline(always)]
+pub(crate) fn read_joint(body: &Body, ws: &mut Workspace, i: usize, q: &[f64]) -> f64 {
+    match ws.plan.turn_axes[i] {
+        Some((_, sign)) => sign * joint_position(&body.joint, q, 0),
+        None => {
+            joint_positions(&body.joint, q, &mut ws.q_joint[i]);
+            0.0
         }
+    }
+}
+
+/// `ws.x_up[i]` (and `ws.s[i]` for a joint whose `S` varies) from the sine and cosine of body
+/// `i`'s turn angle and, for other joints, `ws.q_joint[i]`.
+#[inline(always)]
+pub(crate) fn update_up(body: &Body, ws: &mut Workspace, i: usize, turn: (f64, f64)) {
+    match (ws.plan.turn_axes[i], ws.plan.up_shapes[i]) {
+        (Some(_), UpShape::AxisTurn(k)) => {
+            turn_up_unrotated(k, turn, &body.x_tree, &mut ws.x_up[i])
+        }
+        (Some((k, _)), _) => turn_up(k, turn, &body.x_tree, &mut ws.x_up[i]),
+        (None, _) => body.joint.kind.jcalc_up_turned(
+            &ws.q_joint[i][..body.joint.kind.nq()],
+            turn,
+            &body.x_tree,
+            &mut ws.s[i],
+            &mut ws.x_up[i],
+        ),
     }
 }
 

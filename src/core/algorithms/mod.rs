@@ -12,6 +12,10 @@
 //! | [`method_choice`] | the fastest forward-dynamics method accurate enough for a model, measured |
 //! | [`joint_state_outputs`](mod@joint_state_outputs) | `g(q)`, `FD(q, q̇, τ)` and `RNEA(q, q̇, q̈)` at one state, sharing the kinematics |
 //! | [`energy`](mod@energy) | kinetic and potential energy |
+//! | [`frames`] | link frames ([`find_frame`]) and their placement in the world |
+//! | [`jacobian`] | frame Jacobians in three references, one frame or many ([`joint_jacobians`]) |
+//! | [`frame_acceleration`] | a link frame's classical acceleration |
+//! | [`center_of_mass`](mod@center_of_mass) | centre of mass, total mass and the centre-of-mass Jacobian |
 //! | [`ltl`], [`cholesky`] | the factorisations that solve `H q̈ = τ − C` |
 //! | [`flops`] | how many floating-point operations each of them performs on a model |
 
@@ -20,13 +24,17 @@
 
 pub mod aba;
 pub mod bias;
+pub mod center_of_mass;
 pub mod cholesky;
 pub mod crba;
 pub mod energy;
 pub mod flop_table;
 pub mod flops;
 pub mod forward_dynamics;
+pub mod frame_acceleration;
+pub mod frames;
 pub mod gravity;
+pub mod jacobian;
 pub mod joint_state_outputs;
 pub mod kinematics;
 pub mod ltl;
@@ -37,10 +45,14 @@ mod validate;
 
 pub use aba::aba;
 pub use bias::bias;
+pub use center_of_mass::{center_of_mass, center_of_mass_jacobian, CenterOfMass};
 pub use crba::crba;
 pub use energy::energy;
 pub use forward_dynamics::{forward_dynamics, ForwardDynamicsMethod};
+pub use frame_acceleration::frame_classical_acceleration;
+pub use frames::{find_frame, frame_placement, Frame};
 pub use gravity::gravity;
+pub use jacobian::{frame_jacobian, joint_jacobians, JointJacobians, ReferenceFrame};
 pub use joint_state_outputs::{joint_state_outputs, JointStateInputs, JointStateOutputs};
 pub use method_choice::{choose_method, MethodChoice};
 pub use rnea::{rnea, rnea_with};

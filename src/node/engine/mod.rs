@@ -3,6 +3,7 @@
 //! message with a message, or with an error text that names the joint, field or value.
 
 pub mod clock;
+mod frame_kinematics;
 mod simulation;
 
 use super::params::Settings;

@@ -271,7 +271,7 @@ fn run(u: &mut Unstructured) -> Result<()> {
     };
     let vocabulary = Vocabulary::new(&engine);
     for _ in 0..u.int_in_range(1u8..=12)? {
-        match u.int_in_range(0u8..=12)? {
+        match u.int_in_range(0u8..=13)? {
             0 => {
                 let names = vocabulary.names(u)?;
                 let js = JointState {
@@ -438,6 +438,55 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 };
                 let r = engine.simulation_reset(&req);
                 assert!(r.success || !r.message.is_empty());
+            }
+            12 => {
+                let names = vocabulary.names(u)?;
+                let links = (0..u.int_in_range(0u8..=3)?)
+                    .map(|_| vocabulary.link(u))
+                    .collect::<Result<Vec<_>>>()?;
+                let req = FrameKinematicsRequest {
+                    position: numbers(u, names.len())?,
+                    velocity: numbers(u, names.len())?,
+                    acceleration: numbers(u, names.len())?,
+                    name: names,
+                    base_pose: pose(u)?,
+                    base_twist: twist(u)?,
+                    base_accel: Accel {
+                        linear: vector(u)?,
+                        angular: vector(u)?,
+                    },
+                    links,
+                    reference: u
+                        .choose(&["", "world", "local", "local_world_aligned", "LOCAL"])?
+                        .to_string(),
+                };
+                let r = engine.frame_kinematics(&req);
+                let poses: Vec<f64> = r
+                    .poses
+                    .iter()
+                    .flat_map(|p| {
+                        let (x, o) = (&p.position, &p.orientation);
+                        [x.x, x.y, x.z, o.x, o.y, o.z, o.w]
+                    })
+                    .chain(r.accelerations.iter().flat_map(|a| {
+                        let (l, w) = (&a.linear, &a.angular);
+                        [l.x, l.y, l.z, w.x, w.y, w.z]
+                    }))
+                    .collect();
+                let com = [r.mass, r.center_of_mass.x, r.center_of_mass.y, r.center_of_mass.z];
+                service(
+                    "frame_kinematics",
+                    r.success,
+                    &r.message,
+                    &[&r.jacobians, &r.center_of_mass_jacobian, &poses, &com[..(r.success as usize) * 4]],
+                    &r.links,
+                );
+                if r.success {
+                    let n = r.columns.len();
+                    assert_eq!(r.jacobians.len(), r.links.len() * 6 * n);
+                    assert_eq!(r.center_of_mass_jacobian.len(), 3 * n);
+                    assert_eq!((r.poses.len(), r.accelerations.len()), (r.links.len(), r.links.len()));
+                }
             }
             _ => {
                 let _ = engine.simulation_status();

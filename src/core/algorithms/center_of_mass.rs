@@ -1,0 +1,131 @@
+//! Centre of mass, total mass and the centre-of-mass Jacobian (Pinocchio's `centerOfMass` and
+//! `jacobianCenterOfMass`).
+//!
+//! The mass counted is the model's bodies' (every fused, locked or lumped link included); links
+//! fixed to the world (a fixed base's root link and whatever is welded to it) never move and
+//! are not counted, as in Pinocchio, whose universe inertia is left out the same way.
+//!
+//! Inward over the tree, each body's subtree mass `m_i` and first moment about the body's own
+//! origin `d_i = Σ_j m_j (c_j − p_i)` (world axes; `c_j` body `j`'s centre of mass, `p_i` body
+//! `i`'s origin), which keeps the digits a sum about the world origin would lose far from it:
+//!
+//! ```text
+//! d_i = R_i h_i + Σ_children (d_j + m_j (p_j − p_i))
+//! c = Σ_roots (m_r p_r + d_r) / M
+//! ```
+//!
+//! A joint column `s` of body `i` (world axes at `p_i`: `a = R_i s_ω`, `l = R_i s_v`) moves the
+//! subtree's centre of mass with `l + a × d_i / m_i`, so column `k` of `J_c` (`ċ = J_c q̇`) is
+//! `Σ (m_i l + a × d_i) / M` over the joints with that coordinate (a mimic follower's scaled by
+//! its multiplier).
+
+use super::frames::{all_finite, place_all};
+use super::jacobian::world_axes;
+use super::validate::check_q;
+use crate::error::DynamicsError;
+use crate::model::Model;
+use crate::spatial::Vector3;
+use crate::Workspace;
+use nalgebra::DMatrix;
+
+/// The total mass of the moving bodies and their centre of mass.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CenterOfMass {
+    /// Total mass `M` (kg).
+    pub mass: f64,
+    /// Centre of mass `c` in world coordinates (m).
+    pub position: Vector3,
+}
+
+/// The centre of mass at `q`. A model without mass has none: an error.
+pub fn center_of_mass(
+    model: &Model,
+    ws: &mut Workspace,
+    q: &[f64],
+) -> Result<CenterOfMass, DynamicsError> {
+    check_q(model, q)?;
+    place_all(model, ws, q);
+    subtree_moments(model, ws);
+    total(model, ws)
+}
+
+/// The centre of mass at `q` and its Jacobian `J_c` (`3 × nv`, `ċ = J_c q̇` in world
+/// coordinates), in the workspace.
+pub fn center_of_mass_jacobian<'w>(
+    model: &Model,
+    ws: &'w mut Workspace,
+    q: &[f64],
+) -> Result<(CenterOfMass, &'w DMatrix<f64>), DynamicsError> {
+    let com = center_of_mass(model, ws, q)?;
+    let scratch = &mut ws.frame_scratch;
+    let jacobian = &mut scratch.com_jacobian;
+    jacobian.as_mut_slice().fill(0.0);
+    for (i, body) in model.bodies.iter().enumerate() {
+        let (x, s, c) = (&scratch.x_world[i], &ws.s[i], body.joint.coords);
+        let (m, d) = (scratch.subtree_mass[i], &scratch.subtree_moment[i]);
+        let weight = c.scale / com.mass;
+        for k in 0..s.nv {
+            let (a, l) = world_axes(&x.rot, &s.cols[k], ws.plan.s_axes[i][k]);
+            let col = (l * m + a.cross(d)) * weight;
+            let mut out = jacobian.column_mut(c.v_index + k);
+            for r in 0..3 {
+                out[r] += col[r];
+            }
+        }
+    }
+    if all_finite(jacobian.as_slice()) {
+        return Ok((com, &ws.frame_scratch.com_jacobian));
+    }
+    if let Some(k) = (0..model.nv).find(|&k| !all_finite(jacobian.column(k).as_slice())) {
+        return Err(DynamicsError::NonFiniteResult {
+            quantity: "centre-of-mass Jacobian",
+            coordinate: model.v_name(k),
+        });
+    }
+    Ok((com, &ws.frame_scratch.com_jacobian))
+}
+
+/// `subtree_mass` and `subtree_moment` (`d_i`, see the module documentation) from the placed
+/// bodies, children before parents.
+fn subtree_moments(model: &Model, ws: &mut Workspace) {
+    let scratch = &mut ws.frame_scratch;
+    for (i, body) in model.bodies.iter().enumerate() {
+        scratch.subtree_mass[i] = body.inertia.mass;
+        scratch.subtree_moment[i] = scratch.x_world[i].rot.tr_mul(&body.inertia.h);
+    }
+    for (i, body) in model.bodies.iter().enumerate().rev() {
+        if let Some(p) = body.parent {
+            let (m, d) = (scratch.subtree_mass[i], scratch.subtree_moment[i]);
+            let shift = scratch.x_world[i].trans - scratch.x_world[p].trans;
+            scratch.subtree_mass[p] += m;
+            scratch.subtree_moment[p] += d + shift * m;
+        }
+    }
+}
+
+/// `M` and `c` from the roots' subtrees; an error for a massless model or an overflow.
+fn total(model: &Model, ws: &Workspace) -> Result<CenterOfMass, DynamicsError> {
+    let scratch = &ws.frame_scratch;
+    let (mut mass, mut moment) = (0.0, Vector3::zeros());
+    for (i, body) in model.bodies.iter().enumerate() {
+        if body.parent.is_none() {
+            let m = scratch.subtree_mass[i];
+            mass += m;
+            moment += scratch.x_world[i].trans * m + scratch.subtree_moment[i];
+        }
+    }
+    if mass <= 0.0 {
+        return Err(DynamicsError::Unsupported {
+            method: "center of mass",
+            reason: "no moving body of the model has mass".into(),
+        });
+    }
+    let position = moment / mass;
+    if !position.iter().all(|x| x.is_finite()) {
+        return Err(DynamicsError::NonFiniteResult {
+            quantity: "centre of mass",
+            coordinate: model.name.clone(),
+        });
+    }
+    Ok(CenterOfMass { mass, position })
+}

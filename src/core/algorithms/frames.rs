@@ -1,0 +1,229 @@
+//! Frames of URDF links and their placement in the world (Pinocchio's `Frame` and
+//! `updateFramePlacement`).
+//!
+//! Every URDF link the model kept is a frame: a link with a moving joint is its body's frame
+//! (possibly turned by quarter turns, see [`Body::name`](crate::model::Body)), a link fused
+//! into its parent through a fixed joint, locked, or lumped onto a tip or a kept body by a
+//! reduction sits at a constant placement `ᴸX_B` in the body that carries it
+//! ([`LinkFrame::x_body_link`](crate::model::LinkFrame)); a link fixed to the world sits at a
+//! constant placement in the world. A link pruned with a massless subtree is not a frame: no
+//! body carries it any more.
+//!
+//! The placement of link `L` carried by body `B` is `ᴸX_0 = ᴸX_B ᴮX_0`, its origin
+//! `p_L = ᴸX_0.trans` in the world and its orientation `R_L = ᴸX_0.rotᵀ` (link axes in world
+//! coordinates, mapping link-frame vectors to world ones).
+//!
+//! The frame algorithms ([`frame_placement`], [`jacobian`](super::jacobian),
+//! [`frame_acceleration`](super::frame_acceleration)) place only the bodies that support the
+//! frame (the path from the root to its body), as Pinocchio's `computeFrameJacobian` does; the
+//! whole-tree ones ([`joint_jacobians`](super::jacobian::joint_jacobians),
+//! [`center_of_mass`](super::center_of_mass)) place every body. Their scratch is the
+//! workspace's [`FrameScratch`].
+
+use super::kinematics::{read_joint, update_joints, update_up, with_up_transform};
+use super::validate::check_q;
+use crate::error::DynamicsError;
+use crate::model::{Model, MotionSubspace};
+use crate::spatial::{sin_cos_all, Motion, Transform, Vector3};
+use crate::Workspace;
+use nalgebra::DMatrix;
+
+/// A URDF link resolved once against a model ([`find_frame`]), so that the per-call algorithms
+/// look nothing up by name.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frame {
+    /// Index of the link in [`Model::links`].
+    pub link: usize,
+    /// The body carrying the link; `None` for a link fixed to the world.
+    pub body: Option<usize>,
+    /// `ᴸX_B`: the carrying body's frame (the world for `body = None`) → the link frame.
+    pub x_body_link: Transform,
+}
+
+/// The frame of link `name`, or an error naming it and listing the model's links.
+pub fn find_frame(model: &Model, name: &str) -> Result<Frame, DynamicsError> {
+    match model.links.iter().position(|l| l.name == name) {
+        Some(link) => {
+            let l = &model.links[link];
+            Ok(Frame {
+                link,
+                body: l.body,
+                x_body_link: l.x_body_link,
+            })
+        }
+        None => Err(DynamicsError::UnknownLink {
+            link: name.to_string(),
+            pruned: model.reduction.pruned_links.iter().any(|l| l == name),
+            known: model.links.iter().map(|l| l.name.clone()).collect(),
+        }),
+    }
+}
+
+/// `ᴸX_0`, the placement of `frame` in the world at configuration `q` (world coordinates → link
+/// coordinates): its `trans` is the link origin in the world, its `rot` the rotation from world
+/// to link coordinates (`rotᵀ` holds the link axes in world coordinates). Only the bodies
+/// supporting the frame are placed.
+pub fn frame_placement(
+    model: &Model,
+    ws: &mut Workspace,
+    q: &[f64],
+    frame: &Frame,
+) -> Result<Transform, DynamicsError> {
+    check_q(model, q)?;
+    place_support(model, ws, q, frame.body);
+    let x = placement_of(&ws.frame_scratch, frame);
+    let mut values = [0.0; 12];
+    values[..9].copy_from_slice(x.rot.as_slice());
+    values[9..].copy_from_slice(x.trans.as_slice());
+    check_finite(model, frame, "frame placement", &values)?;
+    Ok(x)
+}
+
+/// Scratch of the frame algorithms, one per [`Workspace`]: quantities per body are kept here,
+/// apart from the dynamics algorithms' own, so that a frame call placing only a frame's support
+/// leaves theirs whole.
+#[derive(Clone, Debug)]
+pub struct FrameScratch {
+    /// The bodies supporting the last frame asked for, root first (each body's parent just
+    /// before it).
+    pub(crate) support: Vec<usize>,
+    /// The turn angles of the support's joints, their sines and cosines (support order).
+    pub(crate) angles: Vec<f64>,
+    pub(crate) sines: Vec<f64>,
+    pub(crate) cosines: Vec<f64>,
+    /// `ⁱX_0` (world → body) of the bodies placed by the last frame call.
+    pub(crate) x_world: Vec<Transform>,
+    /// Each joint's motion subspace in world axes at its body's origin, `R_i S_i` with
+    /// `R_i = ⁱX_0.rotᵀ` (both halves of each column rotated, no change of point), from
+    /// [`joint_jacobians`](super::jacobian::joint_jacobians).
+    pub(crate) axes: Vec<MotionSubspace>,
+    /// Body spatial velocities and classical-acceleration recursion terms along the support, in
+    /// body coordinates ([`frame_acceleration`](super::frame_acceleration)).
+    pub(crate) v: Vec<Motion>,
+    pub(crate) a: Vec<Motion>,
+    /// Mass and first moment `Σ m_j c_j` (world coordinates, about the world origin) of each
+    /// body's subtree ([`center_of_mass`](super::center_of_mass)).
+    pub(crate) subtree_mass: Vec<f64>,
+    pub(crate) subtree_moment: Vec<Vector3>,
+    /// A frame Jacobian, `6 × nv`, rows `[linear; angular]`.
+    pub(crate) jacobian: DMatrix<f64>,
+    /// The centre-of-mass Jacobian, `3 × nv`.
+    pub(crate) com_jacobian: DMatrix<f64>,
+}
+
+impl FrameScratch {
+    /// Buffers sized for `model`.
+    pub(crate) fn new(model: &Model) -> Self {
+        let (n, nv) = (model.nbodies(), model.nv);
+        FrameScratch {
+            support: Vec::with_capacity(n),
+            angles: vec![0.0; n],
+            sines: vec![0.0; n],
+            cosines: vec![0.0; n],
+            x_world: vec![Transform::identity(); n],
+            axes: vec![MotionSubspace::default(); n],
+            v: vec![Motion::zero(); n],
+            a: vec![Motion::zero(); n],
+            subtree_mass: vec![0.0; n],
+            subtree_moment: vec![Vector3::zeros(); n],
+            jacobian: DMatrix::zeros(6, nv),
+            com_jacobian: DMatrix::zeros(3, nv),
+        }
+    }
+}
+
+/// Places the bodies supporting `body` (none for a link fixed to the world) for `q` (already
+/// validated): `scratch.support` lists them root first, their joints are updated
+/// (`ws.x_up`, `ws.s`; other bodies' entries are left as they were) and
+/// `scratch.x_world` holds their `ⁱX_0 = ⁱX_λ ᵏX_0`.
+pub(crate) fn place_support(model: &Model, ws: &mut Workspace, q: &[f64], body: Option<usize>) {
+    let support = &mut ws.frame_scratch.support;
+    support.clear();
+    let mut next = body;
+    while let Some(i) = next {
+        support.push(i);
+        next = model.bodies[i].parent;
+    }
+    support.reverse();
+    // As `update_joints` does for the whole tree: the turn angles first, their sines and cosines
+    // two at a time, then each joint's transform and the body's placement.
+    let n = ws.frame_scratch.support.len();
+    for k in 0..n {
+        let i = ws.frame_scratch.support[k];
+        ws.frame_scratch.angles[k] = read_joint(&model.bodies[i], ws, i, q);
+    }
+    let FrameScratch {
+        angles,
+        sines,
+        cosines,
+        ..
+    } = &mut ws.frame_scratch;
+    sin_cos_all(&angles[..n], &mut sines[..n], &mut cosines[..n]);
+    for k in 0..n {
+        let i = ws.frame_scratch.support[k];
+        let turn = (ws.frame_scratch.sines[k], ws.frame_scratch.cosines[k]);
+        update_up(&model.bodies[i], ws, i, turn);
+        place_body(model, ws, i);
+    }
+}
+
+/// Places every body for `q` (already validated): all joints updated, `scratch.x_world` for
+/// every body, `scratch.support` emptied (it names no frame's support).
+pub(crate) fn place_all(model: &Model, ws: &mut Workspace, q: &[f64]) {
+    update_joints(model, ws, q);
+    for i in 0..model.nbodies() {
+        place_body(model, ws, i);
+    }
+    ws.frame_scratch.support.clear();
+}
+
+/// `scratch.x_world[i] = ⁱX_λ ᵏX_0` (`ⁱX_λ` for a root), the parent already placed.
+#[inline(always)]
+fn place_body(model: &Model, ws: &mut Workspace, i: usize) {
+    let x = match model.bodies[i].parent {
+        Some(p) => with_up_transform!(ws, i, |x| x.compose(&ws.frame_scratch.x_world[p])),
+        None => ws.x_up[i],
+    };
+    ws.frame_scratch.x_world[i] = x;
+}
+
+/// `ᴸX_0 = ᴸX_B ᴮX_0` from the placed bodies (`ᴸX_0 = ᴸX_B` for a link fixed to the world).
+pub(crate) fn placement_of(scratch: &FrameScratch, frame: &Frame) -> Transform {
+    match frame.body {
+        Some(b) => frame.x_body_link.compose(&scratch.x_world[b]),
+        None => frame.x_body_link,
+    }
+}
+
+/// An error naming the frame's link when a result is not finite (finite inputs can overflow).
+pub(crate) fn check_finite(
+    model: &Model,
+    frame: &Frame,
+    quantity: &'static str,
+    values: &[f64],
+) -> Result<(), DynamicsError> {
+    if all_finite(values) {
+        Ok(())
+    } else {
+        Err(DynamicsError::NonFiniteResult {
+            quantity,
+            coordinate: model.links[frame.link].name.clone(),
+        })
+    }
+}
+
+/// True when every value is finite, without a branch per value: `x · 0` is zero for a finite
+/// `x` and NaN otherwise, summed in four independent lanes (which vectorise).
+pub(crate) fn all_finite(values: &[f64]) -> bool {
+    let mut lanes = [0.0f64; 4];
+    let chunks = values.chunks_exact(4);
+    for (k, x) in chunks.remainder().iter().enumerate() {
+        lanes[k] += x * 0.0;
+    }
+    for chunk in chunks {
+        for k in 0..4 {
+            lanes[k] += chunk[k] * 0.0;
+        }
+    }
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) == 0.0
+}

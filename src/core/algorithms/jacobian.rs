@@ -1,0 +1,241 @@
+//! Frame Jacobians (Pinocchio's `computeFrameJacobian`, and `computeJointJacobians` with
+//! `getFrameJacobian` for many frames at one configuration).
+//!
+//! The Jacobian `J` of a link frame `L` maps the velocity coordinates to the frame's twist,
+//! `[v; ω] = J q̇`, rows `[linear; angular]` (the twist's linear part first, unlike the
+//! `[angular; linear]` spatial vectors inside the library), one column per velocity coordinate
+//! in the model's `v` order. The [`ReferenceFrame`] says which twist:
+//!
+//! | reference | linear rows `v` | angular rows `ω` |
+//! |---|---|---|
+//! | `World` | velocity of the body-fixed point at the world origin, world axes | world axes |
+//! | `Local` | velocity of the link origin, link axes (`R_Lᵀ ṗ_L`) | link axes |
+//! | `LocalWorldAligned` | velocity of the link origin, world axes (`ṗ_L`) | world axes |
+//!
+//! Column `k` sums the contributions of the joints that move the frame (the bodies from the
+//! root to the frame's body). A joint of body `i` with motion subspace `S_i` (body
+//! coordinates) contributes, for each of its columns `s = [s_ω; s_v]`, the twist
+//! `a = R_i s_ω`, `l = R_i s_v` in world axes at its body's origin `p_i`, moved to the point
+//! `o` of the reference (`o = 0` for `World`, `o = p_L` otherwise): `[l + a × (o − p_i); a]`,
+//! then turned into link axes by `R_Lᵀ` for `Local`. A floating base's columns follow its
+//! `v = [linear; angular]` in the base frame; a mimic follower adds `μ` times its column to its
+//! leader's (`q̇_follower = μ q̇_leader`).
+
+use super::frames::{check_finite, place_all, place_support, placement_of, Frame, FrameScratch};
+use super::validate::check_q;
+use crate::error::DynamicsError;
+use crate::model::Model;
+use crate::spatial::{Matrix3, Motion, Transform, Vector3};
+use crate::Workspace;
+use nalgebra::DMatrix;
+use std::str::FromStr;
+
+/// The frame a twist (or Jacobian, or acceleration) is expressed in, with Pinocchio's meaning
+/// (`pinocchio::ReferenceFrame`); see the [module](self) documentation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReferenceFrame {
+    /// World axes, about the world origin (the spatial twist).
+    World,
+    /// The link's axes, at the link's origin (the body twist).
+    Local,
+    /// World axes, at the link's origin.
+    LocalWorldAligned,
+}
+
+impl ReferenceFrame {
+    /// The names [`FromStr`] accepts, as the command line and the node spell them.
+    pub const NAMES: [&'static str; 3] = ["world", "local", "local_world_aligned"];
+}
+
+impl FromStr for ReferenceFrame {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "world" => Ok(ReferenceFrame::World),
+            "local" => Ok(ReferenceFrame::Local),
+            "local_world_aligned" => Ok(ReferenceFrame::LocalWorldAligned),
+            _ => Err(format!(
+                "unknown reference '{s}': expected one of {}",
+                Self::NAMES.join(", ")
+            )),
+        }
+    }
+}
+
+/// The Jacobian of `frame` at `q` in `reference` (`6 × nv`, rows `[linear; angular]`, see the
+/// [module](self) documentation), in the workspace. Only the bodies supporting the frame are
+/// placed; a link fixed to the world has a zero Jacobian.
+pub fn frame_jacobian<'w>(
+    model: &Model,
+    ws: &'w mut Workspace,
+    q: &[f64],
+    frame: &Frame,
+    reference: ReferenceFrame,
+) -> Result<&'w DMatrix<f64>, DynamicsError> {
+    check_q(model, q)?;
+    place_support(model, ws, q, frame.body);
+    let to_frame = ColumnMap::new(reference, &placement_of(&ws.frame_scratch, frame));
+    let FrameScratch {
+        support,
+        x_world,
+        jacobian,
+        ..
+    } = &mut ws.frame_scratch;
+    jacobian.as_mut_slice().fill(0.0);
+    for &i in support.iter() {
+        let (x, s, c) = (&x_world[i], &ws.s[i], model.bodies[i].joint.coords);
+        for k in 0..s.nv {
+            let (a, l) = world_axes(&x.rot, &s.cols[k], ws.plan.s_axes[i][k]);
+            add_column(
+                jacobian,
+                c.v_index + k,
+                c.scale,
+                to_frame.column(&a, &l, &x.trans),
+            );
+        }
+    }
+    check_finite(model, frame, "frame Jacobian", jacobian.as_slice())?;
+    Ok(&ws.frame_scratch.jacobian)
+}
+
+/// Every joint's motion subspace in world axes at `q`, from which [`JointJacobians`] assembles
+/// the Jacobian of any frame without another pass over the tree (Pinocchio's
+/// `computeJointJacobians`): one placement of every body, then per frame only the columns of
+/// its supporting joints.
+pub fn joint_jacobians<'w>(
+    model: &'w Model,
+    ws: &'w mut Workspace,
+    q: &[f64],
+) -> Result<JointJacobians<'w>, DynamicsError> {
+    check_q(model, q)?;
+    place_all(model, ws, q);
+    let scratch = &mut ws.frame_scratch;
+    for i in 0..model.nbodies() {
+        let (x, s) = (&scratch.x_world[i], &ws.s[i]);
+        if !x.rot.iter().chain(x.trans.iter()).all(|e| e.is_finite()) {
+            return Err(DynamicsError::NonFiniteResult {
+                quantity: "placement",
+                coordinate: model.bodies[i].joint.name.clone(),
+            });
+        }
+        let axes = &mut scratch.axes[i];
+        axes.nv = s.nv;
+        for k in 0..s.nv {
+            let (a, l) = world_axes(&x.rot, &s.cols[k], ws.plan.s_axes[i][k]);
+            axes.cols[k] = Motion::new(a, l);
+        }
+    }
+    Ok(JointJacobians { model, scratch })
+}
+
+/// The joint Jacobians of one configuration ([`joint_jacobians`]): frame placements and
+/// Jacobians of any number of frames, each for the cost of its own columns.
+pub struct JointJacobians<'w> {
+    model: &'w Model,
+    scratch: &'w mut FrameScratch,
+}
+
+impl JointJacobians<'_> {
+    /// `ᴸX_0` of `frame` (see [`frame_placement`](super::frames::frame_placement)).
+    pub fn placement(&self, frame: &Frame) -> Transform {
+        placement_of(self.scratch, frame)
+    }
+
+    /// The Jacobian of `frame` in `reference`, as [`frame_jacobian`] gives it.
+    pub fn frame_jacobian(
+        &mut self,
+        frame: &Frame,
+        reference: ReferenceFrame,
+    ) -> Result<&DMatrix<f64>, DynamicsError> {
+        let to_frame = ColumnMap::new(reference, &placement_of(self.scratch, frame));
+        let FrameScratch {
+            x_world,
+            axes,
+            jacobian,
+            ..
+        } = &mut *self.scratch;
+        jacobian.as_mut_slice().fill(0.0);
+        let mut next = frame.body;
+        while let Some(i) = next {
+            let body = &self.model.bodies[i];
+            let (p_i, c) = (&x_world[i].trans, body.joint.coords);
+            for (k, col) in axes[i].cols[..axes[i].nv].iter().enumerate() {
+                add_column(
+                    jacobian,
+                    c.v_index + k,
+                    c.scale,
+                    to_frame.column(&col.ang, &col.lin, p_i),
+                );
+            }
+            next = body.parent;
+        }
+        check_finite(self.model, frame, "frame Jacobian", jacobian.as_slice())?;
+        Ok(&self.scratch.jacobian)
+    }
+}
+
+/// A motion-subspace column `s` (body coordinates) in world axes, `(R s_ω, R s_v)` with
+/// `R = Eᵀ`: a column along a coordinate axis (`axis`, [`JointKind::subspace_axes`]) is a signed
+/// row of `E`, with no product.
+///
+/// [`JointKind::subspace_axes`]: crate::model::JointKind::subspace_axes
+#[inline(always)]
+pub(crate) fn world_axes(
+    e: &Matrix3,
+    s: &Motion,
+    axis: Option<(usize, f64)>,
+) -> (Vector3, Vector3) {
+    match axis {
+        Some((j, sign)) if j < 3 => (e.row(j).transpose() * sign, Vector3::zeros()),
+        Some((j, sign)) => (Vector3::zeros(), e.row(j - 3).transpose() * sign),
+        None => (e.tr_mul(&s.ang), e.tr_mul(&s.lin)),
+    }
+}
+
+/// Where a Jacobian's columns are expressed: about the point `origin` (world coordinates),
+/// in world axes or, with `rot` (world → link), in link axes.
+struct ColumnMap {
+    origin: Vector3,
+    rot: Option<Matrix3>,
+}
+
+impl ColumnMap {
+    /// For `reference`, given the frame's placement `ᴸX_0`.
+    fn new(reference: ReferenceFrame, x_link: &Transform) -> Self {
+        match reference {
+            ReferenceFrame::World => ColumnMap {
+                origin: Vector3::zeros(),
+                rot: None,
+            },
+            ReferenceFrame::LocalWorldAligned => ColumnMap {
+                origin: x_link.trans,
+                rot: None,
+            },
+            ReferenceFrame::Local => ColumnMap {
+                origin: x_link.trans,
+                rot: Some(x_link.rot),
+            },
+        }
+    }
+
+    /// The twist `[a; l]` (world axes, at the body origin `p_i`) as a column `(linear,
+    /// angular)` in this map's point and axes: `l + a × (o − p_i)`, `a`, turned if local.
+    #[inline(always)]
+    fn column(&self, a: &Vector3, l: &Vector3, p_i: &Vector3) -> (Vector3, Vector3) {
+        let lin = l + a.cross(&(self.origin - p_i));
+        match &self.rot {
+            Some(e) => (e * lin, e * a),
+            None => (lin, *a),
+        }
+    }
+}
+
+/// `J[:, column] += scale · [linear; angular]`.
+#[inline(always)]
+fn add_column(j: &mut DMatrix<f64>, column: usize, scale: f64, (lin, ang): (Vector3, Vector3)) {
+    let mut col = j.column_mut(column);
+    for r in 0..3 {
+        col[r] += scale * lin[r];
+        col[r + 3] += scale * ang[r];
+    }
+}
