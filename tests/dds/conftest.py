@@ -97,7 +97,6 @@ class NodeLauncher:
         node = sd.NodeProcess(self.binary, args, full_env, self.log_dir / f"{label}.log", label, expect_exit)
         self.started.append(node)
         if not expect_exit:
-            # A new server: the session's clients must settle again before their first request.
             if not self.session.wait_new_node(before):
                 raise AssertionError(f"the node was not discovered within {sd.EVENT_S} s:\n{node.describe()}")
         return node

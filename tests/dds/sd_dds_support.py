@@ -1,4 +1,4 @@
-"""Helpers for the DDS tests: the node as a subprocess, an rclpy session (robust service calls,
+"""Helpers for the DDS tests: the node as a subprocess, an rclpy session (service calls,
 topic collectors, parameter services), and Pinocchio references mapped by joint name.
 
 Nothing here computes dynamics of its own: every expected value comes from Pinocchio (``pin``)
@@ -238,10 +238,7 @@ class RosSession:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._clients = {}
-        self._created = {}  # client key -> time.monotonic() of creation
-        self._node_seen = 0.0  # when the last (re)started node was discovered
         self._publishers = {}
-        self.prepare_clients()
 
     def close(self):
         self.executor.shutdown()
@@ -265,35 +262,12 @@ class RosSession:
             self.executor.spin_once(timeout_sec=0.02)
 
     # -- services ---------------------------------------------------------------------------
-    #
-    # First-request loss: RustDDS ignores DATA from a writer whose discovery it has not processed
-    # yet; a dropped request is then only repaired by the writer's next heartbeat (Fast DDS: every
-    # 3 s), and later requests of that client wait behind it. So a client is only used once
-    # SETTLE_S have passed since both its creation and the (re)start of the node being called
-    # (0.5 s was enough in every run measured); a call that still times out is retried once.
-
-    SETTLE_S = 0.5
 
     def client(self, srv_type, name):
         key = (srv_type, name)
         if key not in self._clients:
             self._clients[key] = self.node.create_client(srv_type, name)
-            self._created[key] = time.monotonic()
         return self._clients[key]
-
-    def prepare_clients(self, prefix=NODE):
-        """Creates the clients of a node's services at once, so that one settling time covers
-        them all."""
-        from rcl_interfaces.srv import DescribeParameters, GetParameters, GetParameterTypes, ListParameters, SetParameters
-        from spatial_dynamics_msgs.srv import DescribeModel, ForwardDynamics, InverseDynamics, MassMatrix
-
-        for srv_type, leaf in (
-            (InverseDynamics, "inverse_dynamics"), (ForwardDynamics, "forward_dynamics"), (MassMatrix, "mass_matrix"),
-            (DescribeModel, "describe_model"), (GetParameters, "get_parameters"), (SetParameters, "set_parameters"),
-            (ListParameters, "list_parameters"), (DescribeParameters, "describe_parameters"),
-            (GetParameterTypes, "get_parameter_types"),
-        ):
-            self.client(srv_type, f"{prefix}/{leaf}")
 
     def rosout_writers(self):
         """Endpoint GIDs of every /rosout publisher seen (one per node, ghosts of stopped nodes
@@ -302,9 +276,7 @@ class RosSession:
 
     def wait_new_node(self, before, timeout=EVENT_S):
         """Waits until a node not in `before` (rosout_writers()) has been discovered."""
-        ok = self.spin_until(lambda: bool(self.rosout_writers() - before), timeout)
-        self._node_seen = time.monotonic()
-        return ok
+        return self.spin_until(lambda: bool(self.rosout_writers() - before), timeout)
 
     def wait_for_service(self, srv_type, name, timeout=EVENT_S):
         client = self.client(srv_type, name)
@@ -313,16 +285,13 @@ class RosSession:
         return client
 
     def call(self, srv_type, name, request, timeout=10.0):
-        """Calls a service robustly (see above) and returns the response."""
+        """Calls a service once it is available and returns the response."""
         client = self.wait_for_service(srv_type, name)
-        settle_at = max(self._created[(srv_type, name)], self._node_seen) + self.SETTLE_S
-        self.spin_for(max(0.0, settle_at - time.monotonic()))
-        for _ in range(2):
-            future = client.call_async(request)
-            if self.spin_until(future.done, timeout):
-                return future.result()
+        future = client.call_async(request)
+        if not self.spin_until(future.done, timeout):
             client.remove_pending_request(future)
-        raise AssertionError(f"no answer from {name} (2 attempts of {timeout} s)")
+            raise AssertionError(f"no answer from {name} within {timeout} s")
+        return future.result()
 
     # -- topics -----------------------------------------------------------------------------
 

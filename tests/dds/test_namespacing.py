@@ -20,8 +20,6 @@ Q = [0.2, -0.4, 0.6, -0.8, 1.0, -1.2, 1.4]
 def both(module_nodes, ros, workdir):
     params = workdir / "ns.yaml"
     params.write_text("/robot1/spatial_dynamics:\n  ros__parameters:\n    method: crba\n")
-    ros.prepare_clients("/robot1/spatial_dynamics")
-    ros.prepare_clients("/dyn2")
     a = module_nodes.start("-r", "__ns:=/robot1", "--params-file", params, label="robot1")
     b = module_nodes.start(
         "-r", "__node:=dyn2", "-r", "joint_states:=/arm/joint_states", "-r", "~/gravity_effort:=/arm/gravity", label="dyn2"
@@ -53,9 +51,20 @@ def test_services_under_the_namespace_and_the_new_name(both, ros, ref):
         resp = ros.call(InverseDynamics, f"{prefix}/inverse_dynamics", InverseDynamics.Request(name=ARM_JOINTS, position=Q))
         assert resp.success, resp.message
         assert_close(resp.effort, ref.pick(ref.gravity(ref.q(ARM_JOINTS, Q)), ARM_JOINTS), prefix)
-    robot1 = {n for n, _ in ros.node.get_service_names_and_types_by_node("spatial_dynamics", "/robot1")}
-    dyn2 = {n for n, _ in ros.node.get_service_names_and_types_by_node("dyn2", "/")}
-    for name in ("inverse_dynamics", "forward_dynamics", "mass_matrix", "describe_model", "get_parameters", "set_parameters"):
+    leaves = ("inverse_dynamics", "forward_dynamics", "mass_matrix", "describe_model", "get_parameters", "set_parameters")
+
+    def graph():
+        robot1 = {n for n, _ in ros.node.get_service_names_and_types_by_node("spatial_dynamics", "/robot1")}
+        dyn2 = {n for n, _ in ros.node.get_service_names_and_types_by_node("dyn2", "/")}
+        return robot1, dyn2
+
+    def complete():
+        robot1, dyn2 = graph()
+        return all(f"/robot1/spatial_dynamics/{n}" in robot1 and f"/dyn2/{n}" in dyn2 for n in leaves)
+
+    ros.spin_until(complete, 10.0)  # the graph fills in as each service's endpoints are discovered
+    robot1, dyn2 = graph()
+    for name in leaves:
         assert f"/robot1/spatial_dynamics/{name}" in robot1, sorted(robot1)
         assert f"/dyn2/{name}" in dyn2, sorted(dyn2)
     # Nobody serves the default names.

@@ -188,7 +188,6 @@ def start(ws, ros, args, tmp_path, label, prefix="/spatial_dynamics"):
     if not ros.wait_new_node(before):
         node.stop()
         raise AssertionError(f"the installed node was not discovered within 10 s:\n{node.describe()}")
-    ros.prepare_clients(prefix)
     ros.wait_for_service(DescribeModel, f"{prefix}/describe_model")
     return node
 

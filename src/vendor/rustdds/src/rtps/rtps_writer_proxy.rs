@@ -6,6 +6,7 @@ use log::{debug, error, info, trace, warn};
 
 use crate::{
   discovery::sedp_messages::DiscoveredWriterData,
+  messages::vendor_id::VendorId,
   rtps::constant::MAX_TRACKED_CHANGES_PER_WRITER,
   structure::{
     guid::{EntityId, GUID},
@@ -30,6 +31,11 @@ pub(crate) struct RtpsWriterProxy {
 
   /// Identifies the group to which the matched Reader belongs
   pub remote_group_entity_id: EntityId,
+
+  /// Vendor of the remote participant, from its SPDP data (VENDOR_UNKNOWN if
+  /// not known). Decides the form of the preemptive ACKNACK, see
+  /// `preemptive_acknack_base`.
+  pub remote_vendor_id: VendorId,
 
   // See RTPS Spec v2.5 Section 8.4.10.4 on how the WriterProxy is supposed to
   // operate.
@@ -89,6 +95,7 @@ impl RtpsWriterProxy {
       unicast_locator_list,
       multicast_locator_list,
       remote_group_entity_id,
+      remote_vendor_id: VendorId::VENDOR_UNKNOWN,
       changes: BTreeMap::new(),
       received_heartbeat_count: 0,
       sent_ack_nack_count: 0,
@@ -97,6 +104,34 @@ impl RtpsWriterProxy {
       ack_base: SequenceNumber::new(1),
       last_received_sequence_number: SequenceNumber::new(0),
       last_received_timestamp: Timestamp::INVALID,
+    }
+  }
+
+  pub fn with_remote_vendor_id(mut self, remote_vendor_id: VendorId) -> Self {
+    self.remote_vendor_id = remote_vendor_id;
+    self
+  }
+
+  // readerSNState.bitmapBase of the preemptive ACKNACK (empty set, Final flag
+  // clear) sent when this writer is matched. Its purpose is to get a HEARTBEAT
+  // at once, so that the reader learns which samples the writer holds and
+  // requests them. That matters most for samples the writer sent before we had
+  // discovered it: the reader had to discard those (no writer proxy), and so
+  // the HEARTBEATs that came with them.
+  //
+  // RTPS (8.3.5.5) requires bitmapBase >= 1, and 1 with an empty set means
+  // "nothing received". eProsima Fast DDS and RTI Connext writers, however,
+  // recognise a preemptive ACKNACK only by bitmapBase 0, the form their own
+  // readers send. Fast DDS takes bitmapBase 1 as an ordinary ACKNACK that
+  // acknowledges nothing and only restarts its periodic HEARTBEAT timer
+  // (3 s by default), so the missed samples come a whole heartbeat period
+  // late. Other implementations may reject bitmapBase 0 as malformed (Cyclone
+  // DDS accepts it only from these two vendors), so use it only with them.
+  pub fn preemptive_acknack_base(&self) -> SequenceNumber {
+    match self.remote_vendor_id.as_bytes() {
+      // eProsima Fast DDS, RTI Connext, RTI Connext Micro
+      [0x01, 0x0F] | [0x01, 0x01] | [0x01, 0x0A] => SequenceNumber::new(0),
+      _ => SequenceNumber::new(1),
     }
   }
 
@@ -116,6 +151,9 @@ impl RtpsWriterProxy {
     self.unicast_locator_list = other.unicast_locator_list;
     self.multicast_locator_list = other.multicast_locator_list;
     self.remote_group_entity_id = other.remote_group_entity_id;
+    if other.remote_vendor_id != VendorId::VENDOR_UNKNOWN {
+      self.remote_vendor_id = other.remote_vendor_id;
+    }
   }
 
   // This is used to check for DEADLINE policy
@@ -323,6 +361,7 @@ impl RtpsWriterProxy {
     RtpsWriterProxy {
       remote_writer_guid: discovered_writer_data.writer_proxy.remote_writer_guid,
       remote_group_entity_id: EntityId::UNKNOWN,
+      remote_vendor_id: VendorId::VENDOR_UNKNOWN,
       unicast_locator_list,
       multicast_locator_list,
       changes: BTreeMap::new(),
@@ -414,6 +453,34 @@ mod bounded_map_tests {
       vec![],
       EntityId::UNKNOWN,
     )
+  }
+
+  // Fast DDS and Connext writers answer a preemptive ACKNACK at once only in
+  // their own form (bitmapBase 0); everyone else gets the RTPS form.
+  #[test]
+  fn preemptive_acknack_base_follows_remote_vendor() {
+    let base = |vendor_id| {
+      test_proxy()
+        .with_remote_vendor_id(VendorId { vendor_id })
+        .preemptive_acknack_base()
+    };
+    assert_eq!(base([0x01, 0x0F]), SequenceNumber::new(0)); // eProsima
+    assert_eq!(base([0x01, 0x01]), SequenceNumber::new(0)); // RTI Connext
+    assert_eq!(base([0x01, 0x0A]), SequenceNumber::new(0)); // RTI Connext Micro
+    assert_eq!(base([0x01, 0x10]), SequenceNumber::new(1)); // Cyclone DDS
+    assert_eq!(base([0x01, 0x12]), SequenceNumber::new(1)); // RustDDS
+    let unknown = test_proxy().preemptive_acknack_base();
+    assert_eq!(unknown, SequenceNumber::new(1));
+  }
+
+  // A vendor learnt from SPDP is kept when SEDP updates the proxy.
+  #[test]
+  fn update_contents_keeps_known_vendor() {
+    let mut wp = test_proxy().with_remote_vendor_id(VendorId {
+      vendor_id: [0x01, 0x0F],
+    });
+    wp.update_contents(test_proxy());
+    assert_eq!(wp.preemptive_acknack_base(), SequenceNumber::new(0));
   }
 
   // Regression: a best-effort writer sends no HEARTBEAT/GAP, so the changes map
