@@ -128,17 +128,7 @@ fn ltl(ancestors: &Ancestors) -> Flops {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::examples;
-    use crate::urdf::model_from_str;
-    use crate::ModelOptions;
-
-    fn chain(n: usize) -> Model {
-        model_from_str(
-            &examples::pendulum_urdf(n, 1.0, 1.0),
-            &ModelOptions::default(),
-        )
-        .unwrap()
-    }
+    use crate::algorithms::flops::tests::chain;
 
     /// For an unbranched chain `H` is dense and the sparse `LᵀL` is a dense Cholesky. Featherstone
     /// (RBDA §6.5) gives `n³/6 + n²/2 − 2n/3` multiplications for the factorisation, counting

@@ -520,14 +520,16 @@ pub(crate) fn dense_cholesky(n: u64) -> Flops {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::algorithms::crba;
     use crate::model::examples;
     use crate::urdf::model_from_str;
     use crate::{ModelOptions, Workspace};
 
-    fn chain(n: usize) -> Model {
+    /// An unbranched chain of `n` revolute joints (the example pendulum, unit lengths and
+    /// masses).
+    pub(crate) fn chain(n: usize) -> Model {
         model_from_str(
             &examples::pendulum_urdf(n, 1.0, 1.0),
             &ModelOptions::default(),
