@@ -789,6 +789,71 @@ mod tests {
         }
     }
 
+    /// The residual of a joint state comes with the next one, stamped as the earlier one was;
+    /// a bad effort costs the residual only.
+    #[test]
+    fn effort_residual_is_one_joint_state_late_and_bad_effort_costs_only_it() {
+        let mut engine = Engine::from_settings(&Settings::default(), None).unwrap();
+        let names: Vec<String> = engine.names().iter().rev().cloned().collect();
+        let n = names.len();
+        let state = |k: u32, effort: Vec<f64>| JointState {
+            header: Header {
+                stamp: Time {
+                    sec: 7,
+                    nanosec: 1_000_000 * k,
+                },
+                frame_id: "f".into(),
+            },
+            name: names.clone(),
+            position: (0..n).map(|j| 0.1 * j as f64 + 0.01 * k as f64).collect(),
+            velocity: vec![0.2; n],
+            effort,
+        };
+        let stamp = |k: u32| Time {
+            sec: 100,
+            nanosec: k,
+        };
+        let first = engine
+            .joint_states(&state(0, vec![1.0; n]), stamp(0))
+            .unwrap();
+        assert!(first.residual.is_none() && first.bad_effort.is_none());
+        let bad = engine
+            .joint_states(&state(1, vec![1.0; n - 1]), stamp(1))
+            .unwrap();
+        assert!(bad.bad_effort.unwrap().contains("effort has"));
+        assert_eq!(bad.gravity.header.stamp, stamp(1));
+        // Joint state 0's residual (a forward difference: constant velocities, q̈ = 0).
+        let r = bad.residual.unwrap().unwrap();
+        assert_eq!(
+            (r.header.stamp, r.header.frame_id.as_str()),
+            (stamp(0), "f")
+        );
+        assert_eq!(r.name, names);
+        assert_eq!(r.position, state(0, vec![]).position);
+        let mut ws = Workspace::new(&engine.model);
+        let q: Vec<f64> = state(0, vec![]).position.into_iter().rev().collect();
+        let tau = rnea_with(
+            &engine.model,
+            &mut ws,
+            &q,
+            &vec![0.2; n],
+            &vec![0.0; n],
+            &Externals::none(),
+        )
+        .unwrap()
+        .to_vec();
+        for (j, x) in r.effort.iter().enumerate() {
+            assert!(
+                (x - (1.0 - tau[n - 1 - j])).abs() < 1e-9,
+                "{:?} vs {tau:?}",
+                r.effort
+            );
+        }
+        // Joint state 1's effort was refused: nothing for it when joint state 2 arrives.
+        let third = engine.joint_states(&state(2, vec![]), stamp(2)).unwrap();
+        assert!(third.residual.is_none() && third.bad_effort.is_none());
+    }
+
     #[test]
     fn world_frame_wrench_turns_axes_but_stays_at_the_link_origin() {
         // A weight on tool0 given in world axes must equal the same force given in tool0's own
