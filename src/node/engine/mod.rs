@@ -507,28 +507,16 @@ impl Engine {
         let map = &self.map;
         let residual = delayed.map(|d| {
             let r = d.residual.map_err(|(_, e)| e)?;
-            let pick = |x: &[f64], target| {
-                d.tag
-                    .order
-                    .iter()
-                    .map(|&s| {
-                        let (qi, vi) = map.slot(s);
-                        x[if target == Target::Position { qi } else { vi }]
-                    })
-                    .collect::<Vec<f64>>()
-            };
-            Ok(JointState {
+            let order = || d.tag.order.iter().copied();
+            let mut msg = JointState {
                 header: d.tag.header.clone(),
-                name: d
-                    .tag
-                    .order
-                    .iter()
-                    .map(|&s| map.names()[s].clone())
-                    .collect(),
-                position: pick(d.q, Target::Position),
-                velocity: pick(d.v, Target::Rate),
-                effort: pick(r, Target::Rate),
-            })
+                name: order().map(|s| map.names()[s].clone()).collect(),
+                ..Default::default()
+            };
+            map.gather_in(order(), d.q, Target::Position, &mut msg.position);
+            map.gather_in(order(), d.v, Target::Rate, &mut msg.velocity);
+            map.gather_in(order(), r, Target::Rate, &mut msg.effort);
+            Ok(msg)
         });
         Ok(JointStateAnswer {
             gravity,
