@@ -2,8 +2,8 @@
 # Benchmarks `spatial_dynamics replay`: joint states per second on one core and on all cores,
 # over a synthetic bag of the embedded 7-DOF default arm (benches/make_replay_bag.py: 1 kHz
 # JointState with positions, velocities and efforts, effort commands at 100 Hz, the URDF on
-# /robot_description), writing all three outputs (gravity_effort, acceleration,
-# measured_dynamics) with zstd chunks. Not a test: it prints a markdown table.
+# /robot_description), writing all four outputs (gravity_effort, acceleration,
+# measured_dynamics, effort_residual) with zstd chunks. Not a test: it prints a markdown table.
 #
 # Usage: launch_scripts/bench_replay.sh
 #   Environment: MESSAGES (1000000) joint states; STORAGE (mcap) or sqlite3; ZSTD_IN (1): the
@@ -78,6 +78,6 @@ echo "|---|---:|---:|"
 echo "| 1 core, --jobs 1 | $one | $one_cpu |"
 echo "| $cores cores, --jobs $cores | $all | $all_cpu |"
 echo
-echo "input: $messages joint states, $storage${chunks:+ (zstd chunks)}${zstd_mode:+ (zstd $zstd_mode mode)}, $size_in; output ($compression${ZSTD_LEVEL:+ level $ZSTD_LEVEL}): $size_out, 3 messages per joint state"
+echo "input: $messages joint states, $storage${chunks:+ (zstd chunks)}${zstd_mode:+ (zstd $zstd_mode mode)}, $size_in; output ($compression${ZSTD_LEVEL:+ level $ZSTD_LEVEL}): $size_out, 4 messages per joint state"
 echo "load average while measuring: $(cut -d' ' -f1-3 /proc/loadavg) (other work on the machine lowers the wall-clock rates, less the CPU-second ones)"
 if [[ "${KEEP:-0}" != 1 ]]; then rm -f "$work/out.mcap"; fi

@@ -5,13 +5,15 @@
 //! XCDR2 (`0x0006` / `0x0007`, where 8-byte primitives align to 4 only). Written: XCDR1
 //! little-endian, what rmw_fastrtps and rosbag2 write. Only the messages the replay needs have
 //! readers and writers here (`sensor_msgs/JointState`, `std_msgs/String`,
-//! `spatial_dynamics_msgs/JointDynamics`); they borrow from the message bytes and allocate
+//! `std_msgs/Float64MultiArray` (read only), `spatial_dynamics_msgs/JointDynamics`); they borrow from the message bytes and allocate
 //! nothing, and the writers append to a caller's buffer.
 //!
 //! Layouts (`align` is relative to the first byte after the header):
 //! - `string`: `uint32` length including the terminating NUL, the bytes, the NUL;
 //! - `T[]`: `uint32` count, then the elements (each aligned);
-//! - `builtin_interfaces/Time`: `int32 sec`, `uint32 nanosec`; `std_msgs/Header`: stamp, `string frame_id`.
+//! - `builtin_interfaces/Time`: `int32 sec`, `uint32 nanosec`; `std_msgs/Header`: stamp, `string frame_id`;
+//! - `std_msgs/Float64MultiArray`: `MultiArrayLayout layout` (`MultiArrayDimension[] dim`, each
+//!   `string label`, `uint32 size`, `uint32 stride`; then `uint32 data_offset`), `float64[] data`.
 
 use std::ops::Range;
 
@@ -194,6 +196,31 @@ pub fn parse_joint_state<'a>(
     })
 }
 
+/// Parses a `std_msgs/Float64MultiArray` into its `data` (the layout is read and checked for
+/// length, not interpreted: `~/commands` is one value per commanded joint). A dimension count
+/// is checked against the bytes that remain before any is read; errors name the field and the
+/// byte offset.
+pub fn parse_float64_multi_array(data: &[u8]) -> Result<F64s<'_>, String> {
+    let mut r = Reader::new(data)?;
+    let count = r.u32("layout.dim")? as usize;
+    // Each dimension takes at least 12 bytes: an empty label's length, size, stride.
+    let remaining = data.len() - r.pos;
+    if count > remaining / 12 {
+        return Err(format!(
+            "layout.dim: {count} dimensions need at least {} bytes, {remaining} remain after byte {}",
+            count as u64 * 12,
+            r.pos
+        ));
+    }
+    for _ in 0..count {
+        r.string_range("layout.dim.label")?;
+        r.u32("layout.dim.size")?;
+        r.u32("layout.dim.stride")?;
+    }
+    r.u32("layout.data_offset")?;
+    r.f64s("data")
+}
+
 /// Parses a `std_msgs/String`.
 pub fn parse_string(data: &[u8]) -> Result<&str, String> {
     Reader::new(data)?.string("data")
@@ -285,7 +312,10 @@ mod tests {
     //! Round trips against `cdr-encoding`, the serializer ros2-client puts on the wire, with
     //! the node's message structs: what we write it reads back, and what it writes we read.
     use super::*;
-    use crate::ros::msgs::{Header, JointDynamics, JointState, StringMsg, Time};
+    use crate::ros::msgs::{
+        Float64MultiArray, Header, JointDynamics, JointState, MultiArrayDimension,
+        MultiArrayLayout, StringMsg, Time,
+    };
     use byteorder::{BigEndian, LittleEndian};
 
     fn state(frame_id: &str, names: &[&str], n: [usize; 3]) -> JointState {
@@ -402,6 +432,80 @@ mod tests {
                 cdr_encoding::from_bytes::<JointDynamics, LittleEndian>(&buf[4..]).unwrap();
             assert_eq!(back, dynamics);
         }
+    }
+
+    #[test]
+    fn float64_multi_array_written_by_cdr_encoding_is_read_in_both_byte_orders() {
+        for dims in [0usize, 1, 3] {
+            for n in [0usize, 1, 6, 7] {
+                let msg = Float64MultiArray {
+                    layout: MultiArrayLayout {
+                        dim: (0..dims)
+                            .map(|k| MultiArrayDimension {
+                                label: "ab".repeat(k),
+                                size: n as u32,
+                                stride: (n * (k + 1)) as u32,
+                            })
+                            .collect(),
+                        data_offset: dims as u32,
+                    },
+                    data: (0..n).map(|k| k as f64 - 2.5).collect(),
+                };
+                let le = cdr_encoding::to_vec::<_, LittleEndian>(&msg).unwrap();
+                let bytes = with_header([0, 1, 0, 0], le);
+                let back: Vec<f64> = parse_float64_multi_array(&bytes).unwrap().iter().collect();
+                assert_eq!(back, msg.data);
+                let be = cdr_encoding::to_vec::<_, BigEndian>(&msg).unwrap();
+                let bytes_be = with_header([0, 0, 0, 0], be);
+                let back: Vec<f64> = parse_float64_multi_array(&bytes_be)
+                    .unwrap()
+                    .iter()
+                    .collect();
+                assert_eq!(back, msg.data);
+                for cut in 0..bytes.len() {
+                    assert!(
+                        parse_float64_multi_array(&bytes[..cut]).is_err(),
+                        "cut at {cut}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn float64_multi_array_lengths_are_checked_against_the_bytes() {
+        let msg = Float64MultiArray {
+            layout: MultiArrayLayout {
+                dim: vec![MultiArrayDimension {
+                    label: "joints".into(),
+                    size: 2,
+                    stride: 2,
+                }],
+                data_offset: 0,
+            },
+            data: vec![1.0, 2.0],
+        };
+        let full = with_header(
+            [0, 1, 0, 0],
+            cdr_encoding::to_vec::<_, LittleEndian>(&msg).unwrap(),
+        );
+        // A dimension count of 2^32 − 1: refused before reading one, naming the offset.
+        let mut huge = full.clone();
+        huge[4..8].copy_from_slice(&u32::MAX.to_le_bytes());
+        let err = parse_float64_multi_array(&huge).unwrap_err();
+        assert!(
+            err.starts_with("layout.dim:") && err.contains("after byte 8"),
+            "{err}"
+        );
+        // A data count of 2^29 (4 GiB of doubles): refused on the bytes, naming where.
+        let at = full.len() - 16 - 4;
+        let mut long = full.clone();
+        long[at..at + 4].copy_from_slice(&(1u32 << 29).to_le_bytes());
+        let err = parse_float64_multi_array(&long).unwrap_err();
+        assert!(
+            err.starts_with("data:") && err.contains(&format!("ends at byte {}", full.len())),
+            "{err}"
+        );
     }
 
     #[test]

@@ -19,8 +19,8 @@ pub struct ReplayArgs {
     /// more threads.
     #[arg(long, value_name = "N")]
     jobs: Option<usize>,
-    /// The node's fully qualified name: outputs go to NODE/gravity_effort, NODE/acceleration and
-    /// NODE/measured_dynamics; relative topic names resolve in its namespace, `~/x` under it.
+    /// The node's fully qualified name: outputs go to NODE/gravity_effort, NODE/acceleration,
+    /// NODE/measured_dynamics and NODE/effort_residual; relative topic names resolve in its namespace, `~/x` under it.
     #[arg(long, value_name = "NODE", default_value = "/spatial_dynamics")]
     node: String,
     /// Topic of the measured joint states.
@@ -29,6 +29,15 @@ pub struct ReplayArgs {
     /// Topic of the commanded efforts (sensor_msgs/JointState) [default: NODE/effort_command].
     #[arg(long, value_name = "TOPIC")]
     effort_command: Option<String>,
+    /// Topic of the commands (std_msgs/Float64MultiArray, one value per --command-joints
+    /// entry) [default: NODE/commands].
+    #[arg(long, value_name = "TOPIC")]
+    commands: Option<String>,
+    /// The order of the commands' values, as the node's command_joints parameter: joint names,
+    /// comma-separated (default: every coordinate joint, in model order; joints left out get
+    /// zero).
+    #[arg(long, value_name = "A,B,C", value_delimiter = ',')]
+    command_joints: Vec<String>,
     /// Topic of the URDF (std_msgs/String), used when neither --urdf nor --builtin is given.
     #[arg(long, value_name = "TOPIC", default_value = "/robot_description")]
     robot_description: String,
@@ -88,6 +97,8 @@ pub fn run(model_args: &ModelArgs, args: &ReplayArgs) -> Result<(), String> {
         node: args.node,
         joint_states: args.joint_states,
         effort_command: args.effort_command,
+        commands: args.commands,
+        command_joints: args.command_joints,
         robot_description: args.robot_description,
         method: args.method,
         time_source: args.time_source,

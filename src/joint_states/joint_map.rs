@@ -244,8 +244,20 @@ impl JointMap {
 
     /// The values of `from` (a `q`- or `v`-sized vector) in [`answer_order`](Self::answer_order).
     pub fn gather(&self, from: &[f64], target: Target, out: &mut Vec<f64>) {
+        self.gather_in(self.answer_order(), from, target, out);
+    }
+
+    /// The values of `from` (a `q`- or `v`-sized vector) at the named coordinates `order`
+    /// (indices into [`names`](Self::names)), in that order.
+    pub fn gather_in(
+        &self,
+        order: impl Iterator<Item = usize>,
+        from: &[f64],
+        target: Target,
+        out: &mut Vec<f64>,
+    ) {
         out.clear();
-        out.extend(self.answer_order().map(|s| {
+        out.extend(order.map(|s| {
             let (q, v) = self.slots[s];
             from[if target == Target::Position { q } else { v }]
         }));

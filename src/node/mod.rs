@@ -2,7 +2,7 @@
 //!
 //! Inputs: `joint_states`, `~/effort_command`, `~/commands`, `~/reference`, `~/base_state`,
 //! `robot_description` (latched). Outputs: `~/gravity_effort`, `~/acceleration`,
-//! `~/feedforward_effort`, `~/feedforward_commands`, `/diagnostics`, `/rosout`. Services:
+//! `~/effort_residual` (one joint state late), `~/feedforward_effort`, `~/feedforward_commands`, `/diagnostics`, `/rosout`. Services:
 //! `~/inverse_dynamics`, `~/forward_dynamics`, `~/mass_matrix`, `~/describe_model`,
 //! `~/frame_kinematics`, and the standard parameter services. In simulate mode (`mode: simulate`)
 //! the node also publishes
@@ -495,6 +495,13 @@ async fn serve(
         "JointDynamics",
         reliable
     );
+    let (residual_name, residual_pub) = publisher!(
+        JointState,
+        "~/effort_residual",
+        "sensor_msgs",
+        "JointState",
+        reliable
+    );
     let (ff_name, ff_pub) = publisher!(
         JointState,
         "~/feedforward_effort",
@@ -669,14 +676,20 @@ async fn serve(
                 let started = Instant::now();
                 match item.map_err(|e| format!("unreadable message: {e:?}")).and_then(|(js, _)| {
                     let stamp = time.clock.admit(&js.header.stamp, now)?;
-                    let (mut g, mut a) = engine.joint_states(&js)?;
-                    (g.header.stamp, a.header.stamp) = (stamp.clone(), stamp);
-                    Ok((g, a))
+                    engine.joint_states(&js, stamp)
                 }) {
-                    Ok((g, a)) => {
+                    Ok(answer) => {
                         health.computed(started.elapsed());
-                        send(&gravity_pub, g, &gravity_name, &mut health);
-                        send(&accel_pub, a, &accel_name, &mut health);
+                        send(&gravity_pub, answer.gravity, &gravity_name, &mut health);
+                        send(&accel_pub, answer.acceleration, &accel_name, &mut health);
+                        match answer.residual {
+                            Some(Ok(r)) => send(&residual_pub, r, &residual_name, &mut health),
+                            Some(Err(e)) => health.dropped(&residual_name, &e),
+                            None => {}
+                        }
+                        if let Some(e) = answer.bad_effort {
+                            health.dropped(&residual_name, &e);
+                        }
                     }
                     Err(e) => health.dropped(&js_name, &e),
                 }

@@ -48,6 +48,9 @@ pub struct Block {
     pub q: Vec<f64>,
     pub v: Vec<f64>,
     pub command: Vec<f64>,
+    /// The message carried a (valid) effort: `effort` holds it, model order.
+    pub has_effort: Vec<bool>,
+    pub effort: Vec<f64>,
     /// The outputs, as one MCAP chunk with its message indexes.
     pub chunk: FinishedChunk,
     /// Why the chunk could not be made.
@@ -75,6 +78,8 @@ impl Block {
             q: vec![0.0; cap * nq],
             v: vec![0.0; cap * nv],
             command: vec![0.0; cap * nv],
+            has_effort: vec![false; cap],
+            effort: vec![0.0; cap * nv],
             chunk: FinishedChunk::default(),
             error: None,
             problems: Problems::default(),
@@ -94,5 +99,8 @@ impl Block {
         self.v[to * nv..(to + 1) * nv].copy_from_slice(&other.v[from * nv..(from + 1) * nv]);
         self.command[to * nv..(to + 1) * nv]
             .copy_from_slice(&other.command[from * nv..(from + 1) * nv]);
+        self.has_effort[to] = other.has_effort[from];
+        self.effort[to * nv..(to + 1) * nv]
+            .copy_from_slice(&other.effort[from * nv..(from + 1) * nv]);
     }
 }

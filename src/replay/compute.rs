@@ -5,6 +5,7 @@ use super::block::{Block, Order};
 use crate::bag::{cdr, ChunkBuilder};
 use crate::joint_states::differences::velocity_derivative;
 use crate::joint_states::dynamics::JointStateDynamics;
+use crate::joint_states::residual::effort_residual;
 use spatial_dynamics_core::algorithms::JointStateInputs;
 use spatial_dynamics_core::{ForwardDynamicsMethod, Model, Workspace};
 
@@ -14,6 +15,8 @@ pub struct Scratch {
     builder: ChunkBuilder,
     /// The measured acceleration.
     a: Vec<f64>,
+    /// The effort residual.
+    r: Vec<f64>,
     dynamics: JointStateDynamics,
 }
 
@@ -23,6 +26,7 @@ impl Scratch {
             ws: Workspace::new(model),
             builder,
             a: vec![0.0; model.nv],
+            r: vec![0.0; model.nv],
             dynamics: JointStateDynamics::new(model),
         }
     }
@@ -34,7 +38,7 @@ pub fn compute(
     block: &mut Block,
     model: &Model,
     method: ForwardDynamicsMethod,
-    channels: [u16; 3],
+    channels: [u16; 4],
     s: &mut Scratch,
 ) -> Result<(), String> {
     let (nq, nv) = (model.nq, model.nv);
@@ -109,27 +113,39 @@ pub fn compute(
                 .add("joint_states", "dynamics failed", log_time, e),
         }
 
-        // Inverse dynamics of the measured motion.
-        if let Err((kind, e)) = measured {
-            block
-                .problems
-                .add("measured_dynamics", kind, log_time, e.into());
-            continue;
-        }
-        match evaluated.measured {
-            Ok(()) => {
+        // Inverse dynamics of the measured motion, and what the measured effort has beyond it.
+        let has_effort = block.has_effort[i];
+        let (kind, e) = match (measured, evaluated.measured) {
+            (Err((kind, e)), _) => (kind, e.to_string()),
+            (Ok(()), Err(e)) => ("inverse dynamics failed", e),
+            (Ok(()), Ok(())) => {
                 let mut w = start!(2);
                 w.f64s(rate(v));
                 w.f64s(rate(&s.a));
                 w.f64s(rate(tau));
                 s.builder.end_message();
+                if !has_effort {
+                    continue;
+                }
+                let effort = &block.effort[i * nv..(i + 1) * nv];
+                match effort_residual(effort, tau, &mut s.r) {
+                    Ok(()) => {
+                        let mut w = start!(3);
+                        w.f64s(rate(v));
+                        w.f64s(rate(&s.r));
+                        s.builder.end_message();
+                    }
+                    Err((kind, e)) => block.problems.add("effort_residual", kind, log_time, e),
+                }
+                continue;
             }
-            Err(e) => {
-                block
-                    .problems
-                    .add("measured_dynamics", "inverse dynamics failed", log_time, e)
-            }
+        };
+        if has_effort {
+            block
+                .problems
+                .add("effort_residual", kind, log_time, e.clone());
         }
+        block.problems.add("measured_dynamics", kind, log_time, e);
     }
     s.builder.finish(&mut block.chunk)
 }

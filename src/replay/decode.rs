@@ -1,5 +1,6 @@
 //! Decoding, in bag order: joint states into blocks of samples (model coordinates, name orders
-//! and frames numbered), effort commands into the command state.
+//! and frames numbered), commands (`~/effort_command` by name, `~/commands` in
+//! `command_joints` order) into the command state.
 
 use super::block::{Block, Order, Tables};
 use super::problems::Problems;
@@ -8,6 +9,7 @@ use crate::bag::{cdr, RawMessage};
 use crate::joint_states::commands::Commands;
 use crate::joint_states::differences::joins;
 use crate::joint_states::joint_map::JointMap;
+use crate::joint_states::residual::read_effort;
 use spatial_dynamics_core::Model;
 use std::ops::Range;
 use std::sync::Arc;
@@ -24,6 +26,7 @@ pub struct Decoder {
     names: Vec<String>,
     values: Vec<f64>,
     velocity: Vec<f64>,
+    effort: Vec<f64>,
     /// The order `map` last matched (valid while `Some`).
     current_order: Option<u32>,
     current_frame: u32,
@@ -32,7 +35,7 @@ pub struct Decoder {
     prev: Option<(i64, bool)>,
     pub problems: Problems,
     /// Messages read, by input (index in the `wanted` list).
-    pub read: [u64; 2],
+    pub read: [u64; 3],
     /// Joint states decoded so far (valid ones).
     pub committed: u64,
     pub last_log_time: u64,
@@ -62,9 +65,10 @@ impl Decoder {
             current_frame: u32::MAX,
             tables: Arc::default(),
             velocity: Vec::new(),
+            effort: Vec::new(),
             prev: None,
             problems: Problems::default(),
-            read: [0; 2],
+            read: [0; 3],
             committed: 0,
             last_log_time: 0,
             log_time_backwards: 0,
@@ -95,6 +99,16 @@ impl Decoder {
         let has_velocity = match self.map.scatter_state(&self.values, &self.velocity, q, v) {
             Ok(has) => has,
             Err((kind, e)) => return self.skip(kind, msg.log_time, e),
+        };
+        // A bad effort costs the residual only; the other outputs stand.
+        view.effort.read_into(&mut self.effort);
+        let effort = &mut block.effort[i * nv..(i + 1) * nv];
+        block.has_effort[i] = match read_effort(&self.map, &self.effort, effort) {
+            Ok(has) => has,
+            Err((kind, e)) => {
+                self.problems.add("effort_residual", kind, msg.log_time, e);
+                false
+            }
         };
         let t = match self.time_source {
             TimeSource::Header => i64::from(view.sec) * 1_000_000_000 + i64::from(view.nanosec),
@@ -184,6 +198,20 @@ impl Decoder {
         })();
         if let Err((kind, e)) = result {
             self.problems.add("effort_command", kind, msg.log_time, e);
+        }
+    }
+
+    /// A command (std_msgs/Float64MultiArray, in `command_joints` order): it holds until the
+    /// next command of either kind.
+    pub fn commands(&mut self, msg: RawMessage<'_>) {
+        let result = (|| {
+            let data =
+                cdr::parse_float64_multi_array(msg.data).map_err(|e| ("unreadable message", e))?;
+            data.read_into(&mut self.values);
+            self.commands.set_commands(&self.values)
+        })();
+        if let Err((kind, e)) = result {
+            self.problems.add("commands", kind, msg.log_time, e);
         }
     }
 }

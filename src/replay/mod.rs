@@ -1,15 +1,23 @@
 //! Offline replay (`spatial_dynamics replay`): the node's topic computations over a recorded bag.
 //!
-//! Reads every `sensor_msgs/JointState` on `joint_states` and every commanded effort on the
-//! node's `~/effort_command` from a rosbag2 bag (MCAP or sqlite3; no DDS), and writes a new MCAP
-//! bag with, for each valid joint state, what the node would publish:
+//! Reads every `sensor_msgs/JointState` on `joint_states` and every command on the node's
+//! `~/effort_command` (sensor_msgs/JointState, by name) and `~/commands`
+//! (std_msgs/Float64MultiArray, in `command_joints` order) from a rosbag2 bag (MCAP or sqlite3;
+//! no DDS), and writes a new MCAP bag with, for each valid joint state, what the node would
+//! publish:
 //!
 //! - `~/gravity_effort` (sensor_msgs/JointState): `g(q)`;
 //! - `~/acceleration` (spatial_dynamics_msgs/JointDynamics): `q̈ = FD(q, q̇, τ_cmd)` under the
-//!   latest effort command before it in the bag (zero before the first), as the node does;
+//!   latest command of either kind before it in the bag (zero before the first), as the node
+//!   does;
 //! - `~/measured_dynamics` (spatial_dynamics_msgs/JointDynamics, a topic of the replay only):
 //!   `q`, `q̇` as measured, `q̈` estimated by finite differences of the measured velocities
-//!   ([`velocity_derivative`](crate::joint_states::differences::velocity_derivative)), and `τ = RNEA(q, q̇, q̈)`, the efforts that explain the motion.
+//!   ([`velocity_derivative`](crate::joint_states::differences::velocity_derivative)), and `τ = RNEA(q, q̇, q̈)`, the efforts that explain the motion;
+//! - `~/effort_residual` (sensor_msgs/JointState), for a joint state that carries `effort[]`:
+//!   `q`, `q̇` as measured and `effort = τ_measured − RNEA(q, q̇, q̈)`
+//!   ([`effort_residual`](crate::joint_states::residual::effort_residual)), what the model does
+//!   not explain (the node publishes it one joint state late; replay writes it at the joint
+//!   state's own log time).
 //!
 //! Output stamps are the input's header stamps, log times the input's log times. Joints are
 //! matched by name with the node's rules ([`JointMap`]), commands held as the node holds them
@@ -44,11 +52,13 @@ mod report;
 const JOINT_STATE: &str = "sensor_msgs/msg/JointState";
 const JOINT_DYNAMICS: &str = "spatial_dynamics_msgs/msg/JointDynamics";
 const STRING: &str = "std_msgs/msg/String";
+const FLOAT64_MULTI_ARRAY: &str = "std_msgs/msg/Float64MultiArray";
 /// Output topics, relative to the node's name, in the order each sample writes them.
-const OUTPUTS: [(&str, &str); 3] = [
+const OUTPUTS: [(&str, &str); 4] = [
     ("gravity_effort", JOINT_STATE),
     ("acceleration", JOINT_DYNAMICS),
     ("measured_dynamics", JOINT_DYNAMICS),
+    ("effort_residual", JOINT_STATE),
 ];
 
 /// What to replay, and how.
@@ -65,6 +75,11 @@ pub struct Config {
     pub joint_states: String,
     /// `None`: `~/effort_command`.
     pub effort_command: Option<String>,
+    /// `None`: `~/commands`.
+    pub commands: Option<String>,
+    /// The order of `~/commands` (empty: every coordinate joint, in model order), as the
+    /// node's `command_joints` parameter.
+    pub command_joints: Vec<String>,
     pub robot_description: String,
     /// Forward-dynamics method of `~/acceleration`.
     pub method: ForwardDynamicsMethod,
@@ -118,12 +133,18 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
     };
     let mut js_topic = names.resolve(&args.joint_states);
     let mut cmd_topic = names.resolve(args.effort_command.as_deref().unwrap_or("~/effort_command"));
+    let mut commands_topic = names.resolve(args.commands.as_deref().unwrap_or("~/commands"));
     let mut description_topic = names.resolve(&args.robot_description);
 
     let bag = Bag::open(&args.bag)?;
     let topics = bag.topics()?;
     if let Some(topics) = &topics {
-        for topic in [&mut js_topic, &mut cmd_topic, &mut description_topic] {
+        for topic in [
+            &mut js_topic,
+            &mut cmd_topic,
+            &mut commands_topic,
+            &mut description_topic,
+        ] {
             if let Some(t) = recorded(topics, topic) {
                 topic.clone_from(&t.name);
             }
@@ -163,7 +184,7 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
         },
     )?;
     let out_topics: Vec<String> = OUTPUTS.iter().map(|(n, _)| format!("{node}/{n}")).collect();
-    let mut channels = [0u16; 3];
+    let mut channels = [0u16; 4];
     for (k, (_, type_name)) in OUTPUTS.iter().enumerate() {
         let definition = if *type_name == JOINT_STATE {
             bag::msgdefs::joint_state()
@@ -173,7 +194,12 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
         channels[k] = writer.add_topic(&out_topics[k], type_name, &definition)?;
     }
 
-    let commands = Commands::new(&map, model.nv, &[])?;
+    let commands = Commands::new(&map, model.nv, &args.command_joints).map_err(|e| {
+        format!(
+            "--command-joints: {}",
+            e.trim_start_matches("command_joints: ")
+        )
+    })?;
     let max_gap_ns = (args.max_gap * 1e9).round() as i64;
     let decoder = Decoder::new(&model, map, commands, args.time_source, max_gap_ns);
     let wanted = [
@@ -184,6 +210,10 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
         Wanted {
             topic: &cmd_topic,
             type_name: JOINT_STATE,
+        },
+        Wanted {
+            topic: &commands_topic,
+            type_name: FLOAT64_MULTI_ARRAY,
         },
     ];
     let progress = std::io::stderr()
@@ -205,8 +235,7 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
         args,
         &model,
         &model_source,
-        &js_topic,
-        &cmd_topic,
+        [&js_topic, &cmd_topic, &commands_topic],
         &out_topics,
         &outcome,
         jobs,

@@ -15,10 +15,10 @@ use std::sync::{Arc, Mutex};
 
 /// What the pipeline counted.
 pub struct Outcome {
-    /// Messages read, by input: joint states, effort commands.
-    pub read: [u64; 2],
+    /// Messages read, by input: joint states, effort commands, commands.
+    pub read: [u64; 3],
     /// Messages written, by output (in [`OUTPUTS`](super::OUTPUTS) order).
-    pub written: [u64; 3],
+    pub written: [u64; 4],
     pub problems: Problems,
     pub log_time_backwards: u64,
 }
@@ -33,7 +33,7 @@ pub fn pipeline(
     jobs: usize,
     mut decoder: Decoder,
     mut writer: McapWriter,
-    channels: [u16; 3],
+    channels: [u16; 4],
     mut progress: Option<Progress>,
 ) -> Result<Outcome, String> {
     let (nq, nv) = (model.nq, model.nv);
@@ -101,11 +101,15 @@ pub fn pipeline(
             }
             decoder.last_log_time = m.log_time;
             decoder.read[m.topic] += 1;
-            if m.topic == 1 {
-                decoder.effort_command(m);
+            let topic = m.topic;
+            match topic {
+                1 => decoder.effort_command(m),
+                2 => decoder.commands(m),
+                _ => decoder.joint_state(m, &mut block),
+            }
+            if topic != 0 {
                 return Ok(Flow::Continue);
             }
-            decoder.joint_state(m, &mut block);
             if let Some(p) = progress.as_mut() {
                 p.tick(decoder.read[0]);
             }
@@ -161,11 +165,11 @@ fn write_blocks(
     writer: &mut McapWriter,
     done: Receiver<Box<Block>>,
     free: Sender<Box<Block>>,
-    channels: [u16; 3],
-) -> Result<([u64; 3], Problems), String> {
+    channels: [u16; 4],
+) -> Result<([u64; 4], Problems), String> {
     let mut pending: BTreeMap<u64, Box<Block>> = BTreeMap::new();
     let mut next = 0u64;
-    let mut written = [0u64; 3];
+    let mut written = [0u64; 4];
     let mut problems = Problems::default();
     for block in done {
         pending.insert(block.seq, block);

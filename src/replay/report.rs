@@ -66,8 +66,7 @@ pub fn report(
     config: &Config,
     model: &Model,
     model_source: &str,
-    js_topic: &str,
-    cmd_topic: &str,
+    [js_topic, cmd_topic, commands_topic]: [&str; 3],
     out_topics: &[String],
     outcome: &Outcome,
     jobs: usize,
@@ -79,29 +78,29 @@ pub fn report(
     let cpu_rate = cpu.filter(|c| *c > 0.0).map(|c| outcome.read[0] as f64 / c);
     let skipped_js = outcome.problems.total("joint_states");
     let skipped_cmd = outcome.problems.total("effort_command");
+    let skipped_commands = outcome.problems.total("commands");
     eprintln!(
         "spatial_dynamics replay: robot '{}' ({} coordinates) from {model_source}",
         model.name, model.nv
     );
     eprintln!(
-        "read {} {js_topic} and {} {cmd_topic} messages in {seconds:.2} s ({}{jobs} jobs)",
+        "read {} {js_topic}, {} {cmd_topic} and {} {commands_topic} messages in {seconds:.2} s ({}{jobs} jobs)",
         outcome.read[0],
         outcome.read[1],
+        outcome.read[2],
         rate.map_or(String::new(), |r| format!("{r:.0} joint states/s, "))
     );
-    eprintln!(
-        "wrote {}: {} {}, {} {}, {} {}",
-        config.out.display(),
-        outcome.written[0],
-        out_topics[0],
-        outcome.written[1],
-        out_topics[1],
-        outcome.written[2],
-        out_topics[2]
-    );
+    let written: Vec<String> = outcome
+        .written
+        .iter()
+        .zip(out_topics)
+        .map(|(n, topic)| format!("{n} {topic}"))
+        .collect();
+    eprintln!("wrote {}: {}", config.out.display(), written.join(", "));
     for (what, topic, total) in [
         ("joint_states", js_topic, skipped_js),
         ("effort_command", cmd_topic, skipped_cmd),
+        ("commands", commands_topic, skipped_commands),
     ] {
         if total > 0 {
             eprintln!("skipped {total} {topic} messages:");
@@ -112,6 +111,14 @@ pub fn report(
     if missing > 0 {
         eprintln!("no {} for {missing} joint states:", out_topics[2]);
         print_problems(&outcome.problems, "measured_dynamics");
+    }
+    let no_residual = outcome.problems.total("effort_residual");
+    if no_residual > 0 {
+        eprintln!(
+            "no {} for {no_residual} joint states that carried effort:",
+            out_topics[3]
+        );
+        print_problems(&outcome.problems, "effort_residual");
     }
     if outcome.log_time_backwards > 0 {
         eprintln!(
@@ -134,14 +141,23 @@ pub fn report(
         };
         let summary = json!({
             "model": {"name": model.name, "nv": model.nv, "source": model_source},
-            "read": {js_topic: outcome.read[0], cmd_topic: outcome.read[1]},
-            "written": {
-                out_topics[0].as_str(): outcome.written[0],
-                out_topics[1].as_str(): outcome.written[1],
-                out_topics[2].as_str(): outcome.written[2],
+            "read": {
+                js_topic: outcome.read[0],
+                cmd_topic: outcome.read[1],
+                commands_topic: outcome.read[2],
             },
-            "skipped": {js_topic: problems("joint_states"), cmd_topic: problems("effort_command")},
+            "written": out_topics
+                .iter()
+                .zip(outcome.written)
+                .map(|(topic, n)| (topic.clone(), json!(n)))
+                .collect::<serde_json::Map<_, _>>(),
+            "skipped": {
+                js_topic: problems("joint_states"),
+                cmd_topic: problems("effort_command"),
+                commands_topic: problems("commands"),
+            },
             "not_estimated": problems("measured_dynamics"),
+            "no_residual": problems("effort_residual"),
             "log_time_backwards": outcome.log_time_backwards,
             "seconds": seconds,
             "joint_states_per_second": rate,

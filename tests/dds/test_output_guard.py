@@ -39,6 +39,7 @@ OUTPUTS = {
     "accel": (JointDynamics, f"{NODE}/acceleration", ("position", "velocity", "acceleration", "effort")),
     "ff": (JointState, f"{NODE}/feedforward_effort", ("position", "velocity", "effort")),
     "ffc": (Float64MultiArray, f"{NODE}/feedforward_commands", ("data",)),
+    "residual": (JointState, f"{NODE}/effort_residual", ("position", "velocity", "effort")),
 }
 
 

@@ -10,6 +10,7 @@ use super::params::Settings;
 use crate::joint_states::commands::Commands;
 use crate::joint_states::dynamics::JointStateDynamics;
 use crate::joint_states::joint_map::{JointMap, Target};
+use crate::joint_states::residual::{read_effort, Lagged};
 use crate::ros::msgs::*;
 use simulation::Simulation;
 use spatial_dynamics_core::algorithms::kinematics::body_placements;
@@ -21,6 +22,32 @@ use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
 use spatial_dynamics_core::spatial::{Force, Transform};
 use spatial_dynamics_core::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
 use std::time::{Duration, Instant};
+
+/// Joint states further apart than this (ns, by header stamp) are not differenced across for
+/// `~/effort_residual` (replay's default `--max-gap`).
+pub const RESIDUAL_MAX_GAP_NS: i64 = 100_000_000;
+
+/// What a `joint_states` message gives.
+#[derive(Debug)]
+pub struct JointStateAnswer {
+    /// `~/gravity_effort`.
+    pub gravity: JointState,
+    /// `~/acceleration`.
+    pub acceleration: JointDynamics,
+    /// `~/effort_residual` of the joint state before this one (one sample late), or why that
+    /// one, which carried effort, has none; `None` when it carried no effort.
+    pub residual: Option<Result<JointState, String>>,
+    /// Why this message's effort is refused (wrong length, non-finite): it will have no residual.
+    pub bad_effort: Option<String>,
+}
+
+/// What a joint state keeps until its residual goes out: its header (with the output stamp)
+/// and its names, as indices into the map's names.
+#[derive(Clone, Debug)]
+struct ResidualTag {
+    header: Header,
+    order: Vec<usize>,
+}
 
 /// Where the model came from (for diagnostics and DescribeModel).
 #[derive(Clone, Debug, PartialEq)]
@@ -50,6 +77,10 @@ pub struct Engine {
     tau: Vec<f64>,
     out: Vec<f64>,
     wrenches: Vec<Force>,
+    /// Measured effort of the latest joint state, model order.
+    effort: Vec<f64>,
+    /// The last joint states, for `~/effort_residual` (one sample late).
+    residual: Lagged<ResidualTag>,
     /// When the latest command arrived.
     command_time: Option<Instant>,
     /// The simulated robot, in simulate mode.
@@ -99,6 +130,8 @@ impl Engine {
             a: vec![0.0; nv],
             tau: vec![0.0; nv],
             out: Vec::with_capacity(nv),
+            effort: vec![0.0; nv],
+            residual: Lagged::new(&model, RESIDUAL_MAX_GAP_NS),
             wrenches: vec![Force::zero(); nb],
             command_time: None,
             simulation: None,
@@ -399,9 +432,17 @@ impl Engine {
         Ok(())
     }
 
-    /// `joint_states` → (`~/gravity_effort`, `~/acceleration` under the latest command).
-    pub fn joint_states(&mut self, js: &JointState) -> Result<(JointState, JointDynamics), String> {
+    /// `joint_states` → `~/gravity_effort`, `~/acceleration` under the latest command, and the
+    /// previous joint state's `~/effort_residual`; outputs stamped `stamp`. A message the
+    /// dynamics refuse is not kept for the residual's finite differences (time base: its
+    /// header stamp).
+    pub fn joint_states(
+        &mut self,
+        js: &JointState,
+        stamp: Time,
+    ) -> Result<JointStateAnswer, String> {
         self.read_state(&js.name, &js.position, &js.velocity, None, None)?;
+        let effort = read_effort(&self.map, &js.effort, &mut self.effort);
         // g(q) and q̈ = FD(q, q̇, τ_cmd) on one set of joint transforms.
         let input = JointStateInputs {
             q: &self.q,
@@ -414,12 +455,16 @@ impl Engine {
             .node?;
         self.tau.copy_from_slice(self.dynamics.gravity());
         self.a.copy_from_slice(self.dynamics.acceleration());
+        let header = Header {
+            stamp,
+            frame_id: js.header.frame_id.clone(),
+        };
         let names = self.map.answer_names();
         let mut position = Vec::new();
         self.map.gather(&self.q, Target::Position, &mut position);
         self.map.gather(&self.tau, Target::Rate, &mut self.out);
-        let gravity_msg = JointState {
-            header: js.header.clone(),
+        let gravity = JointState {
+            header: header.clone(),
             name: names.clone(),
             position: position.clone(),
             velocity: Vec::new(),
@@ -427,20 +472,58 @@ impl Engine {
         };
         let mut velocity = Vec::new();
         let mut acceleration = Vec::new();
-        let mut effort = Vec::new();
+        let mut command = Vec::new();
         self.map.gather(&self.v, Target::Rate, &mut velocity);
         self.map.gather(&self.a, Target::Rate, &mut acceleration);
         self.map
-            .gather(self.commands.effort(), Target::Rate, &mut effort);
-        let accel_msg = JointDynamics {
-            header: js.header.clone(),
+            .gather(self.commands.effort(), Target::Rate, &mut command);
+        let acceleration = JointDynamics {
+            header: header.clone(),
             name: names,
             position,
             velocity,
             acceleration,
-            effort,
+            effort: command,
         };
-        Ok((gravity_msg, accel_msg))
+
+        let t = i64::from(js.header.stamp.sec) * 1_000_000_000 + i64::from(js.header.stamp.nanosec);
+        let tag = ResidualTag {
+            header,
+            order: self.map.answer_order().collect(),
+        };
+        let has_effort = matches!(effort, Ok(true));
+        let measured = has_effort.then_some(self.effort.as_slice());
+        let has_velocity = !js.velocity.is_empty();
+        let delayed = self.residual.push(
+            &self.model,
+            &mut self.ws,
+            t,
+            &self.q,
+            &self.v,
+            has_velocity,
+            measured,
+            tag,
+        );
+        let map = &self.map;
+        let residual = delayed.map(|d| {
+            let r = d.residual.map_err(|(_, e)| e)?;
+            let order = || d.tag.order.iter().copied();
+            let mut msg = JointState {
+                header: d.tag.header.clone(),
+                name: order().map(|s| map.names()[s].clone()).collect(),
+                ..Default::default()
+            };
+            map.gather_in(order(), d.q, Target::Position, &mut msg.position);
+            map.gather_in(order(), d.v, Target::Rate, &mut msg.velocity);
+            map.gather_in(order(), r, Target::Rate, &mut msg.effort);
+            Ok(msg)
+        });
+        Ok(JointStateAnswer {
+            gravity,
+            acceleration,
+            residual,
+            bad_effort: effort.err().map(|(_, e)| e),
+        })
     }
 
     /// `~/reference` (first point) → (`~/feedforward_effort`, `~/feedforward_commands`).
@@ -692,6 +775,71 @@ mod tests {
                 assert!(!engine.names().is_empty(), "{}", path.display());
             }
         }
+    }
+
+    /// The residual of a joint state comes with the next one, stamped as the earlier one was;
+    /// a bad effort costs the residual only.
+    #[test]
+    fn effort_residual_is_one_joint_state_late_and_bad_effort_costs_only_it() {
+        let mut engine = Engine::from_settings(&Settings::default(), None).unwrap();
+        let names: Vec<String> = engine.names().iter().rev().cloned().collect();
+        let n = names.len();
+        let state = |k: u32, effort: Vec<f64>| JointState {
+            header: Header {
+                stamp: Time {
+                    sec: 7,
+                    nanosec: 1_000_000 * k,
+                },
+                frame_id: "f".into(),
+            },
+            name: names.clone(),
+            position: (0..n).map(|j| 0.1 * j as f64 + 0.01 * k as f64).collect(),
+            velocity: vec![0.2; n],
+            effort,
+        };
+        let stamp = |k: u32| Time {
+            sec: 100,
+            nanosec: k,
+        };
+        let first = engine
+            .joint_states(&state(0, vec![1.0; n]), stamp(0))
+            .unwrap();
+        assert!(first.residual.is_none() && first.bad_effort.is_none());
+        let bad = engine
+            .joint_states(&state(1, vec![1.0; n - 1]), stamp(1))
+            .unwrap();
+        assert!(bad.bad_effort.unwrap().contains("effort has"));
+        assert_eq!(bad.gravity.header.stamp, stamp(1));
+        // Joint state 0's residual (a forward difference: constant velocities, q̈ = 0).
+        let r = bad.residual.unwrap().unwrap();
+        assert_eq!(
+            (r.header.stamp, r.header.frame_id.as_str()),
+            (stamp(0), "f")
+        );
+        assert_eq!(r.name, names);
+        assert_eq!(r.position, state(0, vec![]).position);
+        let mut ws = Workspace::new(&engine.model);
+        let q: Vec<f64> = state(0, vec![]).position.into_iter().rev().collect();
+        let tau = rnea_with(
+            &engine.model,
+            &mut ws,
+            &q,
+            &vec![0.2; n],
+            &vec![0.0; n],
+            &Externals::none(),
+        )
+        .unwrap()
+        .to_vec();
+        for (j, x) in r.effort.iter().enumerate() {
+            assert!(
+                (x - (1.0 - tau[n - 1 - j])).abs() < 1e-9,
+                "{:?} vs {tau:?}",
+                r.effort
+            );
+        }
+        // Joint state 1's effort was refused: nothing for it when joint state 2 arrives.
+        let third = engine.joint_states(&state(2, vec![]), stamp(2)).unwrap();
+        assert!(third.residual.is_none() && third.bad_effort.is_none());
     }
 
     #[test]

@@ -1,7 +1,8 @@
 //! The bag readers (`src/bag/`, compiled here from their own source files) over arbitrary bytes:
 //! the first byte chooses what the rest is read as: an MCAP file, an sqlite3 database (both
 //! written to a scratch file and opened as a bag: topics listed, every message of two topics
-//! read and its JointState or String decoded), or one CDR `sensor_msgs/JointState`.
+//! read and its JointState, String or Float64MultiArray decoded), or one CDR
+//! `sensor_msgs/JointState` or `std_msgs/Float64MultiArray`.
 //!
 //! Checked: never a panic, an abort or an allocation of a size the input claims (libFuzzer's
 //! malloc limit); a failure is an `Err` with a message.
@@ -16,7 +17,7 @@ mod bag;
 
 use bag::{cdr, Bag, Flow, Wanted};
 
-const WANTED: [Wanted<'static>; 2] = [
+const WANTED: [Wanted<'static>; 3] = [
     Wanted {
         topic: "/joint_states",
         type_name: "sensor_msgs/msg/JointState",
@@ -24,6 +25,10 @@ const WANTED: [Wanted<'static>; 2] = [
     Wanted {
         topic: "/robot_description",
         type_name: "std_msgs/msg/String",
+    },
+    Wanted {
+        topic: "/spatial_dynamics/commands",
+        type_name: "std_msgs/msg/Float64MultiArray",
     },
 ];
 
@@ -37,6 +42,10 @@ fn joint_state(data: &[u8], names: &mut Vec<std::ops::Range<usize>>) -> Result<f
         sum += values.iter().sum::<f64>();
     }
     Ok(sum)
+}
+
+fn multi_array(data: &[u8]) -> Result<f64, String> {
+    Ok(cdr::parse_float64_multi_array(data)?.iter().sum())
 }
 
 fn scratch(ext: &str) -> PathBuf {
@@ -58,10 +67,10 @@ fn as_bag(bytes: &[u8], ext: &str) {
         let _ = bag.read_noting(
             &WANTED,
             &mut |m| {
-                if m.topic == 0 {
-                    let _ = joint_state(m.data, &mut names);
-                } else {
-                    let _ = cdr::parse_string(m.data);
+                match m.topic {
+                    0 => drop(joint_state(m.data, &mut names)),
+                    1 => drop(cdr::parse_string(m.data)),
+                    _ => drop(multi_array(m.data)),
                 }
                 Ok(Flow::Continue)
             },
@@ -75,11 +84,14 @@ fuzz_target!(|data: &[u8]| {
     let Some((&kind, rest)) = data.split_first() else {
         return;
     };
-    match kind % 3 {
+    match kind % 4 {
         0 => as_bag(rest, "mcap"),
         1 => as_bag(rest, "db3"),
-        _ => {
+        2 => {
             let _ = joint_state(rest, &mut Vec::new());
+        }
+        _ => {
+            let _ = multi_array(rest);
         }
     }
 });

@@ -275,17 +275,30 @@ fn run(u: &mut Unstructured) -> Result<()> {
             0 => {
                 let names = vocabulary.names(u)?;
                 let js = JointState {
+                    header: Header {
+                        stamp: Time {
+                            sec: 0,
+                            nanosec: u.int_in_range(0u32..=999_999_999)?,
+                        },
+                        frame_id: String::new(),
+                    },
                     position: numbers(u, names.len())?,
                     velocity: numbers(u, names.len())?,
+                    effort: numbers(u, names.len())?,
                     name: names,
-                    ..Default::default()
                 };
-                topic("joint_states", engine.joint_states(&js), |(g, a)| {
-                    js_finite(g)
-                        && finite(&a.position)
-                        && finite(&a.velocity)
-                        && finite(&a.acceleration)
-                        && finite(&a.effort)
+                let stamp = js.header.stamp.clone();
+                topic("joint_states", engine.joint_states(&js, stamp), |a| {
+                    js_finite(&a.gravity)
+                        && finite(&a.acceleration.position)
+                        && finite(&a.acceleration.velocity)
+                        && finite(&a.acceleration.acceleration)
+                        && finite(&a.acceleration.effort)
+                        && match &a.residual {
+                            Some(Ok(r)) => js_finite(r),
+                            Some(Err(reason)) => !reason.is_empty(),
+                            None => true,
+                        }
                 });
             }
             1 => {
