@@ -26,7 +26,8 @@
 //! length, non-finite value) is skipped and counted, never fatal.
 //!
 //! Pieces: [`decode`] (bag order → blocks of samples), [`compute`] (a block's dynamics into one
-//! MCAP chunk), [`pipeline`] (the reading, computing and writing threads), [`report`].
+//! MCAP chunk), [`pipeline`] (the reading, computing and writing threads), [`progress`] (the
+//! line on a terminal while it runs), [`report`] (the counts at the end).
 
 use crate::bag::{self, cdr, Bag, Flow, McapWriter, Wanted};
 use crate::joint_states::commands::Commands;
@@ -35,7 +36,8 @@ use crate::ros::names::NameResolver;
 use clap::ValueEnum;
 use decode::Decoder;
 use pipeline::pipeline;
-use report::{report, Progress};
+use progress::Progress;
+use report::report;
 use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
 use spatial_dynamics_core::{urdf, ForwardDynamicsMethod, Model, ModelOptions};
 use std::io::IsTerminal;
@@ -47,6 +49,7 @@ mod compute;
 mod decode;
 mod pipeline;
 mod problems;
+mod progress;
 mod report;
 
 const JOINT_STATE: &str = "sensor_msgs/msg/JointState";

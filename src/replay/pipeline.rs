@@ -6,7 +6,7 @@ use super::block::{Block, Tables, BLOCK};
 use super::compute::{compute, Scratch};
 use super::decode::Decoder;
 use super::problems::Problems;
-use super::report::Progress;
+use super::progress::Progress;
 use crate::bag::{Bag, Flow, McapWriter, Wanted};
 use spatial_dynamics_core::{ForwardDynamicsMethod, Model};
 use std::collections::BTreeMap;
