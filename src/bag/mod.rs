@@ -208,15 +208,21 @@ pub fn ros2_type_name(name: &str) -> Cow<'_, str> {
     }
 }
 
-/// Checks a recorded topic against the wanted ones: its index there, or an error for a wrong
-/// type or serialization.
+/// Whether a recorded topic name and a wanted one name the same topic: recorders store
+/// `/AAA` or `AAA` (rosbags and some others drop the leading slash) for the same topic.
+pub fn same_topic(recorded: &str, wanted: &str) -> bool {
+    recorded.trim_start_matches('/') == wanted.trim_start_matches('/')
+}
+
+/// Checks a recorded topic against the wanted ones ([`same_topic`]): its index there, or an
+/// error for a wrong type or serialization.
 fn match_topic(
     wanted: &[Wanted<'_>],
     topic: &str,
     type_name: &str,
     encoding: &str,
 ) -> Result<Option<usize>, String> {
-    let Some(i) = wanted.iter().position(|w| w.topic == topic) else {
+    let Some(i) = wanted.iter().position(|w| same_topic(topic, w.topic)) else {
         return Ok(None);
     };
     let type_name = ros2_type_name(type_name);

@@ -256,12 +256,9 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
     partial.keep_as(&args.out)
 }
 
-/// A topic as the bag records it: `AAA` and `/AAA` name the same topic.
+/// A topic as the bag records it ([`bag::same_topic`]).
 fn recorded<'t>(topics: &'t [bag::TopicInfo], topic: &str) -> Option<&'t bag::TopicInfo> {
-    let bare = topic.trim_start_matches('/');
-    topics
-        .iter()
-        .find(|t| t.name.trim_start_matches('/') == bare)
+    topics.iter().find(|t| bag::same_topic(&t.name, topic))
 }
 
 /// An output being written: a temporary file beside the final one, removed unless kept.

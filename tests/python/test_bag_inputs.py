@@ -173,6 +173,27 @@ def test_cut_mcap_replays_every_complete_message(tmp_path):
         assert f"log time {last // 10**9}.{last % 10**9:09d} s" in stderr, stderr
 
 
+@pytest.mark.parametrize("given", ["joint_states", "/joint_states"])
+def test_cut_mcap_topic_recorded_without_a_leading_slash(tmp_path, given):
+    """A cut file alone has no summary, so topics are only met while reading: `joint_states` as
+    recorded (rosbags drops the slash) is still the topic asked for with or without it."""
+    records, exp = make_inputs(n=9000, commands=False)
+    records = [("joint_states",) + r[1:] for r in records]
+    bag = tmp_path / "bag"
+    write(bag, "mcap", records)
+    f = storage_file(bag)
+    data = f.read_bytes()
+    cut = int(len(data) * 0.6)
+    f.write_bytes(data[:cut])
+    complete, _ = mcap_walk(data, cut)
+    logs = {t for topic, t in complete if topic == "joint_states"}
+    assert 0 < len(logs) < len(exp["states"])
+    out = tmp_path / "out.mcap"
+    summary, stderr = replay(f, out, "--builtin", "default_arm", "--joint-states", given)
+    assert sum(summary["read"].get(k, 0) for k in ("joint_states", "/joint_states")) == len(logs), stderr
+    check_gravity(out, [s for s in exp["states"] if s["log"] in logs])
+
+
 def test_split_bag_with_a_cut_last_file(tmp_path):
     records, exp = make_inputs(n=8000, commands=False)
     records.sort(key=lambda r: r[2])
