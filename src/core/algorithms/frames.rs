@@ -188,14 +188,17 @@ pub(crate) fn place_all(model: &Model, ws: &mut Workspace, q: &[f64]) {
     ws.frame_scratch.support.clear();
 }
 
-/// `scratch.x_world[i] = ⁱX_λ ᵏX_0` (`ⁱX_λ` for a root), the parent already placed.
+/// `scratch.x_world[i] = ⁱX_λ ᵏX_0` (`ⁱX_λ` for a root), the parent already placed; written in
+/// place by each form of `ⁱX_λ` (as `kinematics::place_below_parent` does, and for the same
+/// reason: a product returned and then copied stalls on store forwarding).
 #[inline(always)]
 fn place_body(model: &Model, ws: &mut Workspace, i: usize) {
-    let x = match model.bodies[i].parent {
-        Some(p) => with_up_transform!(ws, i, |x| x.compose(&ws.frame_scratch.x_world[p])),
-        None => ws.x_up[i],
-    };
-    ws.frame_scratch.x_world[i] = x;
+    let (above, from_i) = ws.frame_scratch.x_world.split_at_mut(i);
+    let x_i = &mut from_i[0];
+    match model.bodies[i].parent {
+        Some(p) => with_up_transform!(ws, i, |x| *x_i = x.compose(&above[p])),
+        None => *x_i = ws.x_up[i],
+    }
 }
 
 /// `ᴸX_0 = ᴸX_B ᴮX_0` from the placed bodies (`ᴸX_0 = ᴸX_B` for a link fixed to the world).

@@ -3,7 +3,9 @@
 
 use super::validate::check_q;
 use crate::error::DynamicsError;
-use crate::model::{floating_up, turn_up, turn_up_unrotated, Body, Joint, JointKind, Model, UpShape};
+use crate::model::{
+    floating_up, turn_up, turn_up_unrotated, Body, Joint, JointKind, Model, UpShape,
+};
 use crate::spatial::{sin_cos_all, Force, Motion, Transform, Translation, Vector3};
 use crate::Workspace;
 
