@@ -18,6 +18,9 @@ pub struct Plan {
     pub s_axes: Vec<[Option<(usize, f64)>; 6]>,
     /// For each body, the form of `ⁱX_λ` whatever `q` ([`JointKind::up_shape`]).
     pub up_shapes: Vec<UpShape>,
+    /// True when no joint is a mimic follower: each velocity coordinate is then one joint's, and
+    /// a Jacobian's column is written by that joint's body alone (assigned, not summed).
+    pub own_columns: bool,
     /// Which bodies anchor an aligned frame in ABA's passes ([`frame_anchors`]): every root, and
     /// bodies far along the tree from the anchor above them.
     pub anchors: Vec<bool>,
@@ -59,6 +62,7 @@ impl Plan {
                 .iter()
                 .map(|b| b.joint.kind.up_shape(&b.x_tree))
                 .collect(),
+            own_columns: model.bodies.iter().all(|b| !b.joint.is_mimic()),
             anchors: frame_anchors(model),
             crba_frames: crba_frames(model, subtree_end.as_deref()),
             mirror_by_tiles: mirror_by_tiles(model.nv),

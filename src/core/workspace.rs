@@ -2,7 +2,7 @@
 //! every call so that no call allocates.
 
 use crate::algorithms::frames::FrameScratch;
-use crate::model::{Model, MotionSubspace};
+use crate::model::{JointKind, Model, MotionSubspace};
 use crate::plan::Plan;
 use crate::spatial::{Force, Inertia, Matrix6, Motion, Transform, Vector3};
 use nalgebra::{DMatrix, DVector};
@@ -100,14 +100,16 @@ impl Workspace {
             x_world: vec![Transform::identity(); n],
             x_aligned: vec![Transform::identity(); n],
             anchor_shift: vec![Vector3::zeros(); n],
-            // A turning joint's S is constant, and `update_joints` leaves it as set here.
+            // A turning or floating joint's S is constant, and `update_joints` leaves it as set
+            // here.
             s: model
                 .bodies
                 .iter()
                 .map(|b| {
                     let mut s = MotionSubspace::default();
-                    if b.joint.kind.turn_axis().is_some() {
-                        b.joint.kind.jcalc(&[0.0], &mut s);
+                    let kind = &b.joint.kind;
+                    if kind.turn_axis().is_some() || *kind == JointKind::Floating {
+                        kind.jcalc(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0], &mut s);
                     }
                     s
                 })

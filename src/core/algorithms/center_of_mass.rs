@@ -59,17 +59,26 @@ pub fn center_of_mass_jacobian<'w>(
     let com = center_of_mass(model, ws, q)?;
     let scratch = &mut ws.frame_scratch;
     let jacobian = &mut scratch.com_jacobian;
-    jacobian.as_mut_slice().fill(0.0);
+    // Without mimic followers every column is one joint's and is assigned below.
+    let own_columns = ws.plan.own_columns;
+    let values = jacobian.as_mut_slice();
+    if !own_columns {
+        values.fill(0.0);
+    }
+    let inv_mass = 1.0 / com.mass;
     for (i, body) in model.bodies.iter().enumerate() {
         let (x, s, c) = (&scratch.x_world[i], &ws.s[i], body.joint.coords);
         let (m, d) = (scratch.subtree_mass[i], &scratch.subtree_moment[i]);
-        let weight = c.scale / com.mass;
         for k in 0..s.nv {
             let (a, l) = world_axes(&x.rot, &s.cols[k], ws.plan.s_axes[i][k]);
-            let col = (l * m + a.cross(d)) * weight;
-            let mut out = jacobian.column_mut(c.v_index + k);
-            for r in 0..3 {
-                out[r] += col[r];
+            let col = (l * m + a.cross(d)) * inv_mass;
+            let out = &mut values[3 * (c.v_index + k)..3 * (c.v_index + k) + 3];
+            if own_columns {
+                out.copy_from_slice(col.as_slice());
+            } else {
+                for r in 0..3 {
+                    out[r] += c.scale * col[r];
+                }
             }
         }
     }

@@ -212,28 +212,24 @@ pub fn spd_inverse(n: usize) -> Flops {
 /// `axis_rotation` (nalgebra's `Rotation3::from_axis_angle`), without its `sin_cos`: as written
 /// 24 m + 13 a, but the repeated products `u_i u_j (1 − c)` and `u_k s` are computed once.
 pub const AXIS_ROTATION: Flops = Flops::new(15, 13);
-/// `quaternion_rotation`: normalising (4 m + 3 a, a square root, 4 divisions), then nalgebra's
-/// `to_rotation_matrix` (16 m + 15 a as written; its six `2 x` become `x + x` and `w² − i²` is
-/// shared: 10 m + 20 a).
+/// `quaternion_rotation`: `σ = 2 / |q|²` (4 m + 3 a, a division), `σx, σy, σz` (3 m), the nine
+/// products `wσx … zσz` (9 m), then the nine entries (12 a).
 pub const QUATERNION_ROTATION: Flops = Flops {
-    mul: 4 + 10,
-    add: 3 + 20,
-    div: 4,
-    sqrt: 1,
+    mul: 4 + 3 + 9,
+    add: 3 + 12,
+    div: 1,
+    sqrt: 0,
     sincos: 0,
 };
 
-/// `check_q`: the norm of every floating joint's quaternion (4 m + 3 a and a square root).
+/// `check_q`: the squared norm of every floating joint's quaternion (4 m + 3 a).
 pub(crate) fn check_q(model: &Model) -> Flops {
     let floating = model
         .bodies
         .iter()
         .filter(|b| b.joint.kind == JointKind::Floating && !b.joint.is_mimic())
         .count() as u64;
-    Flops {
-        sqrt: floating,
-        ..Flops::new(4, 3)
-    } * floating
+    Flops::new(4, 3) * floating
 }
 
 /// `update_joints`: `jcalc_up` for every body, but for a revolute joint about a coordinate

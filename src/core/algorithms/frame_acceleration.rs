@@ -18,7 +18,7 @@
 use super::frames::{check_finite, place_support, placement_of, Frame};
 use super::jacobian::ReferenceFrame;
 use super::kinematics::with_up_transform;
-use super::validate::{check_q, check_v};
+use super::validate::check_v;
 use crate::error::DynamicsError;
 use crate::model::Model;
 use crate::spatial::Motion;
@@ -38,7 +38,6 @@ pub fn frame_classical_acceleration(
     frame: &Frame,
     reference: ReferenceFrame,
 ) -> Result<Motion, DynamicsError> {
-    check_q(model, q)?;
     check_v(model, "v", v)?;
     check_v(model, "a", a)?;
     if reference == ReferenceFrame::World {
@@ -47,7 +46,7 @@ pub fn frame_classical_acceleration(
             reason: "it is the acceleration of the link's origin: ask for it in 'local' or 'local_world_aligned' axes, not 'world'".into(),
         });
     }
-    place_support(model, ws, q, frame.body);
+    place_support(model, ws, q, frame.body)?;
     let Some(body) = frame.body else {
         return Ok(Motion::zero());
     };

@@ -21,7 +21,7 @@
 //! workspace's [`FrameScratch`].
 
 use super::kinematics::{read_joint, update_joints, update_up, with_up_transform};
-use super::validate::check_q;
+use super::validate::check_q_of;
 use crate::error::DynamicsError;
 use crate::model::{Model, MotionSubspace};
 use crate::spatial::{sin_cos_all, Motion, Transform, Vector3};
@@ -69,8 +69,7 @@ pub fn frame_placement(
     q: &[f64],
     frame: &Frame,
 ) -> Result<Transform, DynamicsError> {
-    check_q(model, q)?;
-    place_support(model, ws, q, frame.body);
+    place_support(model, ws, q, frame.body)?;
     let x = placement_of(&ws.frame_scratch, frame);
     let mut values = [0.0; 12];
     values[..9].copy_from_slice(x.rot.as_slice());
@@ -107,6 +106,9 @@ pub struct FrameScratch {
     pub(crate) subtree_moment: Vec<Vector3>,
     /// A frame Jacobian, `6 × nv`, rows `[linear; angular]`.
     pub(crate) jacobian: DMatrix<f64>,
+    /// The body whose support's columns are the only ones of `jacobian` that may be non-zero
+    /// (the last Jacobian's frame body); `None` when unknown.
+    pub(crate) jacobian_support: Option<usize>,
     /// The centre-of-mass Jacobian, `3 × nv`.
     pub(crate) com_jacobian: DMatrix<f64>,
 }
@@ -127,16 +129,23 @@ impl FrameScratch {
             subtree_mass: vec![0.0; n],
             subtree_moment: vec![Vector3::zeros(); n],
             jacobian: DMatrix::zeros(6, nv),
+            jacobian_support: None,
             com_jacobian: DMatrix::zeros(3, nv),
         }
     }
 }
 
-/// Places the bodies supporting `body` (none for a link fixed to the world) for `q` (already
-/// validated): `scratch.support` lists them root first, their joints are updated
-/// (`ws.x_up`, `ws.s`; other bodies' entries are left as they were) and
-/// `scratch.x_world` holds their `ⁱX_0 = ⁱX_λ ᵏX_0`.
-pub(crate) fn place_support(model: &Model, ws: &mut Workspace, q: &[f64], body: Option<usize>) {
+/// Places the bodies supporting `body` (none for a link fixed to the world) for `q`:
+/// `scratch.support` lists them root first, the coordinates their joints read are validated
+/// (only those: the others do not move the frame), their joints are updated (`ws.x_up`, `ws.s`;
+/// other bodies' entries are left as they were) and `scratch.x_world` holds their
+/// `ⁱX_0 = ⁱX_λ ᵏX_0`.
+pub(crate) fn place_support(
+    model: &Model,
+    ws: &mut Workspace,
+    q: &[f64],
+    body: Option<usize>,
+) -> Result<(), DynamicsError> {
     let support = &mut ws.frame_scratch.support;
     support.clear();
     let mut next = body;
@@ -145,6 +154,7 @@ pub(crate) fn place_support(model: &Model, ws: &mut Workspace, q: &[f64], body: 
         next = model.bodies[i].parent;
     }
     support.reverse();
+    check_q_of(model, q, support)?;
     // As `update_joints` does for the whole tree: the turn angles first, their sines and cosines
     // two at a time, then each joint's transform and the body's placement.
     let n = ws.frame_scratch.support.len();
@@ -165,6 +175,7 @@ pub(crate) fn place_support(model: &Model, ws: &mut Workspace, q: &[f64], body: 
         update_up(&model.bodies[i], ws, i, turn);
         place_body(model, ws, i);
     }
+    Ok(())
 }
 
 /// Places every body for `q` (already validated): all joints updated, `scratch.x_world` for
@@ -177,14 +188,17 @@ pub(crate) fn place_all(model: &Model, ws: &mut Workspace, q: &[f64]) {
     ws.frame_scratch.support.clear();
 }
 
-/// `scratch.x_world[i] = ⁱX_λ ᵏX_0` (`ⁱX_λ` for a root), the parent already placed.
+/// `scratch.x_world[i] = ⁱX_λ ᵏX_0` (`ⁱX_λ` for a root), the parent already placed; written in
+/// place by each form of `ⁱX_λ` (as `kinematics::place_below_parent` does, and for the same
+/// reason: a product returned and then copied stalls on store forwarding).
 #[inline(always)]
 fn place_body(model: &Model, ws: &mut Workspace, i: usize) {
-    let x = match model.bodies[i].parent {
-        Some(p) => with_up_transform!(ws, i, |x| x.compose(&ws.frame_scratch.x_world[p])),
-        None => ws.x_up[i],
-    };
-    ws.frame_scratch.x_world[i] = x;
+    let (above, from_i) = ws.frame_scratch.x_world.split_at_mut(i);
+    let x_i = &mut from_i[0];
+    match model.bodies[i].parent {
+        Some(p) => with_up_transform!(ws, i, |x| *x_i = x.compose(&above[p])),
+        None => *x_i = ws.x_up[i],
+    }
 }
 
 /// `ᴸX_0 = ᴸX_B ᴮX_0` from the placed bodies (`ᴸX_0 = ᴸX_B` for a link fixed to the world).

@@ -64,7 +64,8 @@ impl FromStr for ReferenceFrame {
 
 /// The Jacobian of `frame` at `q` in `reference` (`6 × nv`, rows `[linear; angular]`, see the
 /// [module](self) documentation), in the workspace. Only the bodies supporting the frame are
-/// placed; a link fixed to the world has a zero Jacobian.
+/// placed, and only the coordinates they read are validated; a link fixed to the world has a
+/// zero Jacobian.
 pub fn frame_jacobian<'w>(
     model: &Model,
     ws: &'w mut Workspace,
@@ -72,29 +73,24 @@ pub fn frame_jacobian<'w>(
     frame: &Frame,
     reference: ReferenceFrame,
 ) -> Result<&'w DMatrix<f64>, DynamicsError> {
-    check_q(model, q)?;
-    place_support(model, ws, q, frame.body);
+    place_support(model, ws, q, frame.body)?;
     let to_frame = ColumnMap::new(reference, &placement_of(&ws.frame_scratch, frame));
     let FrameScratch {
         support,
         x_world,
         jacobian,
+        jacobian_support,
         ..
     } = &mut ws.frame_scratch;
-    jacobian.as_mut_slice().fill(0.0);
+    let mut out = Columns::new(jacobian, jacobian_support, ws.plan.own_columns, frame.body);
     for &i in support.iter() {
         let (x, s, c) = (&x_world[i], &ws.s[i], model.bodies[i].joint.coords);
         for k in 0..s.nv {
             let (a, l) = world_axes(&x.rot, &s.cols[k], ws.plan.s_axes[i][k]);
-            add_column(
-                jacobian,
-                c.v_index + k,
-                c.scale,
-                to_frame.column(&a, &l, &x.trans),
-            );
+            out.put(c.v_index + k, c.scale, to_frame.column(&a, &l, &x.trans));
         }
     }
-    check_finite(model, frame, "frame Jacobian", jacobian.as_slice())?;
+    out.finish(model, frame)?;
     Ok(&ws.frame_scratch.jacobian)
 }
 
@@ -125,7 +121,11 @@ pub fn joint_jacobians<'w>(
             axes.cols[k] = Motion::new(a, l);
         }
     }
-    Ok(JointJacobians { model, scratch })
+    Ok(JointJacobians {
+        model,
+        scratch,
+        own_columns: ws.plan.own_columns,
+    })
 }
 
 /// The joint Jacobians of one configuration ([`joint_jacobians`]): frame placements and
@@ -133,6 +133,7 @@ pub fn joint_jacobians<'w>(
 pub struct JointJacobians<'w> {
     model: &'w Model,
     scratch: &'w mut FrameScratch,
+    own_columns: bool,
 }
 
 impl JointJacobians<'_> {
@@ -152,16 +153,16 @@ impl JointJacobians<'_> {
             x_world,
             axes,
             jacobian,
+            jacobian_support,
             ..
         } = &mut *self.scratch;
-        jacobian.as_mut_slice().fill(0.0);
+        let mut out = Columns::new(jacobian, jacobian_support, self.own_columns, frame.body);
         let mut next = frame.body;
         while let Some(i) = next {
             let body = &self.model.bodies[i];
             let (p_i, c) = (&x_world[i].trans, body.joint.coords);
             for (k, col) in axes[i].cols[..axes[i].nv].iter().enumerate() {
-                add_column(
-                    jacobian,
+                out.put(
                     c.v_index + k,
                     c.scale,
                     to_frame.column(&col.ang, &col.lin, p_i),
@@ -169,7 +170,7 @@ impl JointJacobians<'_> {
             }
             next = body.parent;
         }
-        check_finite(self.model, frame, "frame Jacobian", jacobian.as_slice())?;
+        out.finish(self.model, frame)?;
         Ok(&self.scratch.jacobian)
     }
 }
@@ -230,12 +231,64 @@ impl ColumnMap {
     }
 }
 
-/// `J[:, column] += scale · [linear; angular]`.
-#[inline(always)]
-fn add_column(j: &mut DMatrix<f64>, column: usize, scale: f64, (lin, ang): (Vector3, Vector3)) {
-    let mut col = j.column_mut(column);
-    for r in 0..3 {
-        col[r] += scale * lin[r];
-        col[r + 3] += scale * ang[r];
+/// The columns of a frame Jacobian being written (`FrameScratch::jacobian`), for the frame
+/// carried by `body`: performance machinery that leaves the algorithms above to say which column
+/// gets what.
+///
+/// When every column has one writer ([`Plan::own_columns`](crate::plan::Plan)) a column is
+/// assigned, the matrix is zeroed only when the last Jacobian was another body's (its other
+/// columns are still zero otherwise), and finiteness is checked on the values written. With
+/// mimic followers the matrix is zeroed and their columns are added, scaled, to their leaders'.
+struct Columns<'a> {
+    values: &'a mut [f64],
+    own_columns: bool,
+    /// `Σ x · 0` over the values assigned: zero when all are finite.
+    finite: Vector3,
+}
+
+impl<'a> Columns<'a> {
+    fn new(
+        jacobian: &'a mut DMatrix<f64>,
+        support: &mut Option<usize>,
+        own_columns: bool,
+        body: Option<usize>,
+    ) -> Self {
+        let values = jacobian.as_mut_slice();
+        if !(own_columns && body.is_some() && *support == body) {
+            values.fill(0.0);
+        }
+        *support = body;
+        Columns {
+            values,
+            own_columns,
+            finite: Vector3::zeros(),
+        }
+    }
+
+    /// Column `column` ← `[linear; angular]`, or `+= scale · [linear; angular]` with mimic
+    /// followers.
+    #[inline(always)]
+    fn put(&mut self, column: usize, scale: f64, (lin, ang): (Vector3, Vector3)) {
+        let col = &mut self.values[6 * column..6 * column + 6];
+        if self.own_columns {
+            col[..3].copy_from_slice(lin.as_slice());
+            col[3..].copy_from_slice(ang.as_slice());
+            self.finite += (lin + ang) * 0.0;
+        } else {
+            for r in 0..3 {
+                col[r] += scale * lin[r];
+                col[r + 3] += scale * ang[r];
+            }
+        }
+    }
+
+    /// An error naming the frame's link when a value is not finite.
+    fn finish(self, model: &Model, frame: &Frame) -> Result<(), DynamicsError> {
+        let values = if self.own_columns {
+            self.finite.as_slice()
+        } else {
+            &*self.values
+        };
+        check_finite(model, frame, "frame Jacobian", values)
     }
 }

@@ -3,7 +3,9 @@
 
 use super::validate::check_q;
 use crate::error::DynamicsError;
-use crate::model::{turn_up, turn_up_unrotated, Body, Joint, Model, UpShape};
+use crate::model::{
+    floating_up, turn_up, turn_up_unrotated, Body, Joint, JointKind, Model, UpShape,
+};
 use crate::spatial::{sin_cos_all, Force, Motion, Transform, Translation, Vector3};
 use crate::Workspace;
 
@@ -78,7 +80,8 @@ pub(crate) fn read_joint(body: &Body, ws: &mut Workspace, i: usize, q: &[f64]) -
 }
 
 /// `ws.x_up[i]` (and `ws.s[i]` for a joint whose `S` varies) from the sine and cosine of body
-/// `i`'s turn angle and, for other joints, `ws.q_joint[i]`.
+/// `i`'s turn angle and, for other joints, `ws.q_joint[i]`. A floating joint's `S` is constant
+/// (set when the workspace was made): only its transform is computed ([`floating_up`]).
 #[inline(always)]
 pub(crate) fn update_up(body: &Body, ws: &mut Workspace, i: usize, turn: (f64, f64)) {
     match (ws.plan.turn_axes[i], ws.plan.up_shapes[i]) {
@@ -86,6 +89,9 @@ pub(crate) fn update_up(body: &Body, ws: &mut Workspace, i: usize, turn: (f64, f
             turn_up_unrotated(k, turn, &body.x_tree, &mut ws.x_up[i])
         }
         (Some((k, _)), _) => turn_up(k, turn, &body.x_tree, &mut ws.x_up[i]),
+        (None, _) if body.joint.kind == JointKind::Floating => {
+            floating_up(&ws.q_joint[i], &body.x_tree, &mut ws.x_up[i])
+        }
         (None, _) => body.joint.kind.jcalc_up_turned(
             &ws.q_joint[i][..body.joint.kind.nq()],
             turn,

@@ -1,6 +1,7 @@
 //! Input and output checks shared by the algorithms: lengths, finiteness, unit quaternions.
 //! Each error names the coordinate (joint) and the value.
 
+use super::frames::all_finite;
 use super::Externals;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model};
@@ -8,30 +9,83 @@ use crate::model::{JointKind, Model};
 /// `q` has `nq` finite values and every floating joint's quaternion is not (near) zero.
 pub(crate) fn check_q(model: &Model, q: &[f64]) -> Result<(), DynamicsError> {
     check_len("q", model.nq, q.len())?;
-    if let Some(index) = q.iter().position(|x| !x.is_finite()) {
-        let coordinate = match model.joint_of_q(index) {
-            Some((name, 0)) => name.to_string(),
-            Some((name, k)) => format!("{name}[{k}]"),
-            None => format!("q[{index}]"),
-        };
-        return Err(DynamicsError::NonFinite {
-            vector: "q",
-            index,
-            coordinate,
-            value: q[index],
-        });
+    if !all_finite(q) {
+        let index = q.iter().position(|x| !x.is_finite()).unwrap_or(0);
+        return Err(non_finite_q(model, q, index));
     }
-    for joint in model.coordinate_joints() {
-        if *joint.kind == JointKind::Floating {
-            let quat = &q[joint.q_index + 3..joint.q_index + 7];
-            let norm = quat.iter().map(|x| x * x).sum::<f64>().sqrt();
-            if norm < 1e-9 {
-                return Err(DynamicsError::BadQuaternion {
-                    joint: joint.name.to_string(),
-                    norm,
-                });
-            }
+    for body in &model.bodies {
+        let joint = &body.joint;
+        if joint.kind == JointKind::Floating && !joint.is_mimic() {
+            let q_index = joint.coords.q_index;
+            check_quaternion(&joint.name, &q[q_index + 3..q_index + 7])?;
         }
+    }
+    Ok(())
+}
+
+/// `q` has `nq` values, and the coordinates the joints of `bodies` read are finite and their
+/// floating joints' quaternions not (near) zero: what an algorithm that places only these
+/// bodies (a frame's support) needs, the same errors as [`check_q`] for the coordinates it
+/// reads. The other coordinates are not looked at.
+pub(crate) fn check_q_of(model: &Model, q: &[f64], bodies: &[usize]) -> Result<(), DynamicsError> {
+    check_len("q", model.nq, q.len())?;
+    // `x · 0` is zero for a finite `x`, NaN otherwise: one test for all the coordinates; the
+    // quaternions are checked once they are known to be finite (as `check_q` orders them).
+    let mut sum = 0.0;
+    for &i in bodies {
+        let joint = &model.bodies[i].joint;
+        for x in &q[joint.coords.q_index..joint.coords.q_index + joint.kind.nq()] {
+            sum += x * 0.0;
+        }
+    }
+    if sum != 0.0 {
+        let index = bodies
+            .iter()
+            .flat_map(|&i| {
+                let joint = &model.bodies[i].joint;
+                joint.coords.q_index..joint.coords.q_index + joint.kind.nq()
+            })
+            .find(|&k| !q[k].is_finite())
+            .unwrap_or(0);
+        return Err(non_finite_q(model, q, index));
+    }
+    for &i in bodies {
+        let joint = &model.bodies[i].joint;
+        if joint.kind == JointKind::Floating {
+            let q_index = joint.coords.q_index;
+            check_quaternion(&joint.name, &q[q_index + 3..q_index + 7])?;
+        }
+    }
+    Ok(())
+}
+
+/// The error for the non-finite `q[index]`, naming its joint.
+#[cold]
+fn non_finite_q(model: &Model, q: &[f64], index: usize) -> DynamicsError {
+    let coordinate = match model.joint_of_q(index) {
+        Some((name, 0)) => name.to_string(),
+        Some((name, k)) => format!("{name}[{k}]"),
+        None => format!("q[{index}]"),
+    };
+    DynamicsError::NonFinite {
+        vector: "q",
+        index,
+        coordinate,
+        value: q[index],
+    }
+}
+
+/// A floating joint's quaternion `[x, y, z, w]` must not be (near) zero: `|quat| ≥ 10⁻⁹`
+/// (compared squared; the norm is only taken for the error). A NaN passes here and is caught
+/// as a non-finite coordinate.
+#[inline(always)]
+fn check_quaternion(joint: &str, quat: &[f64]) -> Result<(), DynamicsError> {
+    let norm2 = quat.iter().map(|x| x * x).sum::<f64>();
+    if norm2 < 1e-18 {
+        return Err(DynamicsError::BadQuaternion {
+            joint: joint.to_string(),
+            norm: norm2.sqrt(),
+        });
     }
     Ok(())
 }

@@ -134,10 +134,7 @@ impl JointKind {
                 }
             }
             JointKind::Floating => {
-                for k in 0..3 {
-                    s.cols[k] = Motion::new(Vector3::zeros(), Vector3::ith(k, 1.0));
-                    s.cols[k + 3] = Motion::new(Vector3::ith(k, 1.0), Vector3::zeros());
-                }
+                floating_subspace(s);
                 Transform::from_pose(&quaternion_rotation(q), &Vector3::new(q[0], q[1], q[2]))
             }
         }
@@ -211,6 +208,11 @@ impl JointKind {
                 s.cols[0] = Motion::new(Vector3::zeros(), axis);
                 x_up.rot = x_tree.rot;
                 x_up.trans = x_tree.trans + x_tree.rot.tr_mul(&(axis * q[0]));
+                return;
+            }
+            JointKind::Floating => {
+                floating_subspace(s);
+                floating_up(q, x_tree, x_up);
                 return;
             }
             _ => {}
@@ -422,10 +424,53 @@ pub fn axis_rotation(axis: &Vector3, angle: f64) -> Matrix3 {
     Rotation3::from_axis_angle(&Unit::new_unchecked(*axis), angle).into_inner()
 }
 
-/// Rotation matrix of the (normalised) quaternion stored at `q[3..7]` as (x, y, z, w).
+/// The floating joint's constant `S = [0 1; 1 0]` (`v = [linear; angular]` in body
+/// coordinates).
+fn floating_subspace(s: &mut MotionSubspace) {
+    s.nv = 6;
+    for k in 0..3 {
+        s.cols[k] = Motion::new(Vector3::zeros(), Vector3::ith(k, 1.0));
+        s.cols[k + 3] = Motion::new(Vector3::ith(k, 1.0), Vector3::zeros());
+    }
+}
+
+/// A floating joint's `ⁱX_λ = X_J X_tree` without its `S` (constant, [`floating_subspace`]):
+/// `X_J` has `E_J = Rᵀ` (`R` from the quaternion `q[3..7]`, [`quaternion_rotation`]) and the
+/// origin `p = q[0..3]`, so `E = Rᵀ E_tree` and `r = r_tree + E_treeᵀ p`.
+#[inline]
+pub fn floating_up(q: &[f64], x_tree: &Transform, x_up: &mut Transform) {
+    let r = quaternion_rotation(q);
+    x_up.rot = r.tr_mul(&x_tree.rot);
+    x_up.trans = x_tree.trans + x_tree.rot.tr_mul(&Vector3::new(q[0], q[1], q[2]));
+}
+
+/// Rotation matrix of the (normalised) quaternion stored at `q[3..7]` as (x, y, z, w):
+/// with `σ = 2 / (x² + y² + z² + w²)` (normalising without a square root),
+///
+/// ```text
+/// R = [1 − σ(y² + z²)   σ(xy − wz)       σ(xz + wy)    ]
+///     [σ(xy + wz)       1 − σ(x² + z²)   σ(yz − wx)    ]
+///     [σ(xz − wy)       σ(yz + wx)       1 − σ(x² + y²)]
+/// ```
+#[inline]
 pub fn quaternion_rotation(q: &[f64]) -> Matrix3 {
-    let quat = UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5]));
-    quat.to_rotation_matrix().into_inner()
+    let (x, y, z, w) = (q[3], q[4], q[5], q[6]);
+    let sigma = 2.0 / (x * x + y * y + z * z + w * w);
+    let (xs, ys, zs) = (x * sigma, y * sigma, z * sigma);
+    let (wx, wy, wz) = (w * xs, w * ys, w * zs);
+    let (xx, xy, xz) = (x * xs, x * ys, x * zs);
+    let (yy, yz, zz) = (y * ys, y * zs, z * zs);
+    Matrix3::new(
+        1.0 - (yy + zz),
+        xy - wz,
+        xz + wy,
+        xy + wz,
+        1.0 - (xx + zz),
+        yz - wx,
+        xz - wy,
+        yz + wx,
+        1.0 - (xx + yy),
+    )
 }
 
 #[cfg(test)]

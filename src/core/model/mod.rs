@@ -18,8 +18,8 @@ mod spec;
 
 pub use builder::ModelBuilder;
 pub use joint::{
-    axis_rotation, quaternion_rotation, turn_up, turn_up_unrotated, JointKind, MotionSubspace,
-    UpShape,
+    axis_rotation, floating_up, quaternion_rotation, turn_up, turn_up_unrotated, JointKind,
+    MotionSubspace, UpShape,
 };
 pub use spec::{joint_position, BodySpec, JointSpec, ModelOptions};
 
