@@ -1,5 +1,5 @@
 use std::{
-  collections::BTreeMap,
+  collections::{BTreeMap, BTreeSet},
   fmt, iter,
   rc::Rc,
   sync::{Arc, Mutex, MutexGuard},
@@ -66,7 +66,16 @@ use crate::no_security::SecurityPluginsHandle;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum TimedEvent {
   DeadlineMissedCheck,
+  /// NACK again what is still missing after a HEARTBEAT (`Reader::retry_nacks`);
+  /// `attempt` counts from 0.
+  NackRetry { attempt: u32 },
 }
+
+/// The first NACK retry comes this long after the NACK that answered a HEARTBEAT,
+/// each further one after twice the previous wait, up to `NACK_RETRIES` retries
+/// (50 ms … 1.55 s after the NACK with the defaults).
+const NACK_RETRY_FIRST: std::time::Duration = std::time::Duration::from_millis(50);
+const NACK_RETRIES: u32 = 5;
 
 // Some pieces necessary to construct a reader.
 // These can be sent between threads, whereas a Reader cannot.
@@ -324,6 +333,7 @@ impl Reader {
         self.handle_requested_deadline_event();
         self.set_requested_deadline_check_timer(); // re-prime timer
       }
+      TimedEvent::NackRetry { attempt } => self.retry_nacks(attempt),
     }
   }
 
@@ -940,6 +950,10 @@ impl Reader {
 
         // See if ACKNACK is needed, and generate one.
         let missing_seqnums = writer_proxy.missing_seqnums(heartbeat.first_sn, heartbeat.last_sn);
+        writer_proxy.last_heartbeat = Some((heartbeat.first_sn, heartbeat.last_sn));
+        if !missing_seqnums.is_empty() {
+          this.schedule_nack_retry(0);
+        }
 
         // Interpretation of final flag in RTPS spec
         // 8.4.2.3.1 Readers must respond eventually after receiving a HEARTBEAT with
@@ -1394,6 +1408,71 @@ impl Reader {
     }
 
     self.encode_and_send(message, destination_guid, dst_locator_list);
+  }
+
+  fn schedule_nack_retry(&self, attempt: u32) {
+    self.timed_event_timer.borrow_mut().set_timeout(
+      NACK_RETRY_FIRST * 2u32.pow(attempt),
+      DpTimerEvent::Reader {
+        entity_id: self.my_guid.entity_id,
+        event: TimedEvent::NackRetry { attempt },
+      },
+    );
+  }
+
+  // A NACK can go unanswered: eProsima Fast DDS ignores a NACK for a change it
+  // is still sending to this reader (its nack-suppression state), which is what
+  // a reader that has just matched a writer sends for the DATA it discarded
+  // before the match. The writer's next HEARTBEAT, a whole heartbeat period
+  // later (3 s by default), would be the next chance. So a reader NACKs again
+  // what is still missing of the last HEARTBEAT's range, a few times, at
+  // growing intervals; each ACKNACK has a new count, as the spec requires.
+  fn retry_nacks(&mut self, attempt: u32) {
+    if self.reliability == policy::Reliability::BestEffort || self.like_stateless {
+      return;
+    }
+    let mut writer_proxies = std::mem::take(&mut self.matched_writers);
+    let mut still_missing = false;
+    for writer_proxy in writer_proxies.values_mut() {
+      let Some((first, last)) = writer_proxy.last_heartbeat else {
+        continue;
+      };
+      let writer_guid = writer_proxy.remote_writer_guid;
+      let missing: BTreeSet<SequenceNumber> = writer_proxy
+        .missing_seqnums(first, last)
+        .into_iter()
+        .filter(|sn| !self.is_frag_partially_received(writer_guid, *sn))
+        .collect();
+      let Some(&base) = missing.first() else {
+        continue;
+      };
+      still_missing = true;
+      let missing = missing
+        .into_iter()
+        .take_while(|sn| sn < &(base + SequenceNumber::new(256)))
+        .collect();
+      let acknack = AckNack {
+        reader_id: self.entity_id(),
+        writer_id: writer_guid.entity_id,
+        reader_sn_state: SequenceNumberSet::from_base_and_set(base, &missing),
+        count: writer_proxy.next_ack_nack_sequence_number(),
+      };
+      let flags = BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Endianness)
+        | BitFlags::<ACKNACK_Flags>::from_flag(ACKNACK_Flags::Final);
+      self.send_acknack_to(
+        flags,
+        acknack,
+        InfoDestination {
+          guid_prefix: writer_guid.prefix,
+        },
+        &writer_proxy.unicast_locator_list,
+        writer_guid,
+      );
+    }
+    self.matched_writers = writer_proxies;
+    if still_missing && attempt + 1 < NACK_RETRIES {
+      self.schedule_nack_retry(attempt + 1);
+    }
   }
 
   pub fn send_preemptive_acknacks(&mut self) {

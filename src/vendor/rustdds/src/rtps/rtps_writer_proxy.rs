@@ -78,6 +78,11 @@ pub(crate) struct RtpsWriterProxy {
   // heartbeat(first,last) => ack_base can be increased to first.
   // GAP is treated like receiving a message.
 
+  /// The range `(first, last)` of the last HEARTBEAT received: what the writer
+  /// holds, from which the missing changes are NACKed again (see
+  /// `Reader::retry_nacks`).
+  pub(crate) last_heartbeat: Option<(SequenceNumber, SequenceNumber)>,
+
   // These are used for quick tracking of
   last_received_sequence_number: SequenceNumber,
   last_received_timestamp: Timestamp,
@@ -102,6 +107,7 @@ impl RtpsWriterProxy {
       // Sequence numbering must start at 1.
       // Therefore, we can ACK all sequence numbers below 1 even before receiving anything.
       ack_base: SequenceNumber::new(1),
+      last_heartbeat: None,
       last_received_sequence_number: SequenceNumber::new(0),
       last_received_timestamp: Timestamp::INVALID,
     }
@@ -368,6 +374,7 @@ impl RtpsWriterProxy {
       received_heartbeat_count: 0,
       sent_ack_nack_count: 0,
       ack_base: SequenceNumber::default(),
+      last_heartbeat: None,
       last_received_sequence_number: SequenceNumber::new(0),
       last_received_timestamp: Timestamp::INVALID,
     }
