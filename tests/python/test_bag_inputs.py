@@ -148,9 +148,9 @@ def storage_file(bag):
     return f
 
 
-def test_cut_mcap_replays_every_complete_message(tmp_path):
-    # rosbags closes a chunk past 1 MiB (rosbag2's writer at 768 KiB): several chunks.
-    records, exp = make_inputs(n=9000, commands=True)
+def cut_bag(tmp_path, records):
+    """An MCAP bag of `records` in `tmp_path/bag` whose file is cut at 60 % of its length, as a
+    killed recorder leaves it: (bag, file, cut, the complete messages, whether it ended)."""
     bag = tmp_path / "bag"
     write(bag, "mcap", records)
     f = storage_file(bag)
@@ -158,6 +158,13 @@ def test_cut_mcap_replays_every_complete_message(tmp_path):
     cut = int(len(data) * 0.6)
     f.write_bytes(data[:cut])
     complete, ended = mcap_walk(data, cut)
+    return bag, f, cut, complete, ended
+
+
+def test_cut_mcap_replays_every_complete_message(tmp_path):
+    # rosbags closes a chunk past 1 MiB (rosbag2's writer at 768 KiB): several chunks.
+    records, exp = make_inputs(n=9000, commands=True)
+    bag, f, cut, complete, ended = cut_bag(tmp_path, records)
     assert not ended and complete
     logs = {t for topic, t in complete if topic == "/joint_states"}
     states = [s for s in exp["states"] if s["log"] in logs]
@@ -179,13 +186,7 @@ def test_cut_mcap_topic_recorded_without_a_leading_slash(tmp_path, given):
     recorded (rosbags drops the slash) is still the topic asked for with or without it."""
     records, exp = make_inputs(n=9000, commands=False)
     records = [("joint_states",) + r[1:] for r in records]
-    bag = tmp_path / "bag"
-    write(bag, "mcap", records)
-    f = storage_file(bag)
-    data = f.read_bytes()
-    cut = int(len(data) * 0.6)
-    f.write_bytes(data[:cut])
-    complete, _ = mcap_walk(data, cut)
+    _, f, _, complete, _ = cut_bag(tmp_path, records)
     logs = {t for topic, t in complete if topic == "joint_states"}
     assert 0 < len(logs) < len(exp["states"])
     out = tmp_path / "out.mcap"

@@ -7,7 +7,7 @@
 //! pass over the tree ([`joint_jacobians`]) whatever the number of links; the accelerations from
 //! one pass along each link's support.
 
-use super::{scatter_rates, Engine};
+use super::Engine;
 use crate::ros::msgs::{
     Accel, FrameKinematicsRequest, FrameKinematicsResponse, Point, Pose, Quaternion,
 };
@@ -50,15 +50,7 @@ impl Engine {
             Some(&req.base_pose),
             Some(&req.base_twist),
         )?;
-        scatter_rates(
-            &self.map,
-            ("acceleration", &req.acceleration),
-            (
-                "base_accel",
-                [&req.base_accel.linear, &req.base_accel.angular],
-            ),
-            &mut self.a,
-        )?;
+        self.read_acceleration(&req.acceleration, &req.base_accel)?;
         let reference = match req.reference.as_str() {
             "" => ReferenceFrame::LocalWorldAligned,
             name => name.parse().map_err(|e| format!("reference: {e}"))?,

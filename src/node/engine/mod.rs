@@ -189,15 +189,7 @@ impl Engine {
                 Some(&req.base_twist),
             )
             .and_then(|_| {
-                scatter_rates(
-                    &self.map,
-                    ("acceleration", &req.acceleration),
-                    (
-                        "base_accel",
-                        [&req.base_accel.linear, &req.base_accel.angular],
-                    ),
-                    &mut self.a,
-                )?;
+                self.read_acceleration(&req.acceleration, &req.base_accel)?;
                 let n = self.external_wrenches(&req.external_wrenches)?;
                 let ext = Externals {
                     wrenches: (n > 0).then_some(self.wrenches.as_slice()),
@@ -594,6 +586,21 @@ impl Engine {
 
     /// Fills `q` and `v` from named joint arrays and the base (explicit fields for services, the
     /// latest `~/base_state` for topics).
+    /// A request's `acceleration` (by its names, as [`Self::read_state`] matched them) and
+    /// `base_accel` into `self.a`.
+    fn read_acceleration(
+        &mut self,
+        acceleration: &[f64],
+        base_accel: &Accel,
+    ) -> Result<(), String> {
+        scatter_rates(
+            &self.map,
+            ("acceleration", acceleration),
+            ("base_accel", [&base_accel.linear, &base_accel.angular]),
+            &mut self.a,
+        )
+    }
+
     fn read_state(
         &mut self,
         names: &[String],
