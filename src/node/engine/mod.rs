@@ -584,8 +584,6 @@ impl Engine {
 
     // ---- shared --------------------------------------------------------------------------------
 
-    /// Fills `q` and `v` from named joint arrays and the base (explicit fields for services, the
-    /// latest `~/base_state` for topics).
     /// A request's `acceleration` (by its names, as [`Self::read_state`] matched them) and
     /// `base_accel` into `self.a`.
     fn read_acceleration(
@@ -601,6 +599,8 @@ impl Engine {
         )
     }
 
+    /// Fills `q` and `v` from named joint arrays and the base (explicit fields for services, the
+    /// latest `~/base_state` for topics).
     fn read_state(
         &mut self,
         names: &[String],

@@ -151,6 +151,8 @@ pub(crate) struct Reader {
   offered_incompatible_qos_count: i32,
 
   pub(crate) timed_event_timer: SharedTimer<DpTimerEvent>,
+  /// A `NackRetry` is scheduled: the HEARTBEATs that arrive meanwhile start no other one.
+  nack_retry_pending: bool,
   pub(crate) data_reader_command_receiver: WakeReceiver<ReaderCommand>,
   data_reader_waker: Arc<Mutex<Option<Waker>>>,
   poll_event_sender: mio_source::PollEventSender,
@@ -216,6 +218,7 @@ impl Reader {
       requested_deadline_missed_count: 0,
       offered_incompatible_qos_count: 0,
       timed_event_timer,
+      nack_retry_pending: false,
       data_reader_command_receiver: i.data_reader_command_receiver,
       data_reader_waker: i.data_reader_waker,
       poll_event_sender: i.poll_event_sender,
@@ -951,7 +954,8 @@ impl Reader {
         // See if ACKNACK is needed, and generate one.
         let missing_seqnums = writer_proxy.missing_seqnums(heartbeat.first_sn, heartbeat.last_sn);
         writer_proxy.last_heartbeat = Some((heartbeat.first_sn, heartbeat.last_sn));
-        if !missing_seqnums.is_empty() {
+        if !missing_seqnums.is_empty() && !this.nack_retry_pending {
+          this.nack_retry_pending = true;
           this.schedule_nack_retry(0);
         }
 
@@ -1429,6 +1433,7 @@ impl Reader {
   // growing intervals; each ACKNACK has a new count, as the spec requires.
   fn retry_nacks(&mut self, attempt: u32) {
     if self.reliability == policy::Reliability::BestEffort || self.like_stateless {
+      self.nack_retry_pending = false;
       return;
     }
     let mut writer_proxies = std::mem::take(&mut self.matched_writers);
@@ -1470,7 +1475,8 @@ impl Reader {
       );
     }
     self.matched_writers = writer_proxies;
-    if still_missing && attempt + 1 < NACK_RETRIES {
+    self.nack_retry_pending = still_missing && attempt + 1 < NACK_RETRIES;
+    if self.nack_retry_pending {
       self.schedule_nack_retry(attempt + 1);
     }
   }
