@@ -614,6 +614,42 @@ fn bad_requests_are_errors_naming_the_problem() {
     let mut bad = q.clone();
     bad[2] = f64::NAN;
     assert!(frame_placement(&model, &mut ws, &bad, &frame).is_err());
+    let err = frame_jacobian(&model, &mut ws, &bad, &frame, ReferenceFrame::World).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            DynamicsError::NonFinite {
+                vector: "q",
+                index: 2,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    // A frame reads only its support's coordinates: q[2] does not move link1.
+    let link1 = find_frame(&model, "link1").unwrap();
+    assert!(frame_jacobian(&model, &mut ws, &bad, &link1, ReferenceFrame::World).is_ok());
+    // A floating base's quaternion of zero norm is named.
+    let floating = load(
+        DEFAULT_ARM_URDF,
+        ModelOptions {
+            floating_base: true,
+            ..Default::default()
+        },
+    );
+    let mut ws_floating = Workspace::new(&floating);
+    let mut q_floating = vec![0.1; floating.nq];
+    q_floating[3..7].fill(0.0);
+    let link7 = find_frame(&floating, "link7").unwrap();
+    let err = frame_jacobian(
+        &floating,
+        &mut ws_floating,
+        &q_floating,
+        &link7,
+        ReferenceFrame::World,
+    )
+    .unwrap_err();
+    assert!(matches!(err, DynamicsError::BadQuaternion { .. }), "{err}");
     let v = vec![0.0; model.nv];
     let err =
         frame_classical_acceleration(&model, &mut ws, &q, &v, &v, &frame, ReferenceFrame::World)

@@ -40,6 +40,8 @@ pub struct Plan {
     /// ([`Model::dof_parent`]) or the coordinates are not numbered depth-first (then the dense
     /// Cholesky factorises `H`).
     pub dof_ancestors: Option<Ancestors>,
+    /// The bodies supporting each body, for the frame algorithms ([`Supports`]).
+    pub supports: Supports,
 }
 
 impl Plan {
@@ -68,6 +70,7 @@ impl Plan {
             mirror_by_tiles: mirror_by_tiles(model.nv),
             subtree_end,
             dof_ancestors: model.dof_parent.as_deref().and_then(Ancestors::new),
+            supports: Supports::new(model),
         }
     }
 }
@@ -283,6 +286,36 @@ impl Ancestors {
     /// True for a model without degrees of freedom.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+}
+
+/// The *support* of each body: the bodies from its root down to it, root first (each one's
+/// parent just before it), the bodies that move a frame it carries. Listed once per model, so
+/// that a frame algorithm walks a slice instead of chasing parents.
+#[derive(Clone, Debug)]
+pub struct Supports {
+    list: Vec<usize>,
+    start: Vec<usize>,
+}
+
+impl Supports {
+    /// From the model's tree (every parent before its children).
+    pub fn new(model: &Model) -> Self {
+        let mut list = Vec::new();
+        let mut start = vec![0];
+        for (i, body) in model.bodies.iter().enumerate() {
+            if let Some(p) = body.parent {
+                list.extend_from_within(start[p]..start[p + 1]);
+            }
+            list.push(i);
+            start.push(list.len());
+        }
+        Supports { list, start }
+    }
+
+    /// The support of body `i`, root first, ending with `i`.
+    pub fn of(&self, i: usize) -> &[usize] {
+        &self.list[self.start[i]..self.start[i + 1]]
     }
 }
 

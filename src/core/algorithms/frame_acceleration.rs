@@ -50,8 +50,8 @@ pub fn frame_classical_acceleration(
     let Some(body) = frame.body else {
         return Ok(Motion::zero());
     };
-    for k in 0..ws.frame_scratch.support.len() {
-        let i = ws.frame_scratch.support[k];
+    for k in 0..ws.plan.supports.of(body).len() {
+        let i = ws.plan.supports.of(body)[k];
         let b = &model.bodies[i];
         let (s, c, nv) = (&ws.s[i], b.joint.coords, ws.s[i].nv);
         let mut rates = [0.0; 6];

@@ -21,10 +21,12 @@
 //! workspace's [`FrameScratch`].
 
 use super::kinematics::{read_joint, update_joints, update_up, with_up_transform};
-use super::validate::check_q_of;
+use super::validate::{check_len, check_q_of};
 use crate::error::DynamicsError;
-use crate::model::{Model, MotionSubspace};
-use crate::spatial::{sin_cos_all, Motion, Transform, Vector3};
+use crate::model::{
+    floating_up, turn_up, turn_up_unrotated, JointKind, Model, MotionSubspace, UpShape,
+};
+use crate::spatial::{sin_cos_all, AxisTransform, Motion, Transform, Vector3};
 use crate::Workspace;
 use nalgebra::DMatrix;
 
@@ -83,9 +85,6 @@ pub fn frame_placement(
 /// leaves theirs whole.
 #[derive(Clone, Debug)]
 pub struct FrameScratch {
-    /// The bodies supporting the last frame asked for, root first (each body's parent just
-    /// before it).
-    pub(crate) support: Vec<usize>,
     /// The turn angles of the support's joints, their sines and cosines (support order).
     pub(crate) angles: Vec<f64>,
     pub(crate) sines: Vec<f64>,
@@ -118,7 +117,6 @@ impl FrameScratch {
     pub(crate) fn new(model: &Model) -> Self {
         let (n, nv) = (model.nbodies(), model.nv);
         FrameScratch {
-            support: Vec::with_capacity(n),
             angles: vec![0.0; n],
             sines: vec![0.0; n],
             cosines: vec![0.0; n],
@@ -135,57 +133,116 @@ impl FrameScratch {
     }
 }
 
-/// Places the bodies supporting `body` (none for a link fixed to the world) for `q`:
-/// `scratch.support` lists them root first, the coordinates their joints read are validated
-/// (only those: the others do not move the frame), their joints are updated (`ws.x_up`, `ws.s`;
-/// other bodies' entries are left as they were) and `scratch.x_world` holds their
-/// `ⁱX_0 = ⁱX_λ ᵏX_0`.
+/// Places the bodies supporting `body` (none for a link fixed to the world) for `q`: the
+/// coordinates their joints read are validated (only those: the others do not move the frame),
+/// their joints are updated (`ws.x_up`, `ws.s`; other bodies' entries are left as they were)
+/// and `scratch.x_world` holds their `ⁱX_0 = ⁱX_λ ᵏX_0`. The bodies are those
+/// `ws.plan.supports` lists for `body`, root first.
 pub(crate) fn place_support(
     model: &Model,
     ws: &mut Workspace,
     q: &[f64],
     body: Option<usize>,
 ) -> Result<(), DynamicsError> {
-    let support = &mut ws.frame_scratch.support;
-    support.clear();
-    let mut next = body;
-    while let Some(i) = next {
-        support.push(i);
-        next = model.bodies[i].parent;
-    }
-    support.reverse();
-    check_q_of(model, q, support)?;
+    let Some(last) = body else {
+        return check_q_of(model, q, &[]);
+    };
+    check_len("q", model.nq, q.len())?;
     // As `update_joints` does for the whole tree: the turn angles first, their sines and cosines
     // two at a time, then each joint's transform and the body's placement.
-    let n = ws.frame_scratch.support.len();
-    for k in 0..n {
-        let i = ws.frame_scratch.support[k];
-        ws.frame_scratch.angles[k] = read_joint(&model.bodies[i], ws, i, q);
+    let Workspace {
+        plan,
+        q_joint,
+        frame_scratch: scratch,
+        ..
+    } = &mut *ws;
+    let support = plan.supports.of(last);
+    let n = support.len();
+    // `x · 0` is zero for a finite `x`: one test for every coordinate read.
+    let (mut finite, mut quaternions) = (0.0, true);
+    for (k, &i) in support.iter().enumerate() {
+        let (b, joint) = (&model.bodies[i], &mut q_joint[i]);
+        let angle = read_joint(b, plan.turn_axes[i], joint, q);
+        scratch.angles[k] = angle;
+        finite += angle * 0.0;
+        if plan.turn_axes[i].is_none() {
+            finite += joint[..b.joint.kind.nq()]
+                .iter()
+                .map(|x| x * 0.0)
+                .sum::<f64>();
+            quaternions &= b.joint.kind != JointKind::Floating || quaternion_norm2(joint) >= 1e-18;
+        }
+    }
+    if finite != 0.0 || !quaternions {
+        // The error naming the coordinate; none when a finite coordinate overflowed once
+        // scaled by a mimic multiplier, which the results' own check then reports.
+        check_q_of(model, q, support)?;
     }
     let FrameScratch {
         angles,
         sines,
         cosines,
         ..
-    } = &mut ws.frame_scratch;
+    } = scratch;
     sin_cos_all(&angles[..n], &mut sines[..n], &mut cosines[..n]);
     for k in 0..n {
-        let i = ws.frame_scratch.support[k];
+        let i = ws.plan.supports.of(last)[k];
         let turn = (ws.frame_scratch.sines[k], ws.frame_scratch.cosines[k]);
-        update_up(&model.bodies[i], ws, i, turn);
-        place_body(model, ws, i);
+        update_and_place(model, ws, i, turn);
     }
     Ok(())
 }
 
+/// `|x|²` of a floating joint's quaternion in its coordinates `[p; x, y, z, w]`.
+fn quaternion_norm2(q: &[f64; 7]) -> f64 {
+    q[3..].iter().map(|x| x * x).sum()
+}
+
+/// Body `i`'s joint updated for `turn` ([`update_up`]) and the body placed ([`place_body`]).
+/// A joint turning about a coordinate axis, or a floating joint, places its body with the
+/// `ⁱX_λ` it has just made, still in registers, rather than reading it back from `ws.x_up`:
+/// loads that straddle the stores which wrote it would wait for them to drain.
+#[inline(always)]
+fn update_and_place(model: &Model, ws: &mut Workspace, i: usize, turn: (f64, f64)) {
+    let body = &model.bodies[i];
+    let shape = ws.plan.up_shapes[i];
+    let mut up = body.x_tree;
+    match ws.plan.turn_axes[i] {
+        Some((k, _)) if matches!(shape, UpShape::AxisTurn(_)) => {
+            turn_up_unrotated(k, turn, &body.x_tree, &mut up)
+        }
+        Some((k, _)) => turn_up(k, turn, &body.x_tree, &mut up),
+        None if body.joint.kind == JointKind::Floating => {
+            floating_up(&ws.q_joint[i], &body.x_tree, &mut up)
+        }
+        None => {
+            update_up(body, ws, i, turn);
+            place_body(model, ws, i);
+            return;
+        }
+    }
+    ws.x_up[i] = up;
+    let (above, from_i) = ws.frame_scratch.x_world.split_at_mut(i);
+    let x_i = &mut from_i[0];
+    let Some(p) = body.parent else {
+        *x_i = up;
+        return;
+    };
+    match shape {
+        UpShape::AxisTurn(0) => *x_i = AxisTransform::<0>::from_transform(&up).compose(&above[p]),
+        UpShape::AxisTurn(1) => *x_i = AxisTransform::<1>::from_transform(&up).compose(&above[p]),
+        UpShape::AxisTurn(_) => *x_i = AxisTransform::<2>::from_transform(&up).compose(&above[p]),
+        _ => *x_i = up.compose(&above[p]),
+    }
+}
+
 /// Places every body for `q` (already validated): all joints updated, `scratch.x_world` for
-/// every body, `scratch.support` emptied (it names no frame's support).
+/// every body.
 pub(crate) fn place_all(model: &Model, ws: &mut Workspace, q: &[f64]) {
     update_joints(model, ws, q);
     for i in 0..model.nbodies() {
         place_body(model, ws, i);
     }
-    ws.frame_scratch.support.clear();
 }
 
 /// `scratch.x_world[i] = ⁱX_λ ᵏX_0` (`ⁱX_λ` for a root), the parent already placed; written in

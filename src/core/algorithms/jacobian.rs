@@ -76,14 +76,14 @@ pub fn frame_jacobian<'w>(
     place_support(model, ws, q, frame.body)?;
     let to_frame = ColumnMap::new(reference, &placement_of(&ws.frame_scratch, frame));
     let FrameScratch {
-        support,
         x_world,
         jacobian,
         jacobian_support,
         ..
     } = &mut ws.frame_scratch;
     let mut out = Columns::new(jacobian, jacobian_support, ws.plan.own_columns, frame.body);
-    for &i in support.iter() {
+    let support = frame.body.map_or(&[][..], |b| ws.plan.supports.of(b));
+    for &i in support {
         let (x, s, c) = (&x_world[i], &ws.s[i], model.bodies[i].joint.coords);
         for k in 0..s.nv {
             let (a, l) = world_axes(&x.rot, &s.cols[k], ws.plan.s_axes[i][k]);

@@ -57,7 +57,7 @@ pub(crate) use with_up_transform;
 /// is constant, set when the workspace was made.
 pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     for (i, body) in model.bodies.iter().enumerate() {
-        ws.turn_angles[i] = read_joint(body, ws, i, q);
+        ws.turn_angles[i] = read_joint(body, ws.plan.turn_axes[i], &mut ws.q_joint[i], q);
     }
     sin_cos_all(&ws.turn_angles, &mut ws.turn_sines, &mut ws.turn_cosines);
     for (i, body) in model.bodies.iter().enumerate() {
@@ -66,14 +66,20 @@ pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     }
 }
 
-/// Body `i`'s turn angle `σ q` when its joint turns about a coordinate axis (`ws.plan.turn_axes`),
-/// else 0 with the joint's own coordinates read into `ws.q_joint[i]`.
+/// The body's turn angle `σ q` when its joint turns about a coordinate axis (`turn_axis`, from
+/// `ws.plan.turn_axes`), else 0 with the joint's own coordinates read into `q_joint` (its
+/// `ws.q_joint` entry).
 #[inline(always)]
-pub(crate) fn read_joint(body: &Body, ws: &mut Workspace, i: usize, q: &[f64]) -> f64 {
-    match ws.plan.turn_axes[i] {
+pub(crate) fn read_joint(
+    body: &Body,
+    turn_axis: Option<(usize, f64)>,
+    q_joint: &mut [f64; 7],
+    q: &[f64],
+) -> f64 {
+    match turn_axis {
         Some((_, sign)) => sign * joint_position(&body.joint, q, 0),
         None => {
-            joint_positions(&body.joint, q, &mut ws.q_joint[i]);
+            joint_positions(&body.joint, q, q_joint);
             0.0
         }
     }

@@ -151,7 +151,11 @@ pub(crate) fn check_result(
     }
 }
 
-fn check_len(vector: &'static str, expected: usize, got: usize) -> Result<(), DynamicsError> {
+pub(crate) fn check_len(
+    vector: &'static str,
+    expected: usize,
+    got: usize,
+) -> Result<(), DynamicsError> {
     if expected == got {
         Ok(())
     } else {
