@@ -74,7 +74,27 @@ pub fn frame_jacobian<'w>(
     reference: ReferenceFrame,
 ) -> Result<&'w DMatrix<f64>, DynamicsError> {
     place_support(model, ws, q, frame.body)?;
-    let to_frame = ColumnMap::new(reference, &placement_of(&ws.frame_scratch, frame));
+    // One loop per reference, each compiled with its own map.
+    match reference {
+        ReferenceFrame::World => support_columns(model, ws, frame, |a, l, p| (l - a.cross(p), *a)),
+        _ => {
+            let to_frame = ColumnMap::new(reference, &placement_of(&ws.frame_scratch, frame));
+            support_columns(model, ws, frame, |a, l, p| to_frame.column(a, l, p))
+        }
+    }?;
+    Ok(&ws.frame_scratch.jacobian)
+}
+
+/// The columns of the joints supporting `frame` (placed), each the twist `[a; l]` of a joint
+/// column (world axes, at its body's origin `p_i`) mapped by `map(a, l, p_i)` to the
+/// reference's `(linear, angular)`.
+#[inline(always)]
+fn support_columns(
+    model: &Model,
+    ws: &mut Workspace,
+    frame: &Frame,
+    map: impl Fn(&Vector3, &Vector3, &Vector3) -> (Vector3, Vector3),
+) -> Result<(), DynamicsError> {
     let FrameScratch {
         x_world,
         jacobian,
@@ -87,11 +107,10 @@ pub fn frame_jacobian<'w>(
         let (x, s, c) = (&x_world[i], &ws.s[i], model.bodies[i].joint.coords);
         for k in 0..s.nv {
             let (a, l) = world_axes(&x.rot, &s.cols[k], ws.plan.s_axes[i][k]);
-            out.put(c.v_index + k, c.scale, to_frame.column(&a, &l, &x.trans));
+            out.put(c.v_index + k, c.scale, map(&a, &l, &x.trans));
         }
     }
-    out.finish(model, frame)?;
-    Ok(&ws.frame_scratch.jacobian)
+    out.finish(model, frame)
 }
 
 /// Every joint's motion subspace in world axes at `q`, from which [`JointJacobians`] assembles
