@@ -24,7 +24,7 @@
 use super::frames::{check_finite, place_all, place_support, placement_of, Frame, FrameScratch};
 use super::validate::check_q;
 use crate::error::DynamicsError;
-use crate::model::Model;
+use crate::model::{JointKind, Model};
 use crate::spatial::{Matrix3, Motion, Transform, Vector3};
 use crate::Workspace;
 use nalgebra::DMatrix;
@@ -105,6 +105,17 @@ fn support_columns(
     let support = frame.body.map_or(&[][..], |b| ws.plan.supports.of(b));
     for &i in support {
         let (x, s, c) = (&x_world[i], &ws.s[i], model.bodies[i].joint.coords);
+        if model.bodies[i].joint.kind == JointKind::Floating {
+            // `S = 1` (`v` linear then angular, base axes): the columns are the rows of `E`,
+            // as linear and then as angular axes, written without a lookup per column.
+            let zero = Vector3::zeros();
+            for j in 0..3 {
+                let row = x.rot.row(j).transpose();
+                out.put(c.v_index + j, 1.0, map(&zero, &row, &x.trans));
+                out.put(c.v_index + 3 + j, 1.0, map(&row, &zero, &x.trans));
+            }
+            continue;
+        }
         for k in 0..s.nv {
             let (a, l) = world_axes(&x.rot, &s.cols[k], ws.plan.s_axes[i][k]);
             out.put(c.v_index + k, c.scale, map(&a, &l, &x.trans));
