@@ -110,6 +110,7 @@ impl Transform {
 
     /// Composition `ᶜX_A = ᶜX_B · ᴮX_A` (`self` is `ᶜX_B`, `inner` is `ᴮX_A`):
     /// `E = E_CB E_BA`, `r = r_BA + E_BAᵀ r_CB`.
+    #[inline(always)]
     pub fn compose(&self, inner: &Transform) -> Transform {
         Transform {
             rot: self.rot * inner.rot,
