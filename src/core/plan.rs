@@ -333,6 +333,24 @@ mod tests {
         urdf::model_from_str(text, &options).unwrap()
     }
 
+    /// Each body's support is the path from its root down to it, as its parents give it: on a
+    /// branching tree and on an arm over a floating base.
+    #[test]
+    fn supports_are_the_paths_from_the_roots() {
+        for model in [
+            load(include_str!("../../tests/models/tree.urdf"), false),
+            load(examples::DEFAULT_ARM_URDF, true),
+        ] {
+            let supports = Supports::new(&model);
+            for i in 0..model.nbodies() {
+                let mut path: Vec<usize> =
+                    std::iter::successors(Some(i), |&b| model.bodies[b].parent).collect();
+                path.reverse();
+                assert_eq!(supports.of(i), &path[..], "{}: body {i}", model.name);
+            }
+        }
+    }
+
     /// The mirror is copied by tiles where a row's stores, `8n` bytes apart, fall in too few L1
     /// sets: the sizes where the mirror beside each entry is 2–3× slower (chains of 128, 192
     /// and 256 links) and every size beyond 512; not below 128, nor the sizes where the mirror
