@@ -71,6 +71,22 @@ fn models() -> Vec<(&'static str, Model)> {
     ]
 }
 
+/// Runs `check(name, model, ws, rng, q0)` on every model of [`models`] at three random
+/// configurations `q0` drawn from `Rng::new(seed)`.
+fn at_random_configurations(
+    seed: u64,
+    mut check: impl FnMut(&str, &Model, &mut Workspace, &mut Rng, &[f64]),
+) {
+    for (name, model) in models() {
+        let mut ws = Workspace::new(&model);
+        let mut rng = Rng::new(seed);
+        for _ in 0..3 {
+            let q0 = random_q(&model, &mut rng);
+            check(name, &model, &mut ws, &mut rng, &q0);
+        }
+    }
+}
+
 /// `(p, R)`: the link origin in the world and the link axes in world coordinates.
 fn pose(
     model: &Model,
@@ -125,48 +141,42 @@ fn assert_close(what: &str, got: &DVector<f64>, want: &DVector<f64>, tol: f64) {
 #[test]
 fn jacobian_times_velocity_is_the_derivative_of_the_placement() {
     let h = 1e-3;
-    for (name, model) in models() {
-        let mut ws = Workspace::new(&model);
-        let mut rng = Rng::new(11);
-        for _ in 0..3 {
-            let q0 = random_q(&model, &mut rng);
-            let v = rng.vector(model.nv, 1.5);
-            let v_col = DVector::from_column_slice(&v);
-            for link in &model.links {
-                let frame = find_frame(&model, &link.name).unwrap();
-                let mut at = |t: f64| {
-                    let (p, r) = pose(&model, &mut ws, &along(&model, &q0, &v, t), &frame);
-                    DVector::from_iterator(12, p.iter().chain(r.iter()).copied())
-                };
-                let rates = derivative(&mut at, h);
-                let now = at(0.0);
-                let p = Vector3::from_column_slice(&now.as_slice()[..3]);
-                let r = Matrix3::from_column_slice(&now.as_slice()[3..]);
-                let p_dot = Vector3::from_column_slice(&rates.as_slice()[..3]);
-                let omega =
-                    angular_velocity(&r, &Matrix3::from_column_slice(&rates.as_slice()[3..]));
-                let want = |reference| match reference {
-                    ReferenceFrame::World => twist(p_dot - omega.cross(&p), omega),
-                    ReferenceFrame::LocalWorldAligned => twist(p_dot, omega),
-                    ReferenceFrame::Local => twist(r.transpose() * p_dot, r.transpose() * omega),
-                };
-                for reference in REFERENCES {
-                    let j = frame_jacobian(&model, &mut ws, &q0, &frame, reference)
-                        .unwrap()
-                        .clone();
-                    let what = format!("{name}, link {}, {reference:?}", link.name);
-                    assert_close(&what, &(&j * &v_col), &want(reference), 1e-8);
-                    let mut all = joint_jacobians(&model, &mut ws, &q0).unwrap();
-                    let from_joints = all.frame_jacobian(&frame, reference).unwrap();
-                    let err = (from_joints - &j).amax();
-                    assert!(
-                        err <= 1e-14 * j.amax().max(1.0),
-                        "{what}: joint Jacobians differ by {err:e}"
-                    );
-                }
+    at_random_configurations(11, |name, model, ws, rng, q0| {
+        let v = rng.vector(model.nv, 1.5);
+        let v_col = DVector::from_column_slice(&v);
+        for link in &model.links {
+            let frame = find_frame(model, &link.name).unwrap();
+            let mut at = |t: f64| {
+                let (p, r) = pose(model, ws, &along(model, q0, &v, t), &frame);
+                DVector::from_iterator(12, p.iter().chain(r.iter()).copied())
+            };
+            let rates = derivative(&mut at, h);
+            let now = at(0.0);
+            let p = Vector3::from_column_slice(&now.as_slice()[..3]);
+            let r = Matrix3::from_column_slice(&now.as_slice()[3..]);
+            let p_dot = Vector3::from_column_slice(&rates.as_slice()[..3]);
+            let omega = angular_velocity(&r, &Matrix3::from_column_slice(&rates.as_slice()[3..]));
+            let want = |reference| match reference {
+                ReferenceFrame::World => twist(p_dot - omega.cross(&p), omega),
+                ReferenceFrame::LocalWorldAligned => twist(p_dot, omega),
+                ReferenceFrame::Local => twist(r.transpose() * p_dot, r.transpose() * omega),
+            };
+            for reference in REFERENCES {
+                let j = frame_jacobian(model, ws, q0, &frame, reference)
+                    .unwrap()
+                    .clone();
+                let what = format!("{name}, link {}, {reference:?}", link.name);
+                assert_close(&what, &(&j * &v_col), &want(reference), 1e-8);
+                let mut all = joint_jacobians(model, ws, q0).unwrap();
+                let from_joints = all.frame_jacobian(&frame, reference).unwrap();
+                let err = (from_joints - &j).amax();
+                assert!(
+                    err <= 1e-14 * j.amax().max(1.0),
+                    "{what}: joint Jacobians differ by {err:e}"
+                );
             }
         }
-    }
+    });
 }
 
 /// The classical acceleration is the derivative of the frame's `[ṗ; ω]` (`J q̇` in local world
@@ -176,68 +186,54 @@ fn jacobian_times_velocity_is_the_derivative_of_the_placement() {
 #[test]
 fn classical_acceleration_is_the_derivative_of_the_frame_velocity() {
     let h = 1e-3;
-    for (name, model) in models() {
-        let mut ws = Workspace::new(&model);
-        let mut rng = Rng::new(12);
+    at_random_configurations(12, |name, model, ws, rng, q0| {
         let floating = model.nq != model.nv;
-        for _ in 0..3 {
-            let q0 = random_q(&model, &mut rng);
-            let (v0, a) = (rng.vector(model.nv, 1.5), rng.vector(model.nv, 2.0));
-            let zeros = vec![0.0; model.nv];
-            // q(t), q̇(t): the trajectory the acceleration `a_traj` is the second derivative of.
-            let a_traj = if floating { zeros.clone() } else { a.clone() };
-            let state = |t: f64| -> (Vec<f64>, Vec<f64>) {
-                if floating {
-                    (along(&model, &q0, &v0, t), v0.clone())
-                } else {
-                    let q = (0..model.nq).map(|k| q0[k] + v0[k] * t + 0.5 * a_traj[k] * t * t);
-                    let v = (0..model.nv).map(|k| v0[k] + a_traj[k] * t);
-                    (q.collect(), v.collect())
-                }
-            };
-            for link in &model.links {
-                let frame = find_frame(&model, &link.name).unwrap();
-                let mut velocity = |t: f64| {
-                    let (q, v) = state(t);
-                    let j = frame_jacobian(
-                        &model,
-                        &mut ws,
-                        &q,
-                        &frame,
-                        ReferenceFrame::LocalWorldAligned,
-                    )
-                    .unwrap();
-                    j * DVector::from_column_slice(&v)
-                };
-                let want = derivative(&mut velocity, h);
-                let what = format!("{name}, link {}", link.name);
-                let lwa = ReferenceFrame::LocalWorldAligned;
-                let acc = |ws: &mut Workspace, a: &[f64], reference| {
-                    let m =
-                        frame_classical_acceleration(&model, ws, &q0, &v0, a, &frame, reference)
-                            .unwrap();
-                    twist(m.lin, m.ang)
-                };
-                let got = acc(&mut ws, &a_traj, lwa);
-                assert_close(&format!("{what}: d(J q̇)/dt"), &got, &want, 1e-8);
-                // Affine in q̈: the rest of `a` enters through J (a − a_traj).
-                let j = frame_jacobian(&model, &mut ws, &q0, &frame, lwa)
-                    .unwrap()
-                    .clone();
-                let extra: Vec<f64> = a.iter().zip(&a_traj).map(|(x, y)| x - y).collect();
-                let full = acc(&mut ws, &a, lwa);
-                let want_full = &got + &j * DVector::from_column_slice(&extra);
-                assert_close(&format!("{what}: J q̈ part"), &full, &want_full, 1e-12);
-                let (_, r) = pose(&model, &mut ws, &q0, &frame);
-                let local = acc(&mut ws, &a, ReferenceFrame::Local);
-                let turned = twist(
-                    r.transpose() * Vector3::from_column_slice(&full.as_slice()[..3]),
-                    r.transpose() * Vector3::from_column_slice(&full.as_slice()[3..]),
-                );
-                assert_close(&format!("{what}: local"), &local, &turned, 1e-12);
+        let (v0, a) = (rng.vector(model.nv, 1.5), rng.vector(model.nv, 2.0));
+        let zeros = vec![0.0; model.nv];
+        // q(t), q̇(t): the trajectory the acceleration `a_traj` is the second derivative of.
+        let a_traj = if floating { zeros.clone() } else { a.clone() };
+        let state = |t: f64| -> (Vec<f64>, Vec<f64>) {
+            if floating {
+                (along(model, q0, &v0, t), v0.clone())
+            } else {
+                let q = (0..model.nq).map(|k| q0[k] + v0[k] * t + 0.5 * a_traj[k] * t * t);
+                let v = (0..model.nv).map(|k| v0[k] + a_traj[k] * t);
+                (q.collect(), v.collect())
             }
+        };
+        for link in &model.links {
+            let frame = find_frame(model, &link.name).unwrap();
+            let mut velocity = |t: f64| {
+                let (q, v) = state(t);
+                let j = frame_jacobian(model, ws, &q, &frame, ReferenceFrame::LocalWorldAligned)
+                    .unwrap();
+                j * DVector::from_column_slice(&v)
+            };
+            let want = derivative(&mut velocity, h);
+            let what = format!("{name}, link {}", link.name);
+            let lwa = ReferenceFrame::LocalWorldAligned;
+            let acc = |ws: &mut Workspace, a: &[f64], reference| {
+                let m =
+                    frame_classical_acceleration(model, ws, q0, &v0, a, &frame, reference).unwrap();
+                twist(m.lin, m.ang)
+            };
+            let got = acc(ws, &a_traj, lwa);
+            assert_close(&format!("{what}: d(J q̇)/dt"), &got, &want, 1e-8);
+            // Affine in q̈: the rest of `a` enters through J (a − a_traj).
+            let j = frame_jacobian(model, ws, q0, &frame, lwa).unwrap().clone();
+            let extra: Vec<f64> = a.iter().zip(&a_traj).map(|(x, y)| x - y).collect();
+            let full = acc(ws, &a, lwa);
+            let want_full = &got + &j * DVector::from_column_slice(&extra);
+            assert_close(&format!("{what}: J q̈ part"), &full, &want_full, 1e-12);
+            let (_, r) = pose(model, ws, q0, &frame);
+            let local = acc(ws, &a, ReferenceFrame::Local);
+            let turned = twist(
+                r.transpose() * Vector3::from_column_slice(&full.as_slice()[..3]),
+                r.transpose() * Vector3::from_column_slice(&full.as_slice()[3..]),
+            );
+            assert_close(&format!("{what}: local"), &local, &turned, 1e-12);
         }
-    }
+    });
 }
 
 /// A double pendulum about y (links of length `l` along −z from each joint) with a tool fused
@@ -384,44 +380,35 @@ fn double_pendulum_with_a_fused_tool_matches_closed_forms() {
 #[test]
 fn center_of_mass_and_its_jacobian() {
     let h = 1e-3;
-    for (name, model) in models() {
-        let mut ws = Workspace::new(&model);
-        let mut rng = Rng::new(13);
-        for _ in 0..3 {
-            let q0 = random_q(&model, &mut rng);
-            let v = rng.vector(model.nv, 1.5);
-            let placements = body_placements(&model, &mut ws, &q0).unwrap().to_vec();
-            let (mut mass, mut moment) = (0.0, Vector3::zeros());
-            for (body, x) in model.bodies.iter().zip(&placements) {
-                let c = x.trans + x.rot.transpose() * body.inertia.com();
-                mass += body.inertia.mass;
-                moment += c * body.inertia.mass;
-            }
-            let (com, jc) = center_of_mass_jacobian(&model, &mut ws, &q0).unwrap();
-            let jc = jc.clone();
-            assert!((com.mass - mass).abs() <= 1e-14 * mass, "{name}: mass");
-            assert!((com.position - moment / mass).amax() < 1e-14, "{name}: com");
-            assert_eq!(center_of_mass(&model, &mut ws, &q0).unwrap(), com);
-            let rate = derivative(
-                |t| {
-                    let c = center_of_mass(
-                        &model,
-                        &mut Workspace::new(&model),
-                        &along(&model, &q0, &v, t),
-                    )
-                    .unwrap();
-                    DVector::from_column_slice(c.position.as_slice())
-                },
-                h,
-            );
-            assert_close(
-                &format!("{name}: J_c q̇"),
-                &(&jc * DVector::from_column_slice(&v)),
-                &rate,
-                1e-8,
-            );
+    at_random_configurations(13, |name, model, ws, rng, q0| {
+        let v = rng.vector(model.nv, 1.5);
+        let placements = body_placements(model, ws, q0).unwrap().to_vec();
+        let (mut mass, mut moment) = (0.0, Vector3::zeros());
+        for (body, x) in model.bodies.iter().zip(&placements) {
+            let c = x.trans + x.rot.transpose() * body.inertia.com();
+            mass += body.inertia.mass;
+            moment += c * body.inertia.mass;
         }
-    }
+        let (com, jc) = center_of_mass_jacobian(model, ws, q0).unwrap();
+        let jc = jc.clone();
+        assert!((com.mass - mass).abs() <= 1e-14 * mass, "{name}: mass");
+        assert!((com.position - moment / mass).amax() < 1e-14, "{name}: com");
+        assert_eq!(center_of_mass(model, ws, q0).unwrap(), com);
+        let rate = derivative(
+            |t| {
+                let c = center_of_mass(model, &mut Workspace::new(model), &along(model, q0, &v, t))
+                    .unwrap();
+                DVector::from_column_slice(c.position.as_slice())
+            },
+            h,
+        );
+        assert_close(
+            &format!("{name}: J_c q̇"),
+            &(&jc * DVector::from_column_slice(&v)),
+            &rate,
+            1e-8,
+        );
+    });
 }
 
 /// A reduced model's frames sit where the full model's do with the removed joints at their
