@@ -15,7 +15,7 @@
 //! (in link axes). With `q̈ = 0` this is `J̇ q̇` of the `LocalWorldAligned` Jacobian (turned into
 //! link axes for `Local`).
 
-use super::frames::{check_finite, place_support, placement_of, Frame};
+use super::frames::{check_finite, place_support, placement_of, Frame, Placing};
 use super::jacobian::ReferenceFrame;
 use super::kinematics::with_up_transform;
 use super::validate::check_v;
@@ -46,7 +46,7 @@ pub fn frame_classical_acceleration(
             reason: "it is the acceleration of the link's origin: ask for it in 'local' or 'local_world_aligned' axes, not 'world'".into(),
         });
     }
-    place_support(model, ws, q, frame.body)?;
+    place_support(model, ws, q, frame.body, Placing::WithJointTransforms)?;
     let Some(body) = frame.body else {
         return Ok(Motion::zero());
     };

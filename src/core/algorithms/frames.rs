@@ -24,7 +24,7 @@ use super::kinematics::{read_joint, update_joints, update_up, with_up_transform}
 use super::validate::{check_len, check_q_of};
 use crate::error::DynamicsError;
 use crate::model::{
-    floating_up, turn_up, turn_up_unrotated, JointKind, Model, MotionSubspace, UpShape,
+    floating_up, turn_up, turn_up_unrotated, Body, JointKind, Model, MotionSubspace, UpShape,
 };
 use crate::spatial::{sin_cos_all, AxisTransform, Motion, Transform, Vector3};
 use crate::Workspace;
@@ -71,7 +71,7 @@ pub fn frame_placement(
     q: &[f64],
     frame: &Frame,
 ) -> Result<Transform, DynamicsError> {
-    place_support(model, ws, q, frame.body)?;
+    place_support(model, ws, q, frame.body, Placing::Placements)?;
     let x = placement_of(&ws.frame_scratch, frame);
     let mut values = [0.0; 12];
     values[..9].copy_from_slice(x.rot.as_slice());
@@ -133,16 +133,34 @@ impl FrameScratch {
     }
 }
 
-/// Places the bodies supporting `body` (none for a link fixed to the world) for `q`: the
-/// coordinates their joints read are validated (only those: the others do not move the frame),
-/// their joints are updated (`ws.x_up`, `ws.s`; other bodies' entries are left as they were)
-/// and `scratch.x_world` holds their `ⁱX_0 = ⁱX_λ ᵏX_0`. The bodies are those
-/// `ws.plan.supports` lists for `body`, root first.
+/// What [`place_support`] leaves in the workspace besides the placements of the bodies above
+/// the frame's body.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Placing {
+    /// Every support joint's `ⁱX_λ` in `ws.x_up` (the frame acceleration's recursion reads
+    /// them) and the frame body's placement.
+    WithJointTransforms,
+    /// The frame body's placement; a joint turning about a coordinate axis or a floating joint
+    /// makes its `ⁱX_λ` without storing it.
+    Placements,
+    /// As `Placements`, but a frame body turning about a coordinate axis `e_k` is placed at its
+    /// joint, before its own turn (`E_J = 1`): what the `world` Jacobian reads of it, row `k`
+    /// of its `E` (the axis, which `E_J` leaves) and its origin, is the same.
+    UpToLastTurn,
+}
+
+/// Places the bodies supporting `body` (none for a link fixed to the world) for `q`, as
+/// `placing` asks: the coordinates their joints read are validated (only those: the others do
+/// not move the frame), their joints are updated (`ws.s`, and `ws.x_up` with
+/// [`Placing::WithJointTransforms`]; other bodies' entries are left as they were) and
+/// `scratch.x_world` holds their `ⁱX_0 = ⁱX_λ ᵏX_0`. The bodies are those `ws.plan.supports`
+/// lists for `body`, root first.
 pub(crate) fn place_support(
     model: &Model,
     ws: &mut Workspace,
     q: &[f64],
     body: Option<usize>,
+    placing: Placing,
 ) -> Result<(), DynamicsError> {
     let Some(last) = body else {
         return check_q_of(model, q, &[]);
@@ -162,15 +180,20 @@ pub(crate) fn place_support(
     let (mut finite, mut quaternions) = (0.0, true);
     for (k, &i) in support.iter().enumerate() {
         let (b, joint) = (&model.bodies[i], &mut q_joint[i]);
-        let angle = read_joint(b, plan.turn_axes[i], joint, q);
-        scratch.angles[k] = angle;
-        finite += angle * 0.0;
-        if plan.turn_axes[i].is_none() {
-            finite += joint[..b.joint.kind.nq()]
-                .iter()
-                .map(|x| x * 0.0)
-                .sum::<f64>();
-            quaternions &= b.joint.kind != JointKind::Floating || quaternion_norm2(joint) >= 1e-18;
+        let kind = b.joint.kind;
+        if plan.turn_axes[i].is_some() {
+            let angle = read_joint(b, plan.turn_axes[i], joint, q);
+            scratch.angles[k] = angle;
+            finite += angle * 0.0;
+        } else if kind == JointKind::Floating {
+            // Never a mimic follower: its coordinates are read where they are.
+            let x = floating_coordinates(b, q);
+            finite += x.iter().map(|x| x * 0.0).sum::<f64>();
+            quaternions &= x[3..].iter().map(|x| x * x).sum::<f64>() >= 1e-18;
+            scratch.angles[k] = 0.0;
+        } else {
+            scratch.angles[k] = read_joint(b, plan.turn_axes[i], joint, q);
+            finite += joint[..kind.nq()].iter().map(|x| x * 0.0).sum::<f64>();
         }
     }
     if finite != 0.0 || !quaternions {
@@ -178,32 +201,61 @@ pub(crate) fn place_support(
         // scaled by a mimic multiplier, which the results' own check then reports.
         check_q_of(model, q, support)?;
     }
+    // The sines and cosines of the angles from the first turning joint (a floating base, whose
+    // angle is 0, is left out) to the last one needed.
+    let first = usize::from(plan.turn_axes[support[0]].is_none());
+    let end = if placing == Placing::UpToLastTurn && plan.turn_axes[last].is_some() {
+        n - 1
+    } else {
+        n
+    };
     let FrameScratch {
         angles,
         sines,
         cosines,
         ..
     } = scratch;
-    sin_cos_all(&angles[..n], &mut sines[..n], &mut cosines[..n]);
+    if first < end {
+        sin_cos_all(
+            &angles[first..end],
+            &mut sines[first..end],
+            &mut cosines[first..end],
+        );
+    }
     for k in 0..n {
         let i = ws.plan.supports.of(last)[k];
-        let turn = (ws.frame_scratch.sines[k], ws.frame_scratch.cosines[k]);
-        update_and_place(model, ws, i, turn);
+        // Other joints ignore the turn; a last turn left out is none.
+        let turn = if k < end {
+            (ws.frame_scratch.sines[k], ws.frame_scratch.cosines[k])
+        } else {
+            (0.0, 1.0)
+        };
+        update_and_place(model, ws, i, turn, q, placing);
     }
     Ok(())
 }
 
-/// `|x|²` of a floating joint's quaternion in its coordinates `[p; x, y, z, w]`.
-fn quaternion_norm2(q: &[f64; 7]) -> f64 {
-    q[3..].iter().map(|x| x * x).sum()
+/// The seven coordinates `[p; x, y, z, w]` of floating joint `body` in `q`.
+#[inline(always)]
+fn floating_coordinates<'q>(body: &Body, q: &'q [f64]) -> &'q [f64; 7] {
+    let start = body.joint.coords.q_index;
+    q[start..start + 7].try_into().expect("seven coordinates")
 }
 
 /// Body `i`'s joint updated for `turn` ([`update_up`]) and the body placed ([`place_body`]).
-/// A joint turning about a coordinate axis, or a floating joint, places its body with the
-/// `ⁱX_λ` it has just made, still in registers, rather than reading it back from `ws.x_up`:
-/// loads that straddle the stores which wrote it would wait for them to drain.
+/// A joint turning about a coordinate axis, or a floating joint (its coordinates read from `q`),
+/// places its body with the `ⁱX_λ` it has just made, still in registers, rather than reading it
+/// back from `ws.x_up` (loads that straddle the stores which wrote it would wait for them to
+/// drain), and stores it there only for [`Placing::WithJointTransforms`].
 #[inline(always)]
-fn update_and_place(model: &Model, ws: &mut Workspace, i: usize, turn: (f64, f64)) {
+fn update_and_place(
+    model: &Model,
+    ws: &mut Workspace,
+    i: usize,
+    turn: (f64, f64),
+    q: &[f64],
+    placing: Placing,
+) {
     let body = &model.bodies[i];
     let shape = ws.plan.up_shapes[i];
     let mut up = body.x_tree;
@@ -213,7 +265,7 @@ fn update_and_place(model: &Model, ws: &mut Workspace, i: usize, turn: (f64, f64
         }
         Some((k, _)) => turn_up(k, turn, &body.x_tree, &mut up),
         None if body.joint.kind == JointKind::Floating => {
-            floating_up(&ws.q_joint[i], &body.x_tree, &mut up)
+            floating_up(floating_coordinates(body, q), &body.x_tree, &mut up)
         }
         None => {
             update_up(body, ws, i, turn);
@@ -221,7 +273,9 @@ fn update_and_place(model: &Model, ws: &mut Workspace, i: usize, turn: (f64, f64
             return;
         }
     }
-    ws.x_up[i] = up;
+    if placing == Placing::WithJointTransforms {
+        ws.x_up[i] = up;
+    }
     let (above, from_i) = ws.frame_scratch.x_world.split_at_mut(i);
     let x_i = &mut from_i[0];
     let Some(p) = body.parent else {

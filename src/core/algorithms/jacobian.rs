@@ -21,7 +21,9 @@
 //! `v = [linear; angular]` in the base frame; a mimic follower adds `μ` times its column to its
 //! leader's (`q̇_follower = μ q̇_leader`).
 
-use super::frames::{check_finite, place_all, place_support, placement_of, Frame, FrameScratch};
+use super::frames::{
+    check_finite, place_all, place_support, placement_of, Frame, FrameScratch, Placing,
+};
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model};
@@ -73,7 +75,12 @@ pub fn frame_jacobian<'w>(
     frame: &Frame,
     reference: ReferenceFrame,
 ) -> Result<&'w DMatrix<f64>, DynamicsError> {
-    place_support(model, ws, q, frame.body)?;
+    // The world columns read of the frame's body only its joint axis and origin.
+    let placing = match reference {
+        ReferenceFrame::World => Placing::UpToLastTurn,
+        _ => Placing::Placements,
+    };
+    place_support(model, ws, q, frame.body, placing)?;
     // One loop per reference, each compiled with its own map.
     match reference {
         ReferenceFrame::World => support_columns(model, ws, frame, |a, l, p| (l - a.cross(p), *a)),
