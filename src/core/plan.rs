@@ -42,6 +42,10 @@ pub struct Plan {
     pub dof_ancestors: Option<Ancestors>,
     /// The bodies supporting each body, for the frame algorithms ([`Supports`]).
     pub supports: Supports,
+    /// The bodies from the first to the last whose joint turns about a coordinate axis
+    /// (`turn_axes`): the turn angles whose sines and cosines a pass over the tree needs (the
+    /// other joints ignore theirs).
+    pub turning: std::ops::Range<usize>,
 }
 
 impl Plan {
@@ -71,6 +75,7 @@ impl Plan {
             subtree_end,
             dof_ancestors: model.dof_parent.as_deref().and_then(Ancestors::new),
             supports: Supports::new(model),
+            turning: turning_bodies(model),
         }
     }
 }
@@ -289,6 +294,17 @@ impl Ancestors {
     }
 }
 
+/// The range from the first to the last body whose joint turns about a coordinate axis (empty
+/// when none does).
+fn turning_bodies(model: &Model) -> std::ops::Range<usize> {
+    let turns = |i: &usize| model.bodies[*i].joint.kind.turn_axis().is_some();
+    let n = model.nbodies();
+    match ((0..n).find(turns), (0..n).rev().find(turns)) {
+        (Some(first), Some(last)) => first..last + 1,
+        _ => 0..0,
+    }
+}
+
 /// The *support* of each body: the bodies from its root down to it, root first (each one's
 /// parent just before it), the bodies that move a frame it carries. Listed once per model, so
 /// that a frame algorithm walks a slice instead of chasing parents.
@@ -349,6 +365,16 @@ mod tests {
                 assert_eq!(supports.of(i), &path[..], "{}: body {i}", model.name);
             }
         }
+    }
+
+    /// The turning bodies' range spans the arm's revolute joints and leaves out a floating
+    /// base before them.
+    #[test]
+    fn turning_bodies_span_the_turning_joints() {
+        let fixed = load(examples::DEFAULT_ARM_URDF, false);
+        assert_eq!(turning_bodies(&fixed), 0..fixed.nbodies());
+        let floating = load(examples::DEFAULT_ARM_URDF, true);
+        assert_eq!(turning_bodies(&floating), 1..floating.nbodies());
     }
 
     /// The mirror is copied by tiles where a row's stores, `8n` bytes apart, fall in too few L1

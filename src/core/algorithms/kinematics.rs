@@ -59,7 +59,12 @@ pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     for (i, body) in model.bodies.iter().enumerate() {
         ws.turn_angles[i] = read_joint(body, ws.plan.turn_axes[i], &mut ws.q_joint[i], q);
     }
-    sin_cos_all(&ws.turn_angles, &mut ws.turn_sines, &mut ws.turn_cosines);
+    let turning = ws.plan.turning.clone();
+    sin_cos_all(
+        &ws.turn_angles[turning.clone()],
+        &mut ws.turn_sines[turning.clone()],
+        &mut ws.turn_cosines[turning],
+    );
     for (i, body) in model.bodies.iter().enumerate() {
         let turn = (ws.turn_sines[i], ws.turn_cosines[i]);
         update_up(body, ws, i, turn);
