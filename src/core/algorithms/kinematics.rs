@@ -4,7 +4,7 @@
 use super::validate::check_q;
 use crate::error::DynamicsError;
 use crate::model::{
-    floating_up, turn_up, turn_up_unrotated, Body, Joint, JointKind, Model, UpShape,
+    floating_up, turn_up, turn_up_unrotated, Body, Joint, JointKind, Model, MotionSubspace, UpShape,
 };
 use crate::spatial::{sin_cos_all, Force, Motion, Transform, Translation, Vector3};
 use crate::Workspace;
@@ -56,18 +56,41 @@ pub(crate) use with_up_transform;
 /// identity when its placement has no rotation ([`turn_up_unrotated`], `ws.plan.up_shapes`); its `S`
 /// is constant, set when the workspace was made.
 pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
-    for (i, body) in model.bodies.iter().enumerate() {
-        ws.turn_angles[i] = read_joint(body, ws.plan.turn_axes[i], &mut ws.q_joint[i], q);
+    let Workspace {
+        plan,
+        q_joint,
+        turn_angles,
+        turn_sines,
+        turn_cosines,
+        s,
+        x_up,
+        ..
+    } = ws;
+    let joints = model
+        .bodies
+        .iter()
+        .zip(&plan.turn_axes)
+        .zip(q_joint.iter_mut());
+    for (((body, &axis), q_joint), angle) in joints.zip(turn_angles.iter_mut()) {
+        *angle = read_joint(body, axis, q_joint, q);
     }
-    let turning = ws.plan.turning.clone();
+    let turning = plan.turning.clone();
     sin_cos_all(
-        &ws.turn_angles[turning.clone()],
-        &mut ws.turn_sines[turning.clone()],
-        &mut ws.turn_cosines[turning],
+        &turn_angles[turning.clone()],
+        &mut turn_sines[turning.clone()],
+        &mut turn_cosines[turning],
     );
-    for (i, body) in model.bodies.iter().enumerate() {
-        let turn = (ws.turn_sines[i], ws.turn_cosines[i]);
-        update_up(body, ws, i, turn);
+    let joints = model
+        .bodies
+        .iter()
+        .zip(&plan.turn_axes)
+        .zip(&plan.up_shapes);
+    let turns = turn_sines.iter().zip(turn_cosines.iter());
+    let outputs = q_joint.iter().zip(s.iter_mut()).zip(x_up.iter_mut());
+    for ((((body, &axis), &shape), (&sin, &cos)), ((q_joint, s), x_up)) in
+        joints.zip(turns).zip(outputs)
+    {
+        joint_up(body, axis, shape, q_joint, (sin, cos), s, x_up);
     }
 }
 
@@ -95,20 +118,42 @@ pub(crate) fn read_joint(
 /// (set when the workspace was made): only its transform is computed ([`floating_up`]).
 #[inline(always)]
 pub(crate) fn update_up(body: &Body, ws: &mut Workspace, i: usize, turn: (f64, f64)) {
-    match (ws.plan.turn_axes[i], ws.plan.up_shapes[i]) {
-        (Some(_), UpShape::AxisTurn(k)) => {
-            turn_up_unrotated(k, turn, &body.x_tree, &mut ws.x_up[i])
-        }
-        (Some((k, _)), _) => turn_up(k, turn, &body.x_tree, &mut ws.x_up[i]),
+    let (axis, shape) = (ws.plan.turn_axes[i], ws.plan.up_shapes[i]);
+    joint_up(
+        body,
+        axis,
+        shape,
+        &ws.q_joint[i],
+        turn,
+        &mut ws.s[i],
+        &mut ws.x_up[i],
+    );
+}
+
+/// [`update_up`] given the body's entries: its plan's `turn_axis` and `shape`, its own
+/// coordinates `q_joint`, and its `S` and `ⁱX_λ` to write.
+#[inline(always)]
+fn joint_up(
+    body: &Body,
+    turn_axis: Option<(usize, f64)>,
+    shape: UpShape,
+    q_joint: &[f64; 7],
+    turn: (f64, f64),
+    s: &mut MotionSubspace,
+    x_up: &mut Transform,
+) {
+    match (turn_axis, shape) {
+        (Some(_), UpShape::AxisTurn(k)) => turn_up_unrotated(k, turn, &body.x_tree, x_up),
+        (Some((k, _)), _) => turn_up(k, turn, &body.x_tree, x_up),
         (None, _) if body.joint.kind == JointKind::Floating => {
-            floating_up(&ws.q_joint[i], &body.x_tree, &mut ws.x_up[i])
+            floating_up(q_joint, &body.x_tree, x_up)
         }
         (None, _) => body.joint.kind.jcalc_up_turned(
-            &ws.q_joint[i][..body.joint.kind.nq()],
+            &q_joint[..body.joint.kind.nq()],
             turn,
             &body.x_tree,
-            &mut ws.s[i],
-            &mut ws.x_up[i],
+            s,
+            x_up,
         ),
     }
 }
