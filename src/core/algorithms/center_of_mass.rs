@@ -66,11 +66,12 @@ pub fn center_of_mass_jacobian<'w>(
         values.fill(0.0);
     }
     let inv_mass = 1.0 / com.mass;
-    for (i, body) in model.bodies.iter().enumerate() {
-        let (x, s, c) = (&scratch.x_world[i], &ws.s[i], body.joint.coords);
-        let (m, d) = (scratch.subtree_mass[i], &scratch.subtree_moment[i]);
-        for k in 0..s.nv {
-            let (a, l) = world_axes(&x.rot, &s.cols[k], ws.plan.s_axes[i][k]);
+    let placed = model.bodies.iter().zip(&scratch.x_world).zip(&ws.s);
+    let subtrees = scratch.subtree_mass.iter().zip(&scratch.subtree_moment);
+    for (((body, x), s), ((&m, d), axes)) in placed.zip(subtrees.zip(&ws.plan.s_axes)) {
+        let c = body.joint.coords;
+        for (k, (col, &axis)) in s.cols[..s.nv].iter().zip(axes).enumerate() {
+            let (a, l) = world_axes(&x.rot, col, axis);
             let col = (l * m + a.cross(d)) * inv_mass;
             let out = &mut values[3 * (c.v_index + k)..3 * (c.v_index + k) + 3];
             if own_columns {
@@ -98,9 +99,13 @@ pub fn center_of_mass_jacobian<'w>(
 /// bodies, children before parents.
 fn subtree_moments(model: &Model, ws: &mut Workspace) {
     let scratch = &mut ws.frame_scratch;
-    for (i, body) in model.bodies.iter().enumerate() {
-        scratch.subtree_mass[i] = body.inertia.mass;
-        scratch.subtree_moment[i] = scratch.x_world[i].rot.tr_mul(&body.inertia.h);
+    let sums = scratch
+        .subtree_mass
+        .iter_mut()
+        .zip(&mut scratch.subtree_moment);
+    for ((body, x), (m, d)) in model.bodies.iter().zip(&scratch.x_world).zip(sums) {
+        *m = body.inertia.mass;
+        *d = x.rot.tr_mul(&body.inertia.h);
     }
     for (i, body) in model.bodies.iter().enumerate().rev() {
         if let Some(p) = body.parent {
@@ -116,11 +121,11 @@ fn subtree_moments(model: &Model, ws: &mut Workspace) {
 fn total(model: &Model, ws: &Workspace) -> Result<CenterOfMass, DynamicsError> {
     let scratch = &ws.frame_scratch;
     let (mut mass, mut moment) = (0.0, Vector3::zeros());
-    for (i, body) in model.bodies.iter().enumerate() {
+    let sums = scratch.subtree_mass.iter().zip(&scratch.subtree_moment);
+    for ((body, x), (&m, d)) in model.bodies.iter().zip(&scratch.x_world).zip(sums) {
         if body.parent.is_none() {
-            let m = scratch.subtree_mass[i];
             mass += m;
-            moment += scratch.x_world[i].trans * m + scratch.subtree_moment[i];
+            moment += x.trans * m + d;
         }
     }
     if mass <= 0.0 {
