@@ -13,6 +13,10 @@ pub(crate) fn check_q(model: &Model, q: &[f64]) -> Result<(), DynamicsError> {
         let index = q.iter().position(|x| !x.is_finite()).unwrap_or(0);
         return Err(non_finite_q(model, q, index));
     }
+    if model.nq == model.nv {
+        // No floating joint: it is the only one with more position than velocity coordinates.
+        return Ok(());
+    }
     for body in &model.bodies {
         let joint = &body.joint;
         if joint.kind == JointKind::Floating && !joint.is_mimic() {
