@@ -1,7 +1,7 @@
 //! The choices the algorithms make once per model and then follow on every call: which form
 //! each joint's transform takes, where ABA's aligned frames are anchored, which coordinates CRBA
-//! works in and how it mirrors `H`, and the coordinate tree's ancestor lists for the sparse
-//! factorisation. Built from the model alone ([`Plan::new`]); every [`Workspace`](crate::Workspace)
+//! works in and how it mirrors `H`, the coordinate tree's ancestor lists for the sparse
+//! factorisation, and each body's support for the frame algorithms. Built from the model alone ([`Plan::new`]); every [`Workspace`](crate::Workspace)
 //! holds its model's plan beside its scratch buffers.
 
 use crate::algorithms::flops;
@@ -33,7 +33,7 @@ pub struct Plan {
     /// ([`contiguous_subtrees`]).
     pub subtree_end: Option<Vec<usize>>,
     /// Whether CRBA leaves `H`'s upper triangle to be copied by tiles after its passes instead of
-    /// storing each entry's mirror beside it ([`mirror_by_tiles`]).
+    /// storing each entry's mirror beside it (`mirror_by_tiles`).
     pub mirror_by_tiles: bool,
     /// The ancestors of each coordinate and the range of its subtree, for the sparse
     /// factorisation; `None` when mimic joints break the tree pattern
@@ -96,7 +96,7 @@ pub enum CrbaFrames {
 /// [`flops::crba_local`]: body coordinates for short branches (arms, legs, a floating root over
 /// them), world coordinates for long ones; world coordinates when mimic joints break the tree
 /// pattern (only the world pass handles them); body coordinates when a slide below a root can
-/// carry its bodies farther than the aligned frames' anchor spacing ([`travels_far`]:
+/// carry its bodies farther than the aligned frames' anchor spacing (`travels_far`:
 /// world rows keep one frame per tree).
 pub fn crba_frames(model: &Model, subtree_end: Option<&[usize]>) -> CrbaFrames {
     if model.dof_parent.is_none() {
@@ -148,7 +148,7 @@ pub(crate) fn mirror_by_tiles(n: usize) -> bool {
 pub(crate) const ANCHOR_SPACING: f64 = 4.0;
 
 /// Which bodies anchor an aligned frame with spaced anchors: every root and each body
-/// whose joint origin can be more than [`ANCHOR_SPACING`] longest offsets along the tree from
+/// whose joint origin can be more than `ANCHOR_SPACING` longest offsets along the tree from
 /// the anchor above it, counting each prismatic joint's travel (its largest `|limit|`; a
 /// planar or floating joint below the root travels without bound).
 pub fn frame_anchors(model: &Model) -> Vec<bool> {

@@ -17,7 +17,7 @@
 //! [`frame_acceleration`](super::frame_acceleration)) place only the bodies that support the
 //! frame (the path from the root to its body), as Pinocchio's `computeFrameJacobian` does; the
 //! whole-tree ones ([`joint_jacobians`](super::jacobian::joint_jacobians),
-//! [`center_of_mass`](super::center_of_mass)) place every body. Their scratch is the
+//! [`center_of_mass`](mod@super::center_of_mass)) place every body. Their scratch is the
 //! workspace's [`FrameScratch`].
 
 use super::kinematics::{read_joint, update_joints, update_up, with_up_transform};

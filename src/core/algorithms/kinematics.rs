@@ -50,8 +50,9 @@ pub(crate) use with_up_transform;
 
 /// Fills `ws.q_joint`, `ws.x_up` and `ws.s` for configuration `q` (already validated): the
 /// joints' own coordinates (a turning joint's one coordinate straight into its angle), then
-/// the sines and cosines of every joint's turn angle at once (`spatial::sin_cos_all`, two
-/// angles at a time), then each joint's `ⁱX_λ` and `S`. A revolute joint about a coordinate
+/// the sines and cosines of the turn angles at once, from the first turning joint to the last
+/// (`ws.plan.turning`; `spatial::sin_cos_all`, two angles at a time), then each joint's `ⁱX_λ`
+/// and `S`. A revolute joint about a coordinate
 /// axis (`ws.plan.turn_axes`, most joints) mixes two rows of its placement ([`turn_up`]), or of the
 /// identity when its placement has no rotation ([`turn_up_unrotated`], `ws.plan.up_shapes`); its `S`
 /// is constant, set when the workspace was made.
