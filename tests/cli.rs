@@ -410,6 +410,21 @@ fn bench_prints_the_json_contract() {
             "{kernel}: {out}"
         );
     }
+    // `--kernels` times only those named; a name it does not know is an error naming it.
+    let only = |kernels: &str| {
+        let args = ["bench", "--json", "--kernels", kernels, "--states", "10"];
+        run(
+            &[&args[..], &["--repeats", "1", "--min-time", "0.001"]].concat(),
+            "",
+        )
+    };
+    let (ok, out, err) = only("rnea,center_of_mass");
+    assert!(ok, "{err}");
+    let v: Value = serde_json::from_str(out.trim()).unwrap();
+    let timed: Vec<&String> = v["ns_per_call"].as_object().unwrap().keys().collect();
+    assert_eq!(timed, ["center_of_mass", "rnea"], "{out}");
+    let (ok, _, err) = only("rnea,nope");
+    assert!(!ok && err.contains("unknown kernel 'nope'"), "{err}");
 }
 
 /// The frame requests' contract: shapes, the rotation printed by rows (link axes in world

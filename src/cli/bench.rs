@@ -86,12 +86,25 @@ pub fn deepest_link(model: &Model) -> &str {
     deepest.map_or(model.root_link.as_str(), |i| model.bodies[i].name.as_str())
 }
 
-/// Times every kernel and prints the result; with a reduction asked for, the full model too and
-/// the speed-up; and the method `auto` would choose.
-pub fn run(args: &ModelArgs, as_json: bool, settings: &Settings) -> Result<(), String> {
+/// Times every kernel (or those named in `only`) and prints the result; with a reduction asked
+/// for, the full model too and the speed-up; and the method `auto` would choose.
+pub fn run(
+    args: &ModelArgs,
+    as_json: bool,
+    only: &[String],
+    settings: &Settings,
+) -> Result<(), String> {
     settings.check()?;
     let model = args.load()?;
-    let all: Vec<&str> = KERNELS.iter().chain(&KINEMATICS_KERNELS).copied().collect();
+    let all: Vec<&str> = KERNELS
+        .iter()
+        .chain(&KINEMATICS_KERNELS)
+        .copied()
+        .filter(|k| only.is_empty() || only.iter().any(|o| o == k))
+        .collect();
+    if let Some(unknown) = only.iter().find(|o| !all.contains(&o.as_str())) {
+        return Err(format!("bench: unknown kernel '{unknown}'"));
+    }
     let times = time_kernels(&model, &all, settings)?;
     let full = if args.reduces() {
         let full = args.without_reductions().load()?;

@@ -41,9 +41,12 @@ enum Command {
     Bench {
         #[command(flatten)]
         model: ModelArgs,
-        /// Print JSON: {"nv", "ns_per_call": {"rnea", "crba", "fd_aba", "fd_crba", "fd_rnea_columns", "gravity"}}.
+        /// Print JSON: {"nv", "ns_per_call": {KERNEL: ns}, "flops_per_call", "gflops", "auto_method", "frame"}; the kernels are rnea, crba, fd_aba, fd_crba, fd_rnea_columns, gravity, frame_jacobian and center_of_mass.
         #[arg(long)]
         json: bool,
+        /// Time only these kernels, comma-separated (default: all of them).
+        #[arg(long, value_delimiter = ',', value_name = "NAME,...")]
+        kernels: Vec<String>,
         #[command(flatten)]
         settings: bench::Settings,
     },
@@ -83,8 +86,9 @@ pub fn run() -> ExitCode {
         Command::Bench {
             model,
             json,
+            kernels,
             settings,
-        } => bench::run(&model, json, &settings),
+        } => bench::run(&model, json, &kernels, &settings),
         Command::Chart(args) => chart::run(&args),
         Command::Simulate { model, sim } => simulate::run(&model, &sim),
         #[cfg(feature = "replay")]
