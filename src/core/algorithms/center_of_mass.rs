@@ -107,12 +107,25 @@ fn subtree_moments(model: &Model, ws: &mut Workspace) {
         *m = body.inertia.mass;
         *d = x.rot.tr_mul(&body.inertia.h);
     }
+    // What body `i + 1` adds to its parent `i`, carried in registers: stored and read back at
+    // once, it would put a store-to-load round trip on the chain at each level.
+    let mut carried = None;
     for (i, body) in model.bodies.iter().enumerate().rev() {
+        let (mut m, mut d) = (scratch.subtree_mass[i], scratch.subtree_moment[i]);
+        if let Some((mc, dc)) = carried.take() {
+            m += mc;
+            d += dc;
+            (scratch.subtree_mass[i], scratch.subtree_moment[i]) = (m, d);
+        }
         if let Some(p) = body.parent {
-            let (m, d) = (scratch.subtree_mass[i], scratch.subtree_moment[i]);
             let shift = scratch.x_world[i].trans - scratch.x_world[p].trans;
-            scratch.subtree_mass[p] += m;
-            scratch.subtree_moment[p] += d + shift * m;
+            let added = (m, d + shift * m);
+            if p + 1 == i {
+                carried = Some(added);
+            } else {
+                scratch.subtree_mass[p] += added.0;
+                scratch.subtree_moment[p] += added.1;
+            }
         }
     }
 }

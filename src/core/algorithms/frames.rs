@@ -20,7 +20,7 @@
 //! [`center_of_mass`](mod@super::center_of_mass)) place every body. Their scratch is the
 //! workspace's [`FrameScratch`].
 
-use super::kinematics::{read_joint, update_joints, update_up, with_up_transform};
+use super::kinematics::{below_parent, read_joint, update_joints, update_up, with_up_transform};
 use super::validate::{check_len, check_q_of};
 use crate::error::DynamicsError;
 use crate::model::{
@@ -291,17 +291,20 @@ fn update_and_place(
 }
 
 /// Places every body for `q` (already validated): all joints updated, `scratch.x_world` for
-/// every body.
+/// every body, each from its parent's placement ([`below_parent`]).
 pub(crate) fn place_all(model: &Model, ws: &mut Workspace, q: &[f64]) {
     update_joints(model, ws, q);
-    for i in 0..model.nbodies() {
-        place_body(model, ws, i);
+    let mut previous = Transform::identity();
+    for (i, body) in model.bodies.iter().enumerate() {
+        previous = below_parent(ws, &ws.frame_scratch.x_world, &previous, i, body.parent);
+        ws.frame_scratch.x_world[i] = previous;
     }
 }
 
 /// `scratch.x_world[i] = ⁱX_λ ᵏX_0` (`ⁱX_λ` for a root), the parent already placed; written in
-/// place by each form of `ⁱX_λ` (as `kinematics::place_below_parent` does, and for the same
-/// reason: a product returned and then copied stalls on store forwarding).
+/// place by each form of `ⁱX_λ`, without the copy a returned product needs: a frame's support
+/// is a short path, whose time goes by the instructions rather than by the chain's latency
+/// ([`below_parent`] weighs the other way, for whole trees).
 #[inline(always)]
 fn place_body(model: &Model, ws: &mut Workspace, i: usize) {
     let (above, from_i) = ws.frame_scratch.x_world.split_at_mut(i);

@@ -209,35 +209,30 @@ fn check_bodies(
 
 /// `ws.x_world` from `ws.x_up` (joints already updated): `ⁱX_0 = ⁱX_λ ᵏX_0`.
 pub(crate) fn update_placements(model: &Model, ws: &mut Workspace) {
+    let mut previous = Transform::identity();
     for (i, body) in model.bodies.iter().enumerate() {
-        place_below_parent(ws, Placements::World, i, body.parent);
+        previous = below_parent(ws, &ws.x_world, &previous, i, body.parent);
+        ws.x_world[i] = previous;
     }
 }
 
-/// Which placements [`place_below_parent`] writes.
-#[derive(Clone, Copy)]
-enum Placements {
-    /// `ws.x_world`.
-    World,
-    /// `ws.x_aligned`.
-    Aligned,
-}
-
-/// `X[i] = ⁱX_λ X[λ]` (`ⁱX_λ` for a root) in the placements `which`, written in place by each
-/// form of `ⁱX_λ`: a product returned from the forms would be assembled in a temporary and
-/// copied with loads that straddle its stores, which the processor cannot forward (a stall
-/// per body).
+/// `X[i] = ⁱX_λ X[λ]` (`ⁱX_λ` for a root) from the placements made so far, `placements`, the
+/// last of which, `X[i − 1]`, is also given as `previous`: a parent placed just before its
+/// child (every link of a chain) is read from there rather than from memory, where each body's
+/// product would wait for its parent's stores to be forwarded to its loads, one round trip
+/// per level on the chain's critical path.
 #[inline(always)]
-fn place_below_parent(ws: &mut Workspace, which: Placements, i: usize, parent: Option<usize>) {
-    let placements = match which {
-        Placements::World => &mut ws.x_world,
-        Placements::Aligned => &mut ws.x_aligned,
-    };
-    let (above, from_i) = placements.split_at_mut(i);
-    let x_i = &mut from_i[0];
+pub(crate) fn below_parent(
+    ws: &Workspace,
+    placements: &[Transform],
+    previous: &Transform,
+    i: usize,
+    parent: Option<usize>,
+) -> Transform {
     match parent {
-        Some(p) => with_up_transform!(ws, i, |x| *x_i = x.compose(&above[p])),
-        None => *x_i = ws.x_up[i],
+        Some(p) if p + 1 == i => with_up_transform!(ws, i, |x| x.compose(previous)),
+        Some(p) => with_up_transform!(ws, i, |x| x.compose(&placements[p])),
+        None => ws.x_up[i],
     }
 }
 
@@ -259,18 +254,20 @@ fn place_below_parent(ws: &mut Workspace, which: Placements, i: usize, parent: O
 /// Quantities cross between an anchor's frame and its parent's by the pure translation
 /// `xlt(anchor_shift)` ([`Translation`](crate::spatial::Translation)).
 pub(crate) fn update_aligned_placements(model: &Model, ws: &mut Workspace, anchors: Anchors) {
+    let mut previous = Transform::identity();
     for (i, body) in model.bodies.iter().enumerate() {
-        place_below_parent(ws, Placements::Aligned, i, body.parent);
+        let mut x = below_parent(ws, &ws.x_aligned, &previous, i, body.parent);
         let anchor = match anchors {
             Anchors::Roots => body.parent.is_none(),
             Anchors::Spaced => ws.plan.anchors[i],
         };
         if anchor {
             // `rot(E_a)`: the placement without its translation, which is recorded.
-            let x = &mut ws.x_aligned[i];
             ws.anchor_shift[i] = x.trans;
             x.trans = Vector3::zeros();
         }
+        ws.x_aligned[i] = x;
+        previous = x;
     }
 }
 
