@@ -312,6 +312,7 @@ fn turning_bodies(model: &Model) -> std::ops::Range<usize> {
 pub struct Supports {
     list: Vec<usize>,
     start: Vec<usize>,
+    turns: Vec<bool>,
 }
 
 impl Supports {
@@ -319,19 +320,30 @@ impl Supports {
     pub fn new(model: &Model) -> Self {
         let mut list = Vec::new();
         let mut start = vec![0];
+        let mut turns: Vec<bool> = Vec::with_capacity(model.nbodies());
         for (i, body) in model.bodies.iter().enumerate() {
+            let kind = body.joint.kind;
+            let turning = kind.turn_axis().is_some() && !body.joint.is_mimic();
+            let floating_root = kind == JointKind::Floating && body.parent.is_none();
+            turns.push((turning || floating_root) && body.parent.is_none_or(|p| turns[p]));
             if let Some(p) = body.parent {
                 list.extend_from_within(start[p]..start[p + 1]);
             }
             list.push(i);
             start.push(list.len());
         }
-        Supports { list, start }
+        Supports { list, start, turns }
     }
 
     /// The support of body `i`, root first, ending with `i`.
     pub fn of(&self, i: usize) -> &[usize] {
         &self.list[self.start[i]..self.start[i + 1]]
+    }
+
+    /// Whether every joint of body `i`'s support turns about a coordinate axis (none a mimic
+    /// follower), but for a floating root.
+    pub fn turns_only(&self, i: usize) -> bool {
+        self.turns[i]
     }
 }
 

@@ -89,7 +89,8 @@ pub struct FrameScratch {
     pub(crate) angles: Vec<f64>,
     pub(crate) sines: Vec<f64>,
     pub(crate) cosines: Vec<f64>,
-    /// `ⁱX_0` (world → body) of the bodies placed by the last frame call.
+    /// `ⁱX_0` (world → body) of the bodies placed by the last frame call (the `world` Jacobian
+    /// along turns carries them in registers and leaves these as they were).
     pub(crate) x_world: Vec<Transform>,
     /// Each joint's motion subspace in world axes at its body's origin, `R_i S_i` with
     /// `R_i = ⁱX_0.rotᵀ` (both halves of each column rotated, no change of point), from
@@ -165,9 +166,33 @@ pub(crate) fn place_support(
     let Some(last) = body else {
         return check_q_of(model, q, &[]);
     };
+    let turns = support_turns(model, ws, q, last, placing)?;
+    for k in 0..ws.plan.supports.of(last).len() {
+        let i = ws.plan.supports.of(last)[k];
+        // Other joints ignore the turn; a last turn left out is none.
+        let turn = if k < turns {
+            (ws.frame_scratch.sines[k], ws.frame_scratch.cosines[k])
+        } else {
+            (0.0, 1.0)
+        };
+        update_and_place(model, ws, i, turn, q, placing);
+    }
+    Ok(())
+}
+
+/// The coordinates of the joints supporting body `last` read and validated (as
+/// [`place_support`] says), and the sines and cosines of their turns, in support order in
+/// `scratch.sines` and `scratch.cosines`, for the first `n` of them (returned): all but, with
+/// [`Placing::UpToLastTurn`], a last turn. As `update_joints` does for the whole tree: the turn
+/// angles first, then their sines and cosines two at a time.
+pub(crate) fn support_turns(
+    model: &Model,
+    ws: &mut Workspace,
+    q: &[f64],
+    last: usize,
+    placing: Placing,
+) -> Result<usize, DynamicsError> {
     check_len("q", model.nq, q.len())?;
-    // As `update_joints` does for the whole tree: the turn angles first, their sines and cosines
-    // two at a time, then each joint's transform and the body's placement.
     let Workspace {
         plan,
         q_joint,
@@ -222,22 +247,12 @@ pub(crate) fn place_support(
             &mut cosines[first..end],
         );
     }
-    for k in 0..n {
-        let i = ws.plan.supports.of(last)[k];
-        // Other joints ignore the turn; a last turn left out is none.
-        let turn = if k < end {
-            (ws.frame_scratch.sines[k], ws.frame_scratch.cosines[k])
-        } else {
-            (0.0, 1.0)
-        };
-        update_and_place(model, ws, i, turn, q, placing);
-    }
-    Ok(())
+    Ok(end)
 }
 
 /// The seven coordinates `[p; x, y, z, w]` of floating joint `body` in `q`.
 #[inline(always)]
-fn floating_coordinates<'q>(body: &Body, q: &'q [f64]) -> &'q [f64; 7] {
+pub(crate) fn floating_coordinates<'q>(body: &Body, q: &'q [f64]) -> &'q [f64; 7] {
     let start = body.joint.coords.q_index;
     q[start..start + 7].try_into().expect("seven coordinates")
 }

@@ -22,11 +22,12 @@
 //! leader's (`q̇_follower = μ q̇_leader`).
 
 use super::frames::{
-    check_finite, place_all, place_support, placement_of, Frame, FrameScratch, Placing,
+    check_finite, floating_coordinates, place_all, place_support, placement_of, support_turns,
+    Frame, FrameScratch, Placing,
 };
 use super::validate::check_q;
 use crate::error::DynamicsError;
-use crate::model::{JointKind, Model};
+use crate::model::{floating_up, turned, JointKind, Model, UpShape};
 use crate::spatial::{Matrix3, Motion, Transform, Vector3};
 use crate::Workspace;
 use nalgebra::DMatrix;
@@ -75,16 +76,20 @@ pub fn frame_jacobian<'w>(
     frame: &Frame,
     reference: ReferenceFrame,
 ) -> Result<&'w DMatrix<f64>, DynamicsError> {
-    // The world columns read of the frame's body only its joint axis and origin.
-    let placing = match reference {
-        ReferenceFrame::World => Placing::UpToLastTurn,
-        _ => Placing::Placements,
-    };
-    place_support(model, ws, q, frame.body, placing)?;
-    // One loop per reference, each compiled with its own map.
-    match reference {
-        ReferenceFrame::World => support_columns(model, ws, frame, |a, l, p| (l - a.cross(p), *a)),
+    let along_turns = frame.body.filter(|&b| ws.plan.supports.turns_only(b));
+    // One loop per reference, each compiled with its own map. The world columns read of the
+    // frame's body only its joint axis and origin (`Placing::UpToLastTurn`).
+    match (reference, along_turns) {
+        (ReferenceFrame::World, Some(b)) => {
+            let turns = support_turns(model, ws, q, b, Placing::UpToLastTurn)?;
+            world_columns_along_turns(model, ws, q, b, turns).finish(model, frame)
+        }
+        (ReferenceFrame::World, None) => {
+            place_support(model, ws, q, frame.body, Placing::UpToLastTurn)?;
+            support_columns(model, ws, frame, |a, l, p| (l - a.cross(p), *a))
+        }
         _ => {
+            place_support(model, ws, q, frame.body, Placing::Placements)?;
             let to_frame = ColumnMap::new(reference, &placement_of(&ws.frame_scratch, frame));
             support_columns(model, ws, frame, |a, l, p| to_frame.column(a, l, p))
         }
@@ -129,6 +134,80 @@ fn support_columns(
         }
     }
     out.finish(model, frame)
+}
+
+/// The `world` columns of the joints supporting body `last` when all of them turn about a
+/// coordinate axis, under a floating root or the world (`Supports::turns_only`), with the
+/// sines and cosines of the first `turns` turns in the scratch ([`support_turns`]).
+///
+/// Down the support, each body's placement `(E_i, p_i)` is made from its parent's, carried in
+/// registers rather than stored and read back. A turn `E_J` about `e_k` leaves row `k` of
+/// what it turns, so the body's column, the axis `a = σ row_k(E_i)` through `p_i` (linear part
+/// `p_i × a`), is read at its joint, before its own turn:
+///
+/// ```text
+/// p_i = p_λ + E_λᵀ r_tree      E_i⁻ = E_tree E_λ      column (p_i × a, a), a = σ row_k(E_i⁻)
+/// E_i = E_J(θ_i) E_i⁻ = (E_J E_tree) E_λ
+/// ```
+///
+/// (`E_tree = 1` for a placement without rotation). The frame's body's own turn is not made:
+/// nothing reads it.
+fn world_columns_along_turns<'w>(
+    model: &Model,
+    ws: &'w mut Workspace,
+    q: &[f64],
+    last: usize,
+    turns: usize,
+) -> Columns<'w> {
+    let Workspace {
+        plan,
+        frame_scratch: scratch,
+        ..
+    } = &mut *ws;
+    let FrameScratch {
+        sines,
+        cosines,
+        jacobian,
+        jacobian_support,
+        ..
+    } = scratch;
+    let mut out = Columns::new(jacobian, jacobian_support, true, Some(last));
+    // `ᵏX_0` of the parent: the world's for a root.
+    let (mut e, mut p) = (Matrix3::identity(), Vector3::zeros());
+    for (k, &i) in plan.supports.of(last).iter().enumerate() {
+        let body = &model.bodies[i];
+        let v = body.joint.coords.v_index;
+        let Some((axis, sign)) = plan.turn_axes[i] else {
+            // The floating root, `S = 1` (`v` linear then angular, base axes): its columns
+            // are the rows of `E`, as slides and then as turns.
+            let mut up = body.x_tree;
+            floating_up(floating_coordinates(body, q), &body.x_tree, &mut up);
+            (e, p) = (up.rot, up.trans);
+            for j in 0..3 {
+                let row = e.row(j).transpose();
+                out.put(v + j, 1.0, (row, Vector3::zeros()));
+                out.put(v + 3 + j, 1.0, (p.cross(&row), row));
+            }
+            continue;
+        };
+        p += e.tr_mul(&body.x_tree.trans);
+        let unrotated = matches!(plan.up_shapes[i], UpShape::AxisTurn(_));
+        let a = if unrotated {
+            e.row(axis).transpose() * sign
+        } else {
+            (body.x_tree.rot.row(axis) * e).transpose() * sign
+        };
+        out.put(v, 1.0, (p.cross(&a), a));
+        if k < turns {
+            let turn = (sines[k], cosines[k]);
+            e = if unrotated {
+                turned(axis, turn, &e)
+            } else {
+                turned(axis, turn, &body.x_tree.rot) * e
+            };
+        }
+    }
+    out
 }
 
 /// Every joint's motion subspace in world axes at `q`, from which [`JointJacobians`] assembles

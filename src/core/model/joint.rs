@@ -353,15 +353,22 @@ pub enum UpShape {
 /// `(sin, cos)` of its turn angle `σ q`: `E_J = rot_k(σ q)ᵀ` mixes the two rows of `E_tree`
 /// other than `k`, and the origin stays (see [`JointKind::jcalc_up`]). Written in place.
 #[inline(always)]
-pub fn turn_up(k: usize, (sin, cos): (f64, f64), x_tree: &Transform, x_up: &mut Transform) {
-    let e = &x_tree.rot;
+pub fn turn_up(k: usize, turn: (f64, f64), x_tree: &Transform, x_up: &mut Transform) {
+    x_up.rot = turned(k, turn, &x_tree.rot);
+    x_up.trans = x_tree.trans;
+}
+
+/// `E_J E` for a turn about coordinate axis `k` given `(sin, cos)` of its angle: the two rows
+/// of `E` other than `k` mixed (`row_I ← c row_I + s row_J`, `row_J ← c row_J − s row_I`,
+/// `I = k + 1`, `J = k + 2` mod 3), row `k` kept.
+#[inline(always)]
+pub fn turned(k: usize, (sin, cos): (f64, f64), e: &Matrix3) -> Matrix3 {
     // One arm per axis, so that the rows are known at compile time.
-    x_up.rot = match k {
+    match k {
         0 => mix_rows::<1, 2>(e, cos, sin),
         1 => mix_rows::<2, 0>(e, cos, sin),
         _ => mix_rows::<0, 1>(e, cos, sin),
-    };
-    x_up.trans = x_tree.trans;
+    }
 }
 
 /// [`turn_up`] for a placement without rotation (`E_tree = 1`, the joints of shape

@@ -18,7 +18,7 @@ mod spec;
 
 pub use builder::ModelBuilder;
 pub use joint::{
-    axis_rotation, floating_up, quaternion_rotation, turn_up, turn_up_unrotated, JointKind,
+    axis_rotation, floating_up, quaternion_rotation, turn_up, turn_up_unrotated, turned, JointKind,
     MotionSubspace, UpShape,
 };
 pub use spec::{joint_position, BodySpec, JointSpec, ModelOptions};
