@@ -312,7 +312,7 @@ fn turning_bodies(model: &Model) -> std::ops::Range<usize> {
 pub struct Supports {
     list: Vec<usize>,
     start: Vec<usize>,
-    turns: Vec<bool>,
+    axes: Vec<bool>,
 }
 
 impl Supports {
@@ -320,19 +320,23 @@ impl Supports {
     pub fn new(model: &Model) -> Self {
         let mut list = Vec::new();
         let mut start = vec![0];
-        let mut turns: Vec<bool> = Vec::with_capacity(model.nbodies());
+        let mut axes: Vec<bool> = Vec::with_capacity(model.nbodies());
         for (i, body) in model.bodies.iter().enumerate() {
             let kind = body.joint.kind;
-            let turning = kind.turn_axis().is_some() && !body.joint.is_mimic();
-            let floating_root = kind == JointKind::Floating && body.parent.is_none();
-            turns.push((turning || floating_root) && body.parent.is_none_or(|p| turns[p]));
+            let along_axis = match kind {
+                JointKind::Floating => body.parent.is_none(),
+                JointKind::Prismatic { .. } => kind.subspace_axes()[0].is_some(),
+                _ => kind.turn_axis().is_some(),
+            };
+            let own = along_axis && !body.joint.is_mimic();
+            axes.push(own && body.parent.is_none_or(|p| axes[p]));
             if let Some(p) = body.parent {
                 list.extend_from_within(start[p]..start[p + 1]);
             }
             list.push(i);
             start.push(list.len());
         }
-        Supports { list, start, turns }
+        Supports { list, start, axes }
     }
 
     /// The support of body `i`, root first, ending with `i`.
@@ -340,10 +344,10 @@ impl Supports {
         &self.list[self.start[i]..self.start[i + 1]]
     }
 
-    /// Whether every joint of body `i`'s support turns about a coordinate axis (none a mimic
-    /// follower), but for a floating root.
-    pub fn turns_only(&self, i: usize) -> bool {
-        self.turns[i]
+    /// Whether every joint of body `i`'s support turns about or slides along a coordinate axis
+    /// (none a mimic follower), but for a floating root.
+    pub fn along_axes(&self, i: usize) -> bool {
+        self.axes[i]
     }
 }
 
@@ -375,6 +379,33 @@ mod tests {
                     std::iter::successors(Some(i), |&b| model.bodies[b].parent).collect();
                 path.reverse();
                 assert_eq!(supports.of(i), &path[..], "{}: body {i}", model.name);
+            }
+        }
+    }
+
+    /// A support runs along coordinate axes until the first joint that does not turn about or
+    /// slide along one (a revolute about (0.6, 0.8, 0), a planar root) or is a mimic follower;
+    /// a floating root starts one.
+    #[test]
+    fn supports_run_along_axes_down_to_the_first_other_joint() {
+        let cases = [
+            (include_str!("../../tests/models/quarter_turns.urdf"), true),
+            (include_str!("../../tests/models/tree.urdf"), false),
+            (examples::MIMIC_GRIPPER_URDF, false),
+        ];
+        for (text, floating_base) in cases {
+            let model = load(text, floating_base);
+            let supports = Supports::new(&model);
+            for (i, body) in model.bodies.iter().enumerate() {
+                let other = |b: usize| {
+                    let joint = &model.bodies[b].joint;
+                    let planar = matches!(joint.kind, JointKind::Planar { .. });
+                    joint.name == "j8" || joint.is_mimic() || planar
+                };
+                let mut path = std::iter::successors(Some(i), |&b| model.bodies[b].parent);
+                let want = !path.any(other);
+                let name = &body.joint.name;
+                assert_eq!(supports.along_axes(i), want, "{}: {name}", model.name);
             }
         }
     }

@@ -76,13 +76,13 @@ pub fn frame_jacobian<'w>(
     frame: &Frame,
     reference: ReferenceFrame,
 ) -> Result<&'w DMatrix<f64>, DynamicsError> {
-    let along_turns = frame.body.filter(|&b| ws.plan.supports.turns_only(b));
+    let along_axes = frame.body.filter(|&b| ws.plan.supports.along_axes(b));
     // One loop per reference, each compiled with its own map. The world columns read of the
     // frame's body only its joint axis and origin (`Placing::UpToLastTurn`).
-    match (reference, along_turns) {
+    match (reference, along_axes) {
         (ReferenceFrame::World, Some(b)) => {
             let turns = support_turns(model, ws, q, b, Placing::UpToLastTurn)?;
-            world_columns_along_turns(model, ws, q, b, turns).finish(model, frame)
+            world_columns_along_axes(model, ws, q, b, turns).finish(model, frame)
         }
         (ReferenceFrame::World, None) => {
             place_support(model, ws, q, frame.body, Placing::UpToLastTurn)?;
@@ -136,23 +136,25 @@ fn support_columns(
     out.finish(model, frame)
 }
 
-/// The `world` columns of the joints supporting body `last` when all of them turn about a
-/// coordinate axis, under a floating root or the world (`Supports::turns_only`), with the
-/// sines and cosines of the first `turns` turns in the scratch ([`support_turns`]).
+/// The `world` columns of the joints supporting body `last` when each of them turns about or
+/// slides along a coordinate axis, under a floating root or the world
+/// ([`Supports::along_axes`](crate::plan::Supports::along_axes)), with the sines and cosines of
+/// the first `turns` turns in the scratch ([`support_turns`]).
 ///
 /// Down the support, each body's placement `(E_i, p_i)` is made from its parent's, carried in
 /// registers rather than stored and read back. A turn `E_J` about `e_k` leaves row `k` of
-/// what it turns, so the body's column, the axis `a = σ row_k(E_i)` through `p_i` (linear part
-/// `p_i × a`), is read at its joint, before its own turn:
+/// what it turns, so a turning body's column, the axis `a = σ row_k(E_i)` through `p_i` (linear
+/// part `p_i × a`), is read at its joint, before its own turn; a slide by `d` along `σ e_k`
+/// moves the body along `l = E_iᵀ σ e_k` (its column `(l, 0)`):
 ///
 /// ```text
-/// p_i = p_λ + E_λᵀ r_tree      E_i⁻ = E_tree E_λ      column (p_i × a, a), a = σ row_k(E_i⁻)
-/// E_i = E_J(θ_i) E_i⁻ = (E_J E_tree) E_λ
+/// turn:   p_i = p_λ + E_λᵀ r_tree          a = σ row_k(E_tree E_λ)    E_i = (E_J E_tree) E_λ
+/// slide:  p_i = p_λ + E_λᵀ (r_tree + E_treeᵀ σ d e_k)                  E_i = E_tree E_λ
 /// ```
 ///
 /// (`E_tree = 1` for a placement without rotation). The frame's body's own turn is not made:
 /// nothing reads it.
-fn world_columns_along_turns<'w>(
+fn world_columns_along_axes<'w>(
     model: &Model,
     ws: &'w mut Workspace,
     q: &[f64],
@@ -161,6 +163,7 @@ fn world_columns_along_turns<'w>(
 ) -> Columns<'w> {
     let Workspace {
         plan,
+        q_joint,
         frame_scratch: scratch,
         ..
     } = &mut *ws;
@@ -176,35 +179,45 @@ fn world_columns_along_turns<'w>(
     let (mut e, mut p) = (Matrix3::identity(), Vector3::zeros());
     for (k, &i) in plan.supports.of(last).iter().enumerate() {
         let body = &model.bodies[i];
-        let v = body.joint.coords.v_index;
-        let Some((axis, sign)) = plan.turn_axes[i] else {
-            // The floating root, `S = 1` (`v` linear then angular, base axes): its columns
-            // are the rows of `E`, as slides and then as turns.
-            let mut up = body.x_tree;
-            floating_up(floating_coordinates(body, q), &body.x_tree, &mut up);
-            (e, p) = (up.rot, up.trans);
-            for j in 0..3 {
-                let row = e.row(j).transpose();
-                out.put(v + j, 1.0, (row, Vector3::zeros()));
-                out.put(v + 3 + j, 1.0, (p.cross(&row), row));
+        let (v, x_tree) = (body.joint.coords.v_index, &body.x_tree);
+        let unrotated = !matches!(plan.up_shapes[i], UpShape::General);
+        match (plan.turn_axes[i], body.joint.kind) {
+            (Some((axis, sign)), _) => {
+                p += e.tr_mul(&x_tree.trans);
+                let a = if unrotated {
+                    e.row(axis).transpose() * sign
+                } else {
+                    (x_tree.rot.row(axis) * e).transpose() * sign
+                };
+                out.put(v, 1.0, (p.cross(&a), a));
+                if k < turns {
+                    let turn = (sines[k], cosines[k]);
+                    e = if unrotated {
+                        turned(axis, turn, &e)
+                    } else {
+                        turned(axis, turn, &x_tree.rot) * e
+                    };
+                }
             }
-            continue;
-        };
-        p += e.tr_mul(&body.x_tree.trans);
-        let unrotated = matches!(plan.up_shapes[i], UpShape::AxisTurn(_));
-        let a = if unrotated {
-            e.row(axis).transpose() * sign
-        } else {
-            (body.x_tree.rot.row(axis) * e).transpose() * sign
-        };
-        out.put(v, 1.0, (p.cross(&a), a));
-        if k < turns {
-            let turn = (sines[k], cosines[k]);
-            e = if unrotated {
-                turned(axis, turn, &e)
-            } else {
-                turned(axis, turn, &body.x_tree.rot) * e
-            };
+            (None, JointKind::Prismatic { axis }) => {
+                p += e.tr_mul(&(x_tree.trans + x_tree.rot.tr_mul(&(axis * q_joint[i][0]))));
+                if !unrotated {
+                    e = x_tree.rot * e;
+                }
+                out.put(v, 1.0, (e.tr_mul(&axis), Vector3::zeros()));
+            }
+            _ => {
+                // The floating root, `S = 1` (`v` linear then angular, base axes): its
+                // columns are the rows of `E`, as slides and then as turns.
+                let mut up = body.x_tree;
+                floating_up(floating_coordinates(body, q), x_tree, &mut up);
+                (e, p) = (up.rot, up.trans);
+                for j in 0..3 {
+                    let row = e.row(j).transpose();
+                    out.put(v + j, 1.0, (row, Vector3::zeros()));
+                    out.put(v + 3 + j, 1.0, (p.cross(&row), row));
+                }
+            }
         }
     }
     out
