@@ -185,9 +185,9 @@ fn world_columns_along_axes<'w>(
             (Some((axis, sign)), _) => {
                 p += e.tr_mul(&x_tree.trans);
                 let a = if unrotated {
-                    e.row(axis).transpose() * sign
+                    row_of(&e, axis) * sign
                 } else {
-                    (x_tree.rot.row(axis) * e).transpose() * sign
+                    e.tr_mul(&row_of(&x_tree.rot, axis)) * sign
                 };
                 out.put(v, 1.0, (p.cross(&a), a));
                 if k < turns {
@@ -221,6 +221,17 @@ fn world_columns_along_axes<'w>(
         }
     }
     out
+}
+
+/// Row `k` of `e` as a vector, one arm per row, so that an `e` held in registers is not
+/// stored to be indexed.
+#[inline(always)]
+fn row_of(e: &Matrix3, k: usize) -> Vector3 {
+    match k {
+        0 => e.row(0).transpose(),
+        1 => e.row(1).transpose(),
+        _ => e.row(2).transpose(),
+    }
 }
 
 /// Every joint's motion subspace in world axes at `q`, from which [`JointJacobians`] assembles
