@@ -323,12 +323,12 @@ impl Supports {
         let mut axes: Vec<bool> = Vec::with_capacity(model.nbodies());
         for (i, body) in model.bodies.iter().enumerate() {
             let kind = body.joint.kind;
-            let along_axis = match kind {
+            let turn_or_slide = match kind {
                 JointKind::Floating => body.parent.is_none(),
-                JointKind::Prismatic { .. } => kind.subspace_axes()[0].is_some(),
+                JointKind::Prismatic { .. } => true,
                 _ => kind.turn_axis().is_some(),
             };
-            let own = along_axis && !body.joint.is_mimic();
+            let own = turn_or_slide && !body.joint.is_mimic();
             axes.push(own && body.parent.is_none_or(|p| axes[p]));
             if let Some(p) = body.parent {
                 list.extend_from_within(start[p]..start[p + 1]);
@@ -344,9 +344,9 @@ impl Supports {
         &self.list[self.start[i]..self.start[i + 1]]
     }
 
-    /// Whether every joint of body `i`'s support turns about or slides along a coordinate axis
-    /// (none a mimic follower), but for a floating root.
-    pub fn along_axes(&self, i: usize) -> bool {
+    /// Whether every joint of body `i`'s support turns about a coordinate axis or slides (none
+    /// a mimic follower), but for a floating root.
+    pub fn turns_and_slides(&self, i: usize) -> bool {
         self.axes[i]
     }
 }
@@ -383,11 +383,11 @@ mod tests {
         }
     }
 
-    /// A support runs along coordinate axes until the first joint that does not turn about or
-    /// slide along one (a revolute about (0.6, 0.8, 0), a planar root) or is a mimic follower;
-    /// a floating root starts one.
+    /// A support is of turns and slides down to the first joint that neither slides nor turns
+    /// about a coordinate axis (a revolute about (0.6, 0.8, 0), a planar root) or is a mimic
+    /// follower; a floating root may start one.
     #[test]
-    fn supports_run_along_axes_down_to_the_first_other_joint() {
+    fn supports_are_of_turns_and_slides_down_to_the_first_other_joint() {
         let cases = [
             (include_str!("../../tests/models/quarter_turns.urdf"), true),
             (include_str!("../../tests/models/tree.urdf"), false),
@@ -405,7 +405,7 @@ mod tests {
                 let mut path = std::iter::successors(Some(i), |&b| model.bodies[b].parent);
                 let want = !path.any(other);
                 let name = &body.joint.name;
-                assert_eq!(supports.along_axes(i), want, "{}: {name}", model.name);
+                assert_eq!(supports.turns_and_slides(i), want, "{}: {name}", model.name);
             }
         }
     }

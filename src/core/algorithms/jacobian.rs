@@ -76,13 +76,13 @@ pub fn frame_jacobian<'w>(
     frame: &Frame,
     reference: ReferenceFrame,
 ) -> Result<&'w DMatrix<f64>, DynamicsError> {
-    let along_axes = frame.body.filter(|&b| ws.plan.supports.along_axes(b));
+    let turns_and_slides = frame.body.filter(|&b| ws.plan.supports.turns_and_slides(b));
     // One loop per reference, each compiled with its own map. The world columns read of the
     // frame's body only its joint axis and origin (`Placing::UpToLastTurn`).
-    match (reference, along_axes) {
+    match (reference, turns_and_slides) {
         (ReferenceFrame::World, Some(b)) => {
             let turns = support_turns(model, ws, q, b, Placing::UpToLastTurn)?;
-            world_columns_along_axes(model, ws, q, b, turns).finish(model, frame)
+            world_columns_of_turns_and_slides(model, ws, q, b, turns).finish(model, frame)
         }
         (ReferenceFrame::World, None) => {
             place_support(model, ws, q, frame.body, Placing::UpToLastTurn)?;
@@ -136,25 +136,25 @@ fn support_columns(
     out.finish(model, frame)
 }
 
-/// The `world` columns of the joints supporting body `last` when each of them turns about or
-/// slides along a coordinate axis, under a floating root or the world
-/// ([`Supports::along_axes`](crate::plan::Supports::along_axes)), with the sines and cosines of
-/// the first `turns` turns in the scratch ([`support_turns`]).
+/// The `world` columns of the joints supporting body `last` when each of them turns about a
+/// coordinate axis or slides, under a floating root or the world
+/// ([`Supports::turns_and_slides`](crate::plan::Supports::turns_and_slides)), with the sines
+/// and cosines of the first `turns` turns in the scratch ([`support_turns`]).
 ///
 /// Down the support, each body's placement `(E_i, p_i)` is made from its parent's, carried in
 /// registers rather than stored and read back. A turn `E_J` about `e_k` leaves row `k` of
 /// what it turns, so a turning body's column, the axis `a = σ row_k(E_i)` through `p_i` (linear
-/// part `p_i × a`), is read at its joint, before its own turn; a slide by `d` along `σ e_k`
-/// moves the body along `l = E_iᵀ σ e_k` (its column `(l, 0)`):
+/// part `p_i × a`), is read at its joint, before its own turn; a slide by `d` along `u` (joint
+/// axes) moves the body along `l = E_iᵀ u` (its column `(l, 0)`):
 ///
 /// ```text
 /// turn:   p_i = p_λ + E_λᵀ r_tree          a = σ row_k(E_tree E_λ)    E_i = (E_J E_tree) E_λ
-/// slide:  p_i = p_λ + E_λᵀ (r_tree + E_treeᵀ σ d e_k)                  E_i = E_tree E_λ
+/// slide:  p_i = p_λ + E_λᵀ (r_tree + E_treeᵀ u d)                     E_i = E_tree E_λ
 /// ```
 ///
 /// (`E_tree = 1` for a placement without rotation). The frame's body's own turn is not made:
 /// nothing reads it.
-fn world_columns_along_axes<'w>(
+fn world_columns_of_turns_and_slides<'w>(
     model: &Model,
     ws: &'w mut Workspace,
     q: &[f64],
