@@ -425,6 +425,36 @@ fn bench_prints_the_json_contract() {
     assert_eq!(timed, ["center_of_mass", "rnea"], "{out}");
     let (ok, _, err) = only("rnea,nope");
     assert!(!ok && err.contains("unknown kernel 'nope'"), "{err}");
+    // A massless floating root: no forward dynamics, so no method for `auto`, but the
+    // kinematics are timed all the same.
+    let args = [
+        "bench",
+        "--builtin",
+        "pendulum:2",
+        "--floating-base",
+        "--json",
+    ];
+    let settings = [
+        "--kernels",
+        "frame_jacobian",
+        "--states",
+        "10",
+        "--repeats",
+        "1",
+    ];
+    let (ok, out, err) = run(
+        &[&args[..], &settings, &["--min-time", "0.001"]].concat(),
+        "",
+    );
+    assert!(ok, "{err}");
+    let v: Value = serde_json::from_str(out.trim()).unwrap();
+    assert!(
+        v["ns_per_call"]["frame_jacobian"].as_f64().is_some(),
+        "{out}"
+    );
+    assert!(v["auto_method"].is_null(), "{out}");
+    let reason = v["auto_method_error"].as_str().unwrap_or_default();
+    assert!(reason.contains("singular"), "{out}");
 }
 
 /// The frame requests' contract: shapes, the rotation printed by rows (link axes in world

@@ -41,7 +41,7 @@ enum Command {
     Bench {
         #[command(flatten)]
         model: ModelArgs,
-        /// Print JSON: {"nv", "ns_per_call": {KERNEL: ns}, "flops_per_call", "gflops", "auto_method", "frame"}; the kernels are rnea, crba, fd_aba, fd_crba, fd_rnea_columns, gravity, frame_jacobian and center_of_mass.
+        /// Print JSON: {"nv", "ns_per_call": {KERNEL: ns}, "flops_per_call", "gflops", "auto_method" (null, with "auto_method_error", when forward dynamics has no answer), "frame"}; the kernels are rnea, crba, fd_aba, fd_crba, fd_rnea_columns, gravity, frame_jacobian and center_of_mass.
         #[arg(long)]
         json: bool,
         /// Time only these kernels, comma-separated (default: all of them).
