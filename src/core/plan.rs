@@ -312,7 +312,7 @@ fn turning_bodies(model: &Model) -> std::ops::Range<usize> {
 pub struct Supports {
     list: Vec<usize>,
     start: Vec<usize>,
-    axes: Vec<bool>,
+    turns_and_slides: Vec<bool>,
 }
 
 impl Supports {
@@ -320,7 +320,7 @@ impl Supports {
     pub fn new(model: &Model) -> Self {
         let mut list = Vec::new();
         let mut start = vec![0];
-        let mut axes: Vec<bool> = Vec::with_capacity(model.nbodies());
+        let mut turns_and_slides: Vec<bool> = Vec::with_capacity(model.nbodies());
         for (i, body) in model.bodies.iter().enumerate() {
             let kind = body.joint.kind;
             let turn_or_slide = match kind {
@@ -329,14 +329,19 @@ impl Supports {
                 _ => kind.turn_axis().is_some(),
             };
             let own = turn_or_slide && !body.joint.is_mimic();
-            axes.push(own && body.parent.is_none_or(|p| axes[p]));
+            let above = body.parent.is_none_or(|p| turns_and_slides[p]);
+            turns_and_slides.push(own && above);
             if let Some(p) = body.parent {
                 list.extend_from_within(start[p]..start[p + 1]);
             }
             list.push(i);
             start.push(list.len());
         }
-        Supports { list, start, axes }
+        Supports {
+            list,
+            start,
+            turns_and_slides,
+        }
     }
 
     /// The support of body `i`, root first, ending with `i`.
@@ -347,7 +352,7 @@ impl Supports {
     /// Whether every joint of body `i`'s support turns about a coordinate axis or slides (none
     /// a mimic follower), but for a floating root.
     pub fn turns_and_slides(&self, i: usize) -> bool {
-        self.axes[i]
+        self.turns_and_slides[i]
     }
 }
 

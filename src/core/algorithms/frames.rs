@@ -90,7 +90,8 @@ pub struct FrameScratch {
     pub(crate) sines: Vec<f64>,
     pub(crate) cosines: Vec<f64>,
     /// `ⁱX_0` (world → body) of the bodies placed by the last frame call (the `world` Jacobian
-    /// along turns carries them in registers and leaves these as they were).
+    /// of a support of turns and slides carries them in registers and leaves these as they
+    /// were).
     pub(crate) x_world: Vec<Transform>,
     /// Each joint's motion subspace in world axes at its body's origin, `R_i S_i` with
     /// `R_i = ⁱX_0.rotᵀ` (both halves of each column rotated, no change of point), from
