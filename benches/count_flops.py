@@ -49,7 +49,7 @@ SCALAR_FLAGS = "-C llvm-args=-vectorize-slp=false -C llvm-args=-vectorize-loops=
 KERNELS = ["rnea", "crba", "fd_aba", "fd_crba", "fd_rnea_columns", "gravity"]
 # A fixed-base arm, the same floating, a branching tree with every joint kind (planar base,
 # off-axis revolute, prismatic), a 12-link chain, a gripper with mimic joints.
-MODELS = ["arm", "arm+floating", "tests/models/tree.urdf", "pendulum12", "gripper"]
+MODELS = ["arm", "arm+floating", "src/core/tests/models/tree.urdf", "pendulum12", "gripper"]
 CATEGORIES = ("mul", "add", "div", "sqrt")
 # The building blocks the table prices (benches/flop_harness.rs `op:NAME`), each measured alone.
 OPS = ["cross3", "mat3_vec3", "mat3_tr_vec3", "apply_motion", "apply_force",

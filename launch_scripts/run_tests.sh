@@ -29,7 +29,7 @@ if [[ "${SD_FUZZ_SECONDS:-60}" != "0" ]]; then
         mkdir -p "$fuzz_corpus/$target"
         cp tests/fuzz/corpus/"$target"/* "$fuzz_corpus/$target/"
     done
-    cp config/models/*.urdf tests/models/*.urdf "$fuzz_corpus/urdf_model/"
+    cp config/models/*.urdf src/core/tests/models/*.urdf "$fuzz_corpus/urdf_model/"
     cargo fuzz build --fuzz-dir tests/fuzz -s none
     for target in urdf_model eval_request node_engine bag_readers; do
         if ! cargo fuzz run --fuzz-dir tests/fuzz -s none "$target" "$fuzz_corpus/$target" -- \

@@ -137,7 +137,7 @@ fn quick_charts_are_well_formed_and_complete() {
         .arg(&out)
         .args([
             "--robot",
-            "tree=tests/models/tree.urdf",
+            "tree=src/core/tests/models/tree.urdf",
             "--robot",
             "arm=config/models/default_arm.urdf,floating",
             "--pinocchio-bench",

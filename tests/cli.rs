@@ -1,6 +1,6 @@
 //! The command-line contract: `model --json` and the `eval` request loop, run as a process.
 
-mod common;
+use spatial_dynamics_core::sampling::Rng;
 
 use serde_json::Value;
 use spatial_dynamics_core::algorithms::rnea;
@@ -8,7 +8,7 @@ use spatial_dynamics_core::{urdf, ModelOptions, Workspace};
 use std::io::Write;
 use std::process::{Command, Stdio};
 
-const TREE: &str = "tests/models/tree.urdf";
+const TREE: &str = "src/core/tests/models/tree.urdf";
 
 fn run(args: &[&str], stdin: &str) -> (bool, String, String) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_spatial_dynamics"))
@@ -111,7 +111,7 @@ fn eval_floats_round_trip_exactly() {
     let model =
         urdf::model_from_file(std::path::Path::new(TREE), &ModelOptions::default()).unwrap();
     let mut ws = Workspace::new(&model);
-    let mut rng = common::Rng::new(30);
+    let mut rng = Rng::new(30);
     let (q, v, a) = (rng.vector(8, 1.0), rng.vector(8, 1.0), rng.vector(8, 1.0));
     let expected = rnea(&model, &mut ws, &q, &v, &a).unwrap().to_vec();
     let request = serde_json::json!({"op": "inverse_dynamics", "q": q, "v": v, "a": a}).to_string();

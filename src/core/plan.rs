@@ -375,7 +375,7 @@ mod tests {
     #[test]
     fn supports_are_the_paths_from_the_roots() {
         for model in [
-            load(include_str!("../../tests/models/tree.urdf"), false),
+            load(include_str!("tests/models/tree.urdf"), false),
             load(examples::DEFAULT_ARM_URDF, true),
         ] {
             let supports = Supports::new(&model);
@@ -394,8 +394,8 @@ mod tests {
     #[test]
     fn supports_are_of_turns_and_slides_down_to_the_first_other_joint() {
         let cases = [
-            (include_str!("../../tests/models/quarter_turns.urdf"), true),
-            (include_str!("../../tests/models/tree.urdf"), false),
+            (include_str!("tests/models/quarter_turns.urdf"), true),
+            (include_str!("tests/models/tree.urdf"), false),
             (examples::MIMIC_GRIPPER_URDF, false),
         ];
         for (text, floating_base) in cases {

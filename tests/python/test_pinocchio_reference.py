@@ -156,7 +156,7 @@ _SOLO12 = ("solo_description/robots/solo12.urdf",)
 _ANYMAL = ("anymal_b_simple_description/robots/anymal.urdf", "anymal_description/robots/anymal.urdf")
 _KINOVA = ("kinova_description/robots/kinova.urdf",)
 # Ours: joints placed by quarter turns, whose bodies our model turns (src/core/model/orientation.rs).
-_QUARTER_TURNS = (str(REPO / "tests" / "models" / "quarter_turns.urdf"),)
+_QUARTER_TURNS = (str(REPO / "src" / "core" / "tests" / "models" / "quarter_turns.urdf"),)
 
 CASES = (
     Case("ur5", _UR5),

@@ -22,8 +22,8 @@
 //! runs while it calls a kernel, and `objdump` says which are floating-point arithmetic. Built
 //! without LLVM's vectorisers (`--scalar`, one operation per instruction), the count executed
 //! is this table's for every building block below and every kernel on the default arm (fixed
-//! and floating), a 12-link chain, `tests/models/tree.urdf` and the mimic gripper, but for
-//! `fd_crba` on `tree.urdf` and `tests/models/quarter_turns.urdf`, a few additions apart. The
+//! and floating), a 12-link chain, `src/core/tests/models/tree.urdf` and the mimic gripper, but for
+//! `fd_crba` on `tree.urdf` and `src/core/tests/models/quarter_turns.urdf`, a few additions apart. The
 //! release build executes more, since its packed instructions compute lanes nobody needs
 //! (`docs/performance.md` lists how much more per kernel).
 //!

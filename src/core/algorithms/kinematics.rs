@@ -386,7 +386,7 @@ mod tests {
     fn cheaper_transform_forms_match_the_general_transform() {
         let options = ModelOptions::default();
         let models = [
-            include_str!("../../../tests/models/turn_slide.urdf").to_string(),
+            include_str!("../tests/models/turn_slide.urdf").to_string(),
             // Axes x, −z, y, y, y.
             pendulum_urdf(5, 0.5, 0.7)
                 .replacen(r#"<axis xyz="0 1 0"/>"#, r#"<axis xyz="1 0 0"/>"#, 1)

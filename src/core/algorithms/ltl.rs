@@ -131,7 +131,7 @@ mod tests {
     /// On a branched model, `Lᵀ L` rebuilds `H` and the solve inverts it.
     #[test]
     fn factor_rebuilds_h_and_solve_inverts_it() {
-        let text = include_str!("../../../tests/models/tree.urdf");
+        let text = include_str!("../tests/models/tree.urdf");
         for model in [
             urdf::model_from_str(text, &ModelOptions::default()).unwrap(),
             urdf::model_from_str(examples::DEFAULT_ARM_URDF, &ModelOptions::default()).unwrap(),

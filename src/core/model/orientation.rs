@@ -189,7 +189,7 @@ mod tests {
     use crate::urdf::builder_from_str;
     use crate::{ModelOptions, Workspace};
 
-    const URDF: &str = include_str!("../../../tests/models/quarter_turns.urdf");
+    const URDF: &str = include_str!("../tests/models/quarter_turns.urdf");
 
     /// Turned body frames change nothing a user names: every link's world placement and `τ`
     /// equal those of the model in link frames, and each quarter-turn placement of a joint along

@@ -6,8 +6,8 @@ use crate::model::examples::{self, pendulum_urdf};
 use crate::sampling::{random_q, Rng};
 use crate::{urdf, ModelOptions};
 
-const TREE: &str = include_str!("../../../../tests/models/tree.urdf");
-const TURN_SLIDE: &str = include_str!("../../../../tests/models/turn_slide.urdf");
+const TREE: &str = include_str!("../../tests/models/tree.urdf");
+const TURN_SLIDE: &str = include_str!("../../tests/models/turn_slide.urdf");
 
 fn load(text: &str, floating_base: bool) -> Model {
     let options = ModelOptions {
