@@ -1,6 +1,7 @@
 //! The documentation against the repository: docs/tests.md names every test file (and only files
-//! that exist), the README's box diagrams keep their right border, and the README states the
-//! `rust-version` of both manifests. (The README's and docs/library.md's Rust examples are
+//! that exist), the README's box diagrams keep their right border, the README states the
+//! `rust-version` of both manifests, and every relative link of the Markdown files reaches a file
+//! and, with `#anchor`, one of its headings. (The README's and docs/library.md's Rust examples are
 //! compiled as doctests of `spatial_dynamics_core`.)
 
 use std::fs;
@@ -169,4 +170,82 @@ fn readme_states_the_manifests_rust_versions() {
         let found = readme.replace('\n', " ").contains(&line);
         assert!(found, "README.md does not say \"{line}\"");
     }
+}
+
+/// The Markdown files a user reads.
+fn markdown_files() -> Vec<String> {
+    let mut files = vec![
+        "README.md".to_string(),
+        "config/models/README.md".to_string(),
+    ];
+    for entry in fs::read_dir(repo().join("docs")).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+        if name.ends_with(".md") {
+            files.push(format!("docs/{name}"));
+        }
+    }
+    files
+}
+
+/// GitHub's anchor of a heading: lower case, punctuation dropped, spaces turned into `-`.
+fn anchor(heading: &str) -> String {
+    heading
+        .trim()
+        .to_lowercase()
+        .chars()
+        .filter(|c| c.is_alphanumeric() || matches!(c, '-' | '_' | ' '))
+        .map(|c| if c == ' ' { '-' } else { c })
+        .collect()
+}
+
+/// The anchors of a Markdown file's headings (outside fenced blocks).
+fn anchors(text: &str) -> Vec<String> {
+    let mut fenced = false;
+    let mut out = Vec::new();
+    for line in text.lines() {
+        if line.starts_with("```") {
+            fenced = !fenced;
+        } else if !fenced && line.starts_with('#') {
+            out.push(anchor(line.trim_start_matches('#')));
+        }
+    }
+    out
+}
+
+/// The targets of a Markdown text's inline links, `[text](target)`.
+fn link_targets(text: &str) -> Vec<&str> {
+    text.split("](")
+        .skip(1)
+        .filter_map(|rest| rest.split_once(')').map(|(target, _)| target))
+        .collect()
+}
+
+#[test]
+fn relative_links_in_the_docs_resolve() {
+    let mut broken = Vec::new();
+    for file in markdown_files() {
+        let text = read(&file);
+        let dir = Path::new(&file).parent().unwrap();
+        for target in link_targets(&text) {
+            if target.contains("://") || target.starts_with("mailto:") {
+                continue;
+            }
+            let (path, fragment) = target.split_once('#').unwrap_or((target, ""));
+            let linked = if path.is_empty() {
+                PathBuf::from(&file)
+            } else {
+                dir.join(path)
+            };
+            let full = repo().join(&linked);
+            if !full.exists() {
+                broken.push(format!("{file}: {target} (no such file)"));
+            } else if !fragment.is_empty() && linked.extension().is_some_and(|e| e == "md") {
+                let headings = anchors(&fs::read_to_string(&full).unwrap());
+                if !headings.iter().any(|a| a == fragment) {
+                    broken.push(format!("{file}: {target} (no such heading)"));
+                }
+            }
+        }
+    }
+    assert!(broken.is_empty(), "broken links: {broken:#?}");
 }
