@@ -621,10 +621,9 @@ async fn serve(
         engine.names().len(),
         engine.model.nv,
         engine.method,
-        engine
-            .method_choice
-            .as_ref()
-            .map_or(String::new(), |c| format!(" ({c})"))
+        engine.method_choice.as_ref().map_or(String::new(), |c| format!(
+            ", chosen by FLOP count among the methods agreeing with aba; timings for information only ({c})"
+        ))
     );
 
     let js_stream = js_sub.async_stream();

@@ -101,8 +101,10 @@ pub struct FrameScratch {
     /// body coordinates ([`frame_acceleration`](super::frame_acceleration)).
     pub(crate) v: Vec<Motion>,
     pub(crate) a: Vec<Motion>,
-    /// Mass and first moment `Σ m_j c_j` (world coordinates, about the world origin) of each
-    /// body's subtree ([`center_of_mass`](super::center_of_mass)).
+    /// Mass `m_i` and first moment `d_i = Σ_j m_j (c_j − p_i)` of each body `i`'s subtree
+    /// (bodies `j`, centres of mass `c_j`): about body `i`'s own origin `p_i`, in world axes, so
+    /// that a robot far from the world origin keeps its digits
+    /// ([`center_of_mass`](super::center_of_mass)).
     pub(crate) subtree_mass: Vec<f64>,
     pub(crate) subtree_moment: Vec<Vector3>,
     /// A frame Jacobian, `6 × nv`, rows `[linear; angular]`.

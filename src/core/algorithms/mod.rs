@@ -1,23 +1,25 @@
-//! The dynamics algorithms, one file each, all of the form `f(model, workspace, inputs…)`.
+//! The dynamics algorithms, all of the form `f(model, workspace, inputs…)`: a file each, and
+//! CRBA a folder (its passes, the rows they write and the tiled mirror of `H`).
 //!
-//! | file | computes |
+//! | module | computes |
 //! |---|---|
 //! | [`rnea`](mod@rnea) | inverse dynamics `τ = H(q) q̈ + C(q, q̇)` (recursive Newton–Euler) |
 //! | [`bias`](mod@bias) | `C(q, q̇)`: gravity, Coriolis and centrifugal terms, external forces |
 //! | [`gravity`](mod@gravity) | `g(q)`: the gravity part of `C` |
 //! | [`crba`](mod@crba) | `H(q)` (composite rigid-body algorithm) |
 //! | [`aba`](mod@aba) | forward dynamics in O(n) (articulated-body algorithm) |
-//! | [`rnea_columns`] | forward dynamics from n+1 inverse-dynamics calls (the handout's method) |
+//! | [`rnea_columns`] | forward dynamics from n+1 inverse-dynamics calls (the handout's §2) |
 //! | [`forward_dynamics`](mod@forward_dynamics) | forward dynamics by a chosen [`ForwardDynamicsMethod`] |
-//! | [`method_choice`] | the fastest forward-dynamics method accurate enough for a model, measured |
+//! | [`method_choice`] | `method: auto`: of the methods whose `q̈` agrees with `aba`'s on sampled states, the one with the fewest FLOPs per call on this model (a count, not a timing) |
 //! | [`joint_state_outputs`](mod@joint_state_outputs) | `g(q)`, `FD(q, q̇, τ)` and `RNEA(q, q̇, q̈)` at one state, sharing the kinematics |
 //! | [`energy`](mod@energy) | kinetic and potential energy |
+//! | [`kinematics`] | joint transforms, body placements and velocities: the passes the others share |
 //! | [`frames`] | link frames ([`find_frame`]) and their placement in the world |
 //! | [`jacobian`] | frame Jacobians in three references, one frame or many ([`joint_jacobians`]) |
 //! | [`frame_acceleration`] | a link frame's classical acceleration |
 //! | [`center_of_mass`](mod@center_of_mass) | centre of mass, total mass and the centre-of-mass Jacobian |
 //! | [`ltl`], [`cholesky`] | the factorisations that solve `H q̈ = τ − C` |
-//! | [`flops`] | how many floating-point operations each of them performs on a model |
+//! | [`flops`], [`flop_table`] | how many floating-point operations each of them performs on a model |
 
 // The algorithms index per-coordinate arrays the way the equations do.
 #![allow(clippy::needless_range_loop)]

@@ -296,7 +296,10 @@ impl Model {
             .map_or(0, |j| j.nv)
     }
 
-    /// Index of the body made from link `name`, or of the body it is fused into.
+    /// The [`LinkFrame`] of URDF link `name`: the body carrying it (the body made from it, the
+    /// one it is fused, locked or lumped into, or `None` when it is fixed to the world) and
+    /// `x_body_link`, the transform from that body's frame to the link's. `None` when the model
+    /// has no such link (not in the description, or below a pruned massless joint).
     pub fn link(&self, name: &str) -> Option<&LinkFrame> {
         self.links.iter().find(|l| l.name == name)
     }
