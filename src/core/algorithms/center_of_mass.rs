@@ -19,9 +19,9 @@
 //! `Σ (m_i l + a × d_i) / M` over the joints with that coordinate (a mimic follower's scaled by
 //! its multiplier).
 
-use super::frames::{all_finite, place_all};
+use super::frames::place_all;
 use super::jacobian::world_axes;
-use super::validate::check_q;
+use super::validate::{all_finite, check_q};
 use crate::error::DynamicsError;
 use crate::model::Model;
 use crate::spatial::Vector3;

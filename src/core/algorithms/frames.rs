@@ -21,7 +21,7 @@
 //! workspace's [`FrameScratch`].
 
 use super::kinematics::{below_parent, read_joint, update_joints, update_up, with_up_transform};
-use super::validate::{check_len, check_q_of};
+use super::validate::{all_finite, check_len, check_q_of};
 use crate::error::DynamicsError;
 use crate::model::{
     floating_up, turn_up, turn_up_unrotated, Body, JointKind, Model, MotionSubspace, UpShape,
@@ -354,20 +354,4 @@ pub(crate) fn check_finite(
             coordinate: model.links[frame.link].name.clone(),
         })
     }
-}
-
-/// True when every value is finite, without a branch per value: `x · 0` is zero for a finite
-/// `x` and NaN otherwise, summed in four independent lanes (which vectorise).
-pub(crate) fn all_finite(values: &[f64]) -> bool {
-    let mut lanes = [0.0f64; 4];
-    let chunks = values.chunks_exact(4);
-    for (k, x) in chunks.remainder().iter().enumerate() {
-        lanes[k] += x * 0.0;
-    }
-    for chunk in chunks {
-        for k in 0..4 {
-            lanes[k] += chunk[k] * 0.0;
-        }
-    }
-    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) == 0.0
 }
