@@ -316,7 +316,7 @@ pub(crate) fn place_all(model: &Model, ws: &mut Workspace, q: &[f64]) {
 /// `ws.x_world[i] = ⁱX_λ ᵏX_0` (`ⁱX_λ` for a root), the parent already placed; written in
 /// place by each form of `ⁱX_λ`, without the copy a returned product needs: a frame's support
 /// is a short path, whose time goes by the instructions rather than by the chain's latency
-/// ([`below_parent`](super::kinematics::below_parent) weighs the other way, for whole trees).
+/// (`kinematics::placements::below_parent` weighs the other way, for whole trees).
 #[inline(always)]
 fn place_body(model: &Model, ws: &mut Workspace, i: usize) {
     let (above, from_i) = ws.x_world.split_at_mut(i);
