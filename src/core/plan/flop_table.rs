@@ -2,8 +2,8 @@
 //! [`Plan`] its calls follow: the sum of its passes' costs from [`flops`](super::flops).
 
 use super::flops::*;
-use crate::model::Model;
 use super::{Ancestors, CrbaFrames, Plan};
+use crate::model::Model;
 
 /// The count of kernel `name` (as `spatial_dynamics bench` names them: `rnea`, `crba`,
 /// `fd_aba`, `fd_crba`, `fd_rnea_columns`, `gravity`) on `model` as `plan` runs it; `None` for another name, or

@@ -429,7 +429,11 @@ fn world_to_body_is_the_last_placement_of_each_body() {
             let Some(body) = link.body else { continue };
             center_of_mass(model, ws, q0).unwrap();
             for (i, x) in at_q0.iter().enumerate() {
-                assert_eq!(ws.world_to_body(i), *x, "{name}: body {i} after the centre of mass");
+                assert_eq!(
+                    ws.world_to_body(i),
+                    *x,
+                    "{name}: body {i} after the centre of mass"
+                );
             }
             let frame = find_frame(model, &link.name).unwrap();
             let x_link = frame_placement(model, ws, &q1, &frame).unwrap();
@@ -441,8 +445,13 @@ fn world_to_body_is_the_last_placement_of_each_body() {
                 next = model.bodies[i].parent;
             }
             for i in 0..model.nbodies() {
-                let (got, want) = (ws.world_to_body(i), if support[i] { at_q1[i] } else { at_q0[i] });
-                let error = (got.rot - want.rot).amax().max((got.trans - want.trans).amax());
+                let (got, want) = (
+                    ws.world_to_body(i),
+                    if support[i] { at_q1[i] } else { at_q0[i] },
+                );
+                let error = (got.rot - want.rot)
+                    .amax()
+                    .max((got.trans - want.trans).amax());
                 let scale = 1.0 + want.trans.amax();
                 assert!(
                     error <= 1e-14 * scale,
