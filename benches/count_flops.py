@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Counts the floating-point operations each kernel executes, independently of the table in
-src/core/algorithms/flops.rs, and prints table against measurement.
+src/core/plan/flops.rs, and prints table against measurement.
 
 Method: `benches/flop_harness.rs` calls one kernel CALLS times; valgrind's callgrind
 (`--dump-instr=yes`) gives how often every machine instruction ran; `objdump -d` says what

@@ -14,12 +14,13 @@
 //! product, 27 m + 18 a). Everything but the calls (model loading, the 8 random states) is the
 //! same whatever `CALLS` is, so the difference of two runs' counts divided by the difference of
 //! `CALLS` is the count of one call. The kernel's own count from the table
-//! (`algorithms::flops::kernel_flops`) is printed as JSON, so the script needs no other binary.
+//! (`plan::flop_table::kernel_flops`) is printed as JSON, so the script needs no other binary.
 
 use nalgebra::{Matrix3, Rotation3, Vector6};
 use spatial_dynamics_core::algorithms::cholesky::spd_inverse;
-use spatial_dynamics_core::algorithms::{crba, flop_table, flops, forward_dynamics, gravity, rnea};
+use spatial_dynamics_core::algorithms::{crba, forward_dynamics, gravity, rnea};
 use spatial_dynamics_core::model::{examples, JointKind, MotionSubspace};
+use spatial_dynamics_core::plan::{flop_table, flops};
 use spatial_dynamics_core::sampling::{random_q, Rng};
 use spatial_dynamics_core::spatial::{
     AxisTransform, Force, Inertia, Matrix6, Motion, Transform, Translation, Vector3,

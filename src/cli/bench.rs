@@ -14,9 +14,10 @@ use clap::Args;
 use serde_json::{json, Map, Value};
 use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics_core::algorithms::{
-    center_of_mass_jacobian, choose_method, crba, find_frame, flop_table, forward_dynamics,
-    frame_jacobian, gravity, rnea, ReferenceFrame,
+    center_of_mass_jacobian, choose_method, crba, find_frame, forward_dynamics, frame_jacobian,
+    gravity, rnea, ReferenceFrame,
 };
+use spatial_dynamics_core::plan::flop_table;
 use spatial_dynamics_core::sampling::{random_q, Rng};
 use spatial_dynamics_core::{
     DynamicsError, Externals, ForwardDynamicsMethod, Model, Plan, Workspace,

@@ -23,7 +23,10 @@ pub struct Workspace {
     pub(crate) turn_cosines: Vec<f64>,
     /// `ⁱX_λ(i) = X_J(q_i) X_tree,i`: parent body frame → body frame.
     pub(crate) x_up: Vec<Transform>,
-    /// `ⁱX_0`: world frame → body frame, from [`body_placements`](crate::algorithms::kinematics::body_placements).
+    /// `ⁱX_0`: world frame → body frame, from
+    /// [`body_placements`](crate::algorithms::kinematics::body_placements) and the frame
+    /// algorithms (those of a frame's support only, see
+    /// [`FrameScratch`](crate::algorithms::frames::FrameScratch)).
     pub(crate) x_world: Vec<Transform>,
     /// `ⁱX_A`: body `i`'s aligned frame (world axes, origin at an anchor body's origin) → body
     /// frame: the frame of every quantity below said to be in world coordinates (see
@@ -172,10 +175,14 @@ impl Workspace {
         self.f[i]
     }
 
-    /// `ⁱX_0` of body `i` (world → body) from the last
+    /// `ⁱX_0` of body `i` (world → body) from the last call that placed it:
     /// [`body_placements`](crate::algorithms::kinematics::body_placements),
-    /// [`body_motion`](crate::algorithms::kinematics::body_motion) or
-    /// [`energy`](crate::algorithms::energy()) call.
+    /// [`body_motion`](crate::algorithms::kinematics::body_motion),
+    /// [`energy`](crate::algorithms::energy()),
+    /// [`joint_jacobians`](crate::algorithms::joint_jacobians) and
+    /// [`center_of_mass`](crate::algorithms::center_of_mass()) place every body; a frame's
+    /// placement, Jacobian or acceleration only the bodies supporting the frame (a `world`
+    /// Jacobian along turns and slides none).
     pub fn world_to_body(&self, i: usize) -> Transform {
         self.x_world[i]
     }

@@ -1,4 +1,4 @@
-"""The FLOP table (src/core/algorithms/flops.rs) against the operations the compiled code executes,
+"""The FLOP table (src/core/plan/flops.rs) against the operations the compiled code executes,
 counted by valgrind (benches/count_flops.py: callgrind's per-instruction execution counts,
 objdump's decoding). Needs valgrind and objdump, and the release harness
 target/release/examples/flop_harness (`cargo test --release` builds it; built here if absent).

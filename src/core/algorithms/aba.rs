@@ -55,6 +55,7 @@ pub fn aba<'w>(
 ) -> Result<&'w [f64], DynamicsError> {
     refuse_mimic(model)?;
     check_forward_inputs(model, q, v, tau, ext)?;
+    // [X_J, S_i] = jcalc(jtype(i), q_i),  ⁱX_λ(i) = X_J X_T(i)   (RBDA Table 7.1, for every i)
     update_joints(model, ws, q);
     velocity_pass(model, ws, v, ext);
     articulated_pass(model, ws, tau)?;
@@ -81,10 +82,12 @@ pub(crate) fn refuse_mimic(model: &Model) -> Result<(), DynamicsError> {
 /// articulated quantities (joints already updated). A mimic follower moves with `μ q̇_leader`
 /// (a 1-DOF joint: its `c_J` is zero), so these quantities are right for mimic models too.
 pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
+    // ⁱX_0 = ⁱX_λ(i) λ(i)X_0   (RBDA Table 7.1), from each body's aligned frame
     update_aligned_placements(model, ws, Anchors::Spaced);
     for (i, body) in model.bodies.iter().enumerate() {
         let c = body.joint.coords;
         let rates = &v[c.v_index..c.v_index + ws.s[i].nv];
+        // v_J = S_i q̇_i   (RBDA Table 7.1's jcalc), with S_i ← ⁰X_i S_i in world coordinates
         let v_joint = update_world_axes(ws, i, rates, c.scale);
         let x = &ws.x_aligned[i];
         let v_parent = motion_into_aligned(
@@ -92,15 +95,21 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
             i,
             body.parent.map_or(ext.root_velocity, |p| ws.v_world[p]),
         );
+        // v_i = ⁱX_λ(i) v_λ(i) + v_J   (RBDA Table 7.1): in world coordinates ⁱX_λ(i) is the
+        // identity, xlt(r_i) where body i anchors a frame
         let v_i = v_parent + v_joint;
         let inertia = x.transpose_apply_inertia(&body.inertia);
         ws.v_world[i] = v_i;
+        // c_i = c_J + v_i × v_J   (RBDA Table 7.1), c_J carried into world coordinates
         ws.c[i] = v_i.cross_motion(&v_joint);
         let q_joint = &ws.q_joint[i][..body.joint.kind.nq()];
         if let Some(c_joint) = body.joint.kind.bias(q_joint, rates) {
             ws.c[i] += x.inverse_apply_motion(&c_joint);
         }
+        // I^A_i = I_i   (RBDA Table 7.1), in world coordinates
         ws.ia[i] = inertia.to_matrix();
+        // p^A_i = v_i ×* I_i v_i − ⁱX*_0 f^x_i   (RBDA Table 7.1): f^x_i is given in body i's
+        // frame, carried into world coordinates by ⁱX_0ᵀ
         ws.pa[i] = v_i.cross_force(&inertia.apply(&v_i));
         if let Some(w) = ext.wrenches {
             ws.pa[i] -= x.transpose_apply_force(&w[i]);
@@ -120,15 +129,17 @@ pub(crate) fn articulated_pass(
         let nv = s.nv;
         let c = body.joint.coords;
         let (u_cols, d_inv, u) = (&mut ws.u[i], &mut ws.d_inv[i], &mut ws.u_bias[i]);
-        // U = I^A S, D = Sᵀ U, u = τ − Sᵀ p^A (only D's top-left nv × nv block is used).
+        // Only D's top-left nv × nv block is used.
         let mut d = Matrix6::zeros();
         for k in 0..nv {
+            // U_i = I^A_i S_i   (RBDA Table 7.1)
             u_cols[k] = Force::from_vector(&(ws.ia[i] * s.cols[k].to_vector()));
         }
         for k in 0..nv {
             for k2 in 0..nv {
-                d[(k2, k)] = s.project(k2, &u_cols[k]);
+                d[(k2, k)] = s.project(k2, &u_cols[k]); // D_i = S_iᵀ U_i   (RBDA Table 7.1)
             }
+            // u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
             u[k] = tau[c.v_index + k] - s.project(k, &ws.pa[i]);
         }
         if !invert_spd(&d, nv, &ws.ia[i], d_inv) {
@@ -138,8 +149,8 @@ pub(crate) fn articulated_pass(
             });
         }
         if let Some(p) = body.parent {
-            // I^a = I^A − U D⁻¹ Uᵀ,  p^a = p^A + I^a c + U D⁻¹ u  (I^a and p^a overwrite I^A, p^A,
-            // which body i no longer needs).
+            // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA
+            // Table 7.1; I^a and p^a overwrite I^A_i, p^A_i, which body i no longer needs).
             for k in 0..nv {
                 let mut d_inv_u = 0.0;
                 let mut w = Force::zero();
@@ -153,7 +164,9 @@ pub(crate) fn articulated_pass(
             }
             let bias = Force::from_vector(&(ws.ia[i] * ws.c[i].to_vector()));
             ws.pa[i] += bias;
-            // Into the parent's frame (a translation when body i anchors its own).
+            // I^A_λ(i) = I^A_λ(i) + λ(i)X*_i I^a ⁱX_λ(i),  p^A_λ(i) = p^A_λ(i) + λ(i)X*_i p^a
+            // (RBDA Table 7.1): in world coordinates the transforms are the identity, xlt(r_i)
+            // where body i anchors its own frame.
             if ws.plan.anchors[i] {
                 ws.ia[i] = Translation(ws.anchor_shift[i]).transpose_apply_matrix6(&ws.ia[i]);
             }
@@ -169,12 +182,15 @@ pub(crate) fn articulated_pass(
 
 /// Pass 3: accelerations, from the root outward.
 pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
+    // a_0 = −a_g   (RBDA Table 7.1; plus the root's own acceleration)
     let a_root = ext.root_acceleration - Motion::new(nalgebra::Vector3::zeros(), model.gravity);
     for (i, body) in model.bodies.iter().enumerate() {
         let nv = ws.s_world[i].nv;
         let c = body.joint.coords;
         let a_parent = motion_into_aligned(ws, i, body.parent.map_or(a_root, |p| ws.a_world[p]));
+        // a' = ⁱX_λ(i) a_λ(i) + c_i   (RBDA Table 7.1; ⁱX_λ(i) as for v_i)
         let a_prime = a_parent + ws.c[i];
+        // q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),  a_i = a' + S_i q̈_i   (RBDA Table 7.1)
         let mut rhs = [0.0; 6];
         for k in 0..nv {
             rhs[k] = ws.u_bias[i][k] - a_prime.dot(&ws.u[i][k]);

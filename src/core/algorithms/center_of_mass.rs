@@ -19,9 +19,9 @@
 //! `Σ (m_i l + a × d_i) / M` over the joints with that coordinate (a mimic follower's scaled by
 //! its multiplier).
 
-use super::frames::{all_finite, place_all};
+use super::frames::place_all;
 use super::jacobian::world_axes;
-use super::validate::check_q;
+use super::validate::{all_finite, check_q};
 use crate::error::DynamicsError;
 use crate::model::Model;
 use crate::spatial::Vector3;
@@ -66,7 +66,7 @@ pub fn center_of_mass_jacobian<'w>(
         values.fill(0.0);
     }
     let inv_mass = 1.0 / com.mass;
-    let placed = model.bodies.iter().zip(&scratch.x_world).zip(&ws.s);
+    let placed = model.bodies.iter().zip(&ws.x_world).zip(&ws.s);
     let subtrees = scratch.subtree_mass.iter().zip(&scratch.subtree_moment);
     for (((body, x), s), ((&m, d), axes)) in placed.zip(subtrees.zip(&ws.plan.s_axes)) {
         let c = body.joint.coords;
@@ -103,7 +103,7 @@ fn subtree_moments(model: &Model, ws: &mut Workspace) {
         .subtree_mass
         .iter_mut()
         .zip(&mut scratch.subtree_moment);
-    for ((body, x), (m, d)) in model.bodies.iter().zip(&scratch.x_world).zip(sums) {
+    for ((body, x), (m, d)) in model.bodies.iter().zip(&ws.x_world).zip(sums) {
         *m = body.inertia.mass;
         *d = x.rot.tr_mul(&body.inertia.h);
     }
@@ -118,7 +118,7 @@ fn subtree_moments(model: &Model, ws: &mut Workspace) {
             (scratch.subtree_mass[i], scratch.subtree_moment[i]) = (m, d);
         }
         if let Some(p) = body.parent {
-            let shift = scratch.x_world[i].trans - scratch.x_world[p].trans;
+            let shift = ws.x_world[i].trans - ws.x_world[p].trans;
             let added = (m, d + shift * m);
             if p + 1 == i {
                 carried = Some(added);
@@ -135,7 +135,7 @@ fn total(model: &Model, ws: &Workspace) -> Result<CenterOfMass, DynamicsError> {
     let scratch = &ws.frame_scratch;
     let (mut mass, mut moment) = (0.0, Vector3::zeros());
     let sums = scratch.subtree_mass.iter().zip(&scratch.subtree_moment);
-    for ((body, x), (&m, d)) in model.bodies.iter().zip(&scratch.x_world).zip(sums) {
+    for ((body, x), (&m, d)) in model.bodies.iter().zip(&ws.x_world).zip(sums) {
         if body.parent.is_none() {
             mass += m;
             moment += x.trans * m + d;

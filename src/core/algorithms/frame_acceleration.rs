@@ -86,7 +86,7 @@ pub fn frame_classical_acceleration(
     let result = match reference {
         ReferenceFrame::Local => local,
         _ => {
-            let e = placement_of(&ws.frame_scratch, frame).rot;
+            let e = placement_of(&ws.x_world, frame).rot;
             Motion::new(e.tr_mul(&local.ang), e.tr_mul(&local.lin))
         }
     };

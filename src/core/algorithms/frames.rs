@@ -20,8 +20,10 @@
 //! [`center_of_mass`](mod@super::center_of_mass)) place every body. Their scratch is the
 //! workspace's [`FrameScratch`].
 
-use super::kinematics::{below_parent, read_joint, update_joints, update_up, with_up_transform};
-use super::validate::{check_len, check_q_of};
+use super::kinematics::{
+    read_joint, update_joints, update_placements, update_up, with_up_transform,
+};
+use super::validate::{all_finite, check_len, check_q_of};
 use crate::error::DynamicsError;
 use crate::model::{
     floating_up, turn_up, turn_up_unrotated, Body, JointKind, Model, MotionSubspace, UpShape,
@@ -72,7 +74,7 @@ pub fn frame_placement(
     frame: &Frame,
 ) -> Result<Transform, DynamicsError> {
     place_support(model, ws, q, frame.body, Placing::Placements)?;
-    let x = placement_of(&ws.frame_scratch, frame);
+    let x = placement_of(&ws.x_world, frame);
     let mut values = [0.0; 12];
     values[..9].copy_from_slice(x.rot.as_slice());
     values[9..].copy_from_slice(x.trans.as_slice());
@@ -82,17 +84,16 @@ pub fn frame_placement(
 
 /// Scratch of the frame algorithms, one per [`Workspace`]: quantities per body are kept here,
 /// apart from the dynamics algorithms' own, so that a frame call placing only a frame's support
-/// leaves theirs whole.
+/// leaves theirs whole. The bodies' placements `ⁱX_0` are the workspace's `x_world`, shared with
+/// [`body_placements`](super::kinematics::body_placements): no dynamics algorithm reads them
+/// (each places what it needs in the same call), and a frame call leaves the entries of the
+/// bodies off its frame's support as they were, as it does their `ⁱX_λ` in `x_up`.
 #[derive(Clone, Debug)]
 pub struct FrameScratch {
     /// The turn angles of the support's joints, their sines and cosines (support order).
     pub(crate) angles: Vec<f64>,
     pub(crate) sines: Vec<f64>,
     pub(crate) cosines: Vec<f64>,
-    /// `ⁱX_0` (world → body) of the bodies placed by the last frame call (the `world` Jacobian
-    /// of a support of turns and slides carries them in registers and leaves these as they
-    /// were).
-    pub(crate) x_world: Vec<Transform>,
     /// Each joint's motion subspace in world axes at its body's origin, `R_i S_i` with
     /// `R_i = ⁱX_0.rotᵀ` (both halves of each column rotated, no change of point), from
     /// [`joint_jacobians`](super::jacobian::joint_jacobians).
@@ -124,7 +125,6 @@ impl FrameScratch {
             angles: vec![0.0; n],
             sines: vec![0.0; n],
             cosines: vec![0.0; n],
-            x_world: vec![Transform::identity(); n],
             axes: vec![MotionSubspace::default(); n],
             v: vec![Motion::zero(); n],
             a: vec![Motion::zero(); n],
@@ -157,7 +157,7 @@ pub(crate) enum Placing {
 /// `placing` asks: the coordinates their joints read are validated (only those: the others do
 /// not move the frame), their joints are updated (`ws.s`, and `ws.x_up` with
 /// [`Placing::WithJointTransforms`]; other bodies' entries are left as they were) and
-/// `scratch.x_world` holds their `ⁱX_0 = ⁱX_λ ᵏX_0`. The bodies are those `ws.plan.supports`
+/// `ws.x_world` holds their `ⁱX_0 = ⁱX_λ ᵏX_0`. The bodies are those `ws.plan.supports`
 /// lists for `body`, root first.
 pub(crate) fn place_support(
     model: &Model,
@@ -294,7 +294,7 @@ fn update_and_place(
     if placing == Placing::WithJointTransforms {
         ws.x_up[i] = up;
     }
-    let (above, from_i) = ws.frame_scratch.x_world.split_at_mut(i);
+    let (above, from_i) = ws.x_world.split_at_mut(i);
     let x_i = &mut from_i[0];
     let Some(p) = body.parent else {
         *x_i = up;
@@ -308,24 +308,20 @@ fn update_and_place(
     }
 }
 
-/// Places every body for `q` (already validated): all joints updated, `scratch.x_world` for
-/// every body, each from its parent's placement ([`below_parent`]).
+/// Places every body for `q` (already validated): all joints updated, `ws.x_world` for every
+/// body, each from its parent's placement ([`update_placements`]).
 pub(crate) fn place_all(model: &Model, ws: &mut Workspace, q: &[f64]) {
     update_joints(model, ws, q);
-    let mut previous = Transform::identity();
-    for (i, body) in model.bodies.iter().enumerate() {
-        previous = below_parent(ws, &ws.frame_scratch.x_world, &previous, i, body.parent);
-        ws.frame_scratch.x_world[i] = previous;
-    }
+    update_placements(model, ws);
 }
 
-/// `scratch.x_world[i] = ⁱX_λ ᵏX_0` (`ⁱX_λ` for a root), the parent already placed; written in
+/// `ws.x_world[i] = ⁱX_λ ᵏX_0` (`ⁱX_λ` for a root), the parent already placed; written in
 /// place by each form of `ⁱX_λ`, without the copy a returned product needs: a frame's support
 /// is a short path, whose time goes by the instructions rather than by the chain's latency
-/// ([`below_parent`] weighs the other way, for whole trees).
+/// (`kinematics::placements::below_parent` weighs the other way, for whole trees).
 #[inline(always)]
 fn place_body(model: &Model, ws: &mut Workspace, i: usize) {
-    let (above, from_i) = ws.frame_scratch.x_world.split_at_mut(i);
+    let (above, from_i) = ws.x_world.split_at_mut(i);
     let x_i = &mut from_i[0];
     match model.bodies[i].parent {
         Some(p) => with_up_transform!(ws, i, |x| *x_i = x.compose(&above[p])),
@@ -333,10 +329,11 @@ fn place_body(model: &Model, ws: &mut Workspace, i: usize) {
     }
 }
 
-/// `ᴸX_0 = ᴸX_B ᴮX_0` from the placed bodies (`ᴸX_0 = ᴸX_B` for a link fixed to the world).
-pub(crate) fn placement_of(scratch: &FrameScratch, frame: &Frame) -> Transform {
+/// `ᴸX_0 = ᴸX_B ᴮX_0` from the bodies' placements `ᴮX_0` (`ᴸX_0 = ᴸX_B` for a link fixed to
+/// the world).
+pub(crate) fn placement_of(placements: &[Transform], frame: &Frame) -> Transform {
     match frame.body {
-        Some(b) => frame.x_body_link.compose(&scratch.x_world[b]),
+        Some(b) => frame.x_body_link.compose(&placements[b]),
         None => frame.x_body_link,
     }
 }
@@ -356,20 +353,4 @@ pub(crate) fn check_finite(
             coordinate: model.links[frame.link].name.clone(),
         })
     }
-}
-
-/// True when every value is finite, without a branch per value: `x · 0` is zero for a finite
-/// `x` and NaN otherwise, summed in four independent lanes (which vectorise).
-pub(crate) fn all_finite(values: &[f64]) -> bool {
-    let mut lanes = [0.0f64; 4];
-    let chunks = values.chunks_exact(4);
-    for (k, x) in chunks.remainder().iter().enumerate() {
-        lanes[k] += x * 0.0;
-    }
-    for chunk in chunks {
-        for k in 0..4 {
-            lanes[k] += chunk[k] * 0.0;
-        }
-    }
-    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) == 0.0
 }

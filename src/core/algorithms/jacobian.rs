@@ -90,7 +90,7 @@ pub fn frame_jacobian<'w>(
         }
         _ => {
             place_support(model, ws, q, frame.body, Placing::Placements)?;
-            let to_frame = ColumnMap::new(reference, &placement_of(&ws.frame_scratch, frame));
+            let to_frame = ColumnMap::new(reference, &placement_of(&ws.x_world, frame));
             support_columns(model, ws, frame, |a, l, p| to_frame.column(a, l, p))
         }
     }?;
@@ -108,7 +108,6 @@ fn support_columns(
     map: impl Fn(&Vector3, &Vector3, &Vector3) -> (Vector3, Vector3),
 ) -> Result<(), DynamicsError> {
     let FrameScratch {
-        x_world,
         jacobian,
         jacobian_support,
         ..
@@ -116,7 +115,7 @@ fn support_columns(
     let mut out = Columns::new(jacobian, jacobian_support, ws.plan.own_columns, frame.body);
     let support = frame.body.map_or(&[][..], |b| ws.plan.supports.of(b));
     for &i in support {
-        let (x, s, c) = (&x_world[i], &ws.s[i], model.bodies[i].joint.coords);
+        let (x, s, c) = (&ws.x_world[i], &ws.s[i], model.bodies[i].joint.coords);
         if model.bodies[i].joint.kind == JointKind::Floating {
             // `S = 1` (`v` linear then angular, base axes): the columns are the rows of `E`,
             // as linear and then as angular axes, written without a lookup per column.
@@ -247,7 +246,7 @@ pub fn joint_jacobians<'w>(
     place_all(model, ws, q);
     let scratch = &mut ws.frame_scratch;
     for i in 0..model.nbodies() {
-        let (x, s) = (&scratch.x_world[i], &ws.s[i]);
+        let (x, s) = (&ws.x_world[i], &ws.s[i]);
         if !x.rot.iter().chain(x.trans.iter()).all(|e| e.is_finite()) {
             return Err(DynamicsError::NonFiniteResult {
                 quantity: "placement",
@@ -263,6 +262,7 @@ pub fn joint_jacobians<'w>(
     }
     Ok(JointJacobians {
         model,
+        placements: &ws.x_world,
         scratch,
         own_columns: ws.plan.own_columns,
     })
@@ -272,6 +272,8 @@ pub fn joint_jacobians<'w>(
 /// Jacobians of any number of frames, each for the cost of its own columns.
 pub struct JointJacobians<'w> {
     model: &'w Model,
+    /// `ⁱX_0` of every body.
+    placements: &'w [Transform],
     scratch: &'w mut FrameScratch,
     own_columns: bool,
 }
@@ -279,7 +281,7 @@ pub struct JointJacobians<'w> {
 impl JointJacobians<'_> {
     /// `ᴸX_0` of `frame` (see [`frame_placement`](super::frames::frame_placement)).
     pub fn placement(&self, frame: &Frame) -> Transform {
-        placement_of(self.scratch, frame)
+        placement_of(self.placements, frame)
     }
 
     /// The Jacobian of `frame` in `reference`, as [`frame_jacobian`] gives it.
@@ -288,9 +290,8 @@ impl JointJacobians<'_> {
         frame: &Frame,
         reference: ReferenceFrame,
     ) -> Result<&DMatrix<f64>, DynamicsError> {
-        let to_frame = ColumnMap::new(reference, &placement_of(self.scratch, frame));
+        let to_frame = ColumnMap::new(reference, &placement_of(self.placements, frame));
         let FrameScratch {
-            x_world,
             axes,
             jacobian,
             jacobian_support,
@@ -300,7 +301,7 @@ impl JointJacobians<'_> {
         let mut next = frame.body;
         while let Some(i) = next {
             let body = &self.model.bodies[i];
-            let (p_i, c) = (&x_world[i].trans, body.joint.coords);
+            let (p_i, c) = (&self.placements[i].trans, body.joint.coords);
             for (k, col) in axes[i].cols[..axes[i].nv].iter().enumerate() {
                 out.put(
                     c.v_index + k,

@@ -8,7 +8,7 @@
 //! to `‖q̈_aba‖∞` (1 + that, for tiny accelerations). Where `aba` does not apply (mimic joints)
 //! there is no reference and the cheapest method that runs is taken.
 //!
-//! Cost: each method's FLOP count on this model ([`super::flop_table`]), not a timing, so the same
+//! Cost: each method's FLOP count on this model ([`flop_table`]), not a timing, so the same
 //! model gets the same method on every run and under any load (timed choices flip between
 //! methods within a few per cent of each other, and a single cold call can misjudge a method
 //! by orders of magnitude). On the models measured with `spatial_dynamics bench` (the 7-joint
@@ -21,7 +21,8 @@
 //! velocity for one second, so every joint kind stays on its manifold), random `q̇` and random
 //! `τ`, drawn from a fixed seed: the accuracy check is deterministic too.
 
-use super::{flop_table, forward_dynamics, ForwardDynamicsMethod};
+use super::{forward_dynamics, ForwardDynamicsMethod};
+use crate::plan::flop_table;
 use crate::sampling::Rng;
 use crate::{DynamicsError, Externals, Model, Workspace};
 use std::time::{Duration, Instant};

@@ -19,7 +19,6 @@
 //! | [`frame_acceleration`] | a link frame's classical acceleration |
 //! | [`center_of_mass`](mod@center_of_mass) | centre of mass, total mass and the centre-of-mass Jacobian |
 //! | [`ltl`], [`cholesky`] | the factorisations that solve `H q̈ = τ − C` |
-//! | [`flops`], [`flop_table`] | how many floating-point operations each of them performs on a model |
 
 // The algorithms index per-coordinate arrays the way the equations do.
 #![allow(clippy::needless_range_loop)]
@@ -30,8 +29,6 @@ pub mod center_of_mass;
 pub mod cholesky;
 pub mod crba;
 pub mod energy;
-pub mod flop_table;
-pub mod flops;
 pub mod forward_dynamics;
 pub mod frame_acceleration;
 pub mod frames;

@@ -56,6 +56,7 @@ pub fn rnea_with<'w>(
     check_v(model, "v", v)?;
     check_v(model, "a", a)?;
     check_externals(model, ext)?;
+    // [X_J, S_i] = jcalc(jtype(i), q_i),  ⁱX_λ(i) = X_J X_T(i)   (RBDA Table 5.1, for every i)
     update_joints(model, ws, q);
     rnea_passes(model, ws, Some(v), Some(a), ext);
     check_result(model, "tau", ws.tau.as_slice())?;
@@ -71,6 +72,7 @@ pub(crate) fn rnea_passes(
     a: Option<&[f64]>,
     ext: &Externals<'_>,
 ) {
+    // a_0 = −a_g   (RBDA Table 5.1; plus the root's own acceleration, and v_0 its velocity)
     let a_root = ext.root_acceleration - Motion::new(nalgebra::Vector3::zeros(), model.gravity);
     // The previous body's motion, kept in registers: along a chain it is the parent's, and
     // reading it back from `ws` just after writing it would load across the stores that wrote
@@ -84,6 +86,7 @@ pub(crate) fn rnea_passes(
             Some(p) => (ws.v[p], ws.a[p]),
             None => (ext.root_velocity, a_root),
         };
+        // v_J = S_i q̇_i, c_J   (RBDA Table 5.1's jcalc; a mimic follower's q̇_i = μ q̇_leader)
         let (v_joint, c_joint) = match v {
             Some(v) => {
                 let rates = &v[c.v_index..c.v_index + nv];
@@ -99,7 +102,9 @@ pub(crate) fn rnea_passes(
             x.apply_motion(&v_parent),
             x.apply_motion(&a_parent)
         ));
+        // v_i = ⁱX_λ(i) v_λ(i) + v_J   (RBDA Table 5.1; handout 13)
         let v_i = v_up + v_joint;
+        // a_i = ⁱX_λ(i) a_λ(i) + S_i q̈_i + c_J + v_i × v_J   (RBDA Table 5.1; handout 14)
         let mut a_i = a_up + v_i.cross_motion(&v_joint);
         if let Some(c_joint) = c_joint {
             a_i += c_joint;
@@ -107,6 +112,8 @@ pub(crate) fn rnea_passes(
         if let Some(a) = a {
             a_i += s.apply(&a[c.v_index..c.v_index + nv], c.scale);
         }
+        // f_i = I_i a_i + v_i ×* I_i v_i − ⁱX*_0 f^x_i   (RBDA Table 5.1; handout 15): f^x_i is
+        // given in body i's frame, so it is subtracted as it is
         let inertia = &body.inertia;
         let mut f_i = inertia.apply(&a_i) + v_i.cross_force(&inertia.apply(&v_i));
         if let Some(w) = ext.wrenches {
@@ -126,10 +133,13 @@ pub(crate) fn inward_pass(model: &Model, ws: &mut Workspace) {
     ws.tau.as_mut_slice().fill(0.0);
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let c = body.joint.coords;
+        // τ_i = S_iᵀ f_i   (RBDA Table 5.1; handout 16); a mimic follower's μ S_iᵀ f_i is added
+        // to its leader's τ
         for k in 0..ws.s[i].nv {
             ws.tau[c.v_index + k] += c.scale * ws.s[i].project(k, &ws.f[i]);
         }
         if let Some(p) = body.parent {
+            // f_λ(i) = f_λ(i) + λ(i)X*_i f_i   (RBDA Table 5.1; handout 15)
             let f_parent = with_up_transform!(ws, i, |x| x.transpose_apply_force(&ws.f[i]));
             ws.f[p] += f_parent;
         }

@@ -1,7 +1,6 @@
 //! Input and output checks shared by the algorithms: lengths, finiteness, unit quaternions.
 //! Each error names the coordinate (joint) and the value.
 
-use super::frames::all_finite;
 use super::Externals;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model};
@@ -169,4 +168,20 @@ pub(crate) fn check_len(
             got,
         })
     }
+}
+
+/// True when every value is finite, without a branch per value: `x · 0` is zero for a finite
+/// `x` and NaN otherwise, summed in four independent lanes (which vectorise).
+pub(crate) fn all_finite(values: &[f64]) -> bool {
+    let mut lanes = [0.0f64; 4];
+    let chunks = values.chunks_exact(4);
+    for (k, x) in chunks.remainder().iter().enumerate() {
+        lanes[k] += x * 0.0;
+    }
+    for chunk in chunks {
+        for k in 0..4 {
+            lanes[k] += chunk[k] * 0.0;
+        }
+    }
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) == 0.0
 }

@@ -411,6 +411,58 @@ fn center_of_mass_and_its_jacobian() {
     });
 }
 
+/// `Workspace::world_to_body` is each body's placement from the last call that placed it: every
+/// body after the centre of mass (where `body_placements` puts them), and after a frame's
+/// placement at another configuration the bodies supporting the frame there (the frame where
+/// they put it) while the others keep theirs.
+#[test]
+fn world_to_body_is_the_last_placement_of_each_body() {
+    at_random_configurations(17, |name, model, ws, rng, q0| {
+        let q1 = random_q(model, rng);
+        let placed = |q: &[f64]| {
+            body_placements(model, &mut Workspace::new(model), q)
+                .unwrap()
+                .to_vec()
+        };
+        let (at_q0, at_q1) = (placed(q0), placed(&q1));
+        for link in &model.links {
+            let Some(body) = link.body else { continue };
+            center_of_mass(model, ws, q0).unwrap();
+            for (i, x) in at_q0.iter().enumerate() {
+                assert_eq!(
+                    ws.world_to_body(i),
+                    *x,
+                    "{name}: body {i} after the centre of mass"
+                );
+            }
+            let frame = find_frame(model, &link.name).unwrap();
+            let x_link = frame_placement(model, ws, &q1, &frame).unwrap();
+            assert_eq!(x_link, frame.x_body_link.compose(&ws.world_to_body(body)));
+            let mut support = vec![false; model.nbodies()];
+            let mut next = Some(body);
+            while let Some(i) = next {
+                support[i] = true;
+                next = model.bodies[i].parent;
+            }
+            for i in 0..model.nbodies() {
+                let (got, want) = (
+                    ws.world_to_body(i),
+                    if support[i] { at_q1[i] } else { at_q0[i] },
+                );
+                let error = (got.rot - want.rot)
+                    .amax()
+                    .max((got.trans - want.trans).amax());
+                let scale = 1.0 + want.trans.amax();
+                assert!(
+                    error <= 1e-14 * scale,
+                    "{name}: body {i} after the placement of '{}': {error:e}",
+                    link.name
+                );
+            }
+        }
+    });
+}
+
 /// A reduced model's frames sit where the full model's do with the removed joints at their
 /// locked or frozen positions, and their Jacobians are the full model's kept columns; links
 /// lumped onto a tip, locked away, or fixed to the world (whose Jacobian is zero) included.

@@ -12,12 +12,14 @@ use crate::Workspace;
 /// map `J`); then `⁰I^c_λ += ⁰I^c_i`. True when every entry is finite.
 pub(super) fn along_paths(model: &Model, ws: &mut Workspace) -> bool {
     let h = &mut ws.mass_matrix;
-    h.as_mut_slice().fill(0.0);
+    h.as_mut_slice().fill(0.0); // H = 0   (RBDA Table 6.2)
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let ci = body.joint.coords;
         let s_i = &ws.s_world[i];
         for k in 0..s_i.nv {
+            // F = I^c_i S_i   (RBDA Table 6.2)
             let f = ws.ic[i].apply(&s_i.cols[k]);
+            // H_ii = S_iᵀ F   (RBDA Table 6.2), scaled μ_i² and added: coordinates are shared
             for k2 in 0..=k {
                 let h_kk2 = ci.scale * ci.scale * s_i.project(k2, &f);
                 h[(ci.v_index + k2, ci.v_index + k)] += h_kk2;
@@ -25,6 +27,8 @@ pub(super) fn along_paths(model: &Model, ws: &mut Workspace) -> bool {
                     h[(ci.v_index + k, ci.v_index + k2)] += h_kk2;
                 }
             }
+            // j = i; while λ(j) ≠ 0: F = λ(j)X*_j F (the identity in world coordinates),
+            // j = λ(j), H_ij = Fᵀ S_j, H_ji = H_ijᵀ   (RBDA Table 6.2), scaled μ_i μ_j and added
             let mut j = i;
             while let Some(p) = model.bodies[j].parent {
                 j = p;
@@ -38,6 +42,7 @@ pub(super) fn along_paths(model: &Model, ws: &mut Workspace) -> bool {
             }
         }
         if let Some(p) = body.parent {
+            // I^c_λ(i) = I^c_λ(i) + I^c_i   (RBDA Table 6.2, world coordinates)
             let ic_i = ws.ic[i];
             ws.ic[p] += ic_i;
         }

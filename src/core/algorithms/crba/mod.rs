@@ -49,6 +49,7 @@ pub fn crba<'w>(
     q: &[f64],
 ) -> Result<&'w DMatrix<f64>, DynamicsError> {
     check_q(model, q)?;
+    // [X_J, S_i] = jcalc(jtype(i), q_i),  ⁱX_λ(i) = X_J X_T(i)   (as RBDA Table 5.1)
     update_joints(model, ws, q);
     // Finite inputs can still overflow (a prismatic coordinate of 1e200 under a revolute joint
     // puts m·x² on the diagonal). Only when the passes report a non-finite entry is the matrix
@@ -114,13 +115,16 @@ fn body_frame_pass<const MIRROR: bool>(
 ) -> bool {
     let mut h = Rows::<MIRROR>::new(ws.mass_matrix.as_mut_slice(), model.nv);
     for (ic, body) in ws.ic.iter_mut().zip(&model.bodies) {
-        *ic = body.inertia;
+        *ic = body.inertia; // I^c_i = I_i   (RBDA Table 6.2)
     }
     for i in (0..model.bodies.len()).rev() {
         let body = &model.bodies[i];
         let v0 = body.joint.coords.v_index;
         let (s_i, axes, end) = (&ws.s[i], &ws.plan.s_axes[i], subtree_end[v0]);
+        // F = I^c_i S_i, one per column of S_i   (RBDA Table 6.2)
         column_forces(&ws.ic[i], s_i, axes, &mut ws.f_cols[v0..]);
+        // H_ii = S_iᵀ F, and H_di = Fᵀ S_i, H_id = H_diᵀ for the F of each descendant d's
+        // columns, already carried here   (RBDA Table 6.2, its `while` loop turned inside out)
         h.joint_rows(&body.joint.kind, v0, s_i, axes, &ws.f_cols[..end]);
         if let Some(p) = body.parent {
             let forces = &mut ws.f_cols[v0..end];
@@ -129,7 +133,9 @@ fn body_frame_pass<const MIRROR: bool>(
             // Both moves in one arm per form of `ⁱX_λ`, so the moved inertia is summed into
             // the parent's from registers.
             with_up_transform!(ws, i, |x| {
+                // F = λ(i)X*_i F for the subtree's columns   (RBDA Table 6.2)
                 x.transpose_apply_forces(forces);
+                // I^c_λ(i) = I^c_λ(i) + λ(i)X*_i I^c_i ⁱX_λ(i)   (RBDA Table 6.2)
                 *ic_p += x.transpose_apply_inertia(ic_i);
             });
         }
@@ -150,9 +156,14 @@ fn world_frame_pass<const MIRROR: bool>(
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let v0 = body.joint.coords.v_index;
         let s_i = &ws.s_world[i];
+        // F = I^c_i S_i, one per column of S_i   (RBDA Table 6.2, world coordinates)
         column_forces(&ws.ic[i], s_i, &[None; 6], &mut ws.f_cols[v0..]);
+        // H_ii = S_iᵀ F, and H_di = Fᵀ S_i, H_id = H_diᵀ for the F of each descendant d's
+        // columns: in world coordinates F = λ(j)X*_j F leaves F as it is   (RBDA Table 6.2)
         h.rows(v0, s_i, &[None; 6], &ws.f_cols[..subtree_end[v0]]);
         if let Some(p) = body.parent {
+            // I^c_λ(i) = I^c_λ(i) + λ(i)X*_i I^c_i ⁱX_λ(i)   (RBDA Table 6.2; the transforms
+            // are the identity in world coordinates)
             let ic_i = ws.ic[i];
             ws.ic[p] += ic_i;
         }
@@ -164,9 +175,12 @@ fn world_frame_pass<const MIRROR: bool>(
 /// `ⁱX_0` from the root's aligned frame (world axes at the root body's origin: `H` does not
 /// depend on the origin, but inertias about a far one carry large `m d²` terms that cancel).
 fn world_axes_and_inertias(model: &Model, ws: &mut Workspace) {
+    // ⁱX_0 = ⁱX_λ(i) λ(i)X_0   (as RBDA Table 5.1), from the root's aligned frame
     update_aligned_placements(model, ws, Anchors::Roots);
     for (i, body) in model.bodies.iter().enumerate() {
+        // I^c_i = I_i   (RBDA Table 6.2), in world coordinates ⁰I_i = ⁱX_0ᵀ I_i ⁱX_0
         ws.ic[i] = ws.x_aligned[i].transpose_apply_inertia(&body.inertia);
+        // ⁰S_i = ⁰X_i S_i: the S_i of RBDA Table 6.2 in world coordinates
         update_world_axes(ws, i, &[], 0.0);
     }
 }

@@ -4,8 +4,10 @@
 //! factorisation, and each body's support for the frame algorithms. Built from the model alone ([`Plan::new`]); every [`Workspace`](crate::Workspace)
 //! holds its model's plan beside its scratch buffers.
 
-use crate::algorithms::flops;
 use crate::model::{Joint, JointKind, Model, UpShape};
+
+pub mod flop_table;
+pub mod flops;
 
 /// What the algorithms decide once for a model. Fixed for the model's lifetime.
 #[derive(Clone, Debug)]
@@ -375,7 +377,7 @@ mod tests {
     #[test]
     fn supports_are_the_paths_from_the_roots() {
         for model in [
-            load(include_str!("tests/models/tree.urdf"), false),
+            load(include_str!("../tests/models/tree.urdf"), false),
             load(examples::DEFAULT_ARM_URDF, true),
         ] {
             let supports = Supports::new(&model);
@@ -394,8 +396,8 @@ mod tests {
     #[test]
     fn supports_are_of_turns_and_slides_down_to_the_first_other_joint() {
         let cases = [
-            (include_str!("tests/models/quarter_turns.urdf"), true),
-            (include_str!("tests/models/tree.urdf"), false),
+            (include_str!("../tests/models/quarter_turns.urdf"), true),
+            (include_str!("../tests/models/tree.urdf"), false),
             (examples::MIMIC_GRIPPER_URDF, false),
         ];
         for (text, floating_base) in cases {

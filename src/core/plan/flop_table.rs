@@ -2,8 +2,8 @@
 //! [`Plan`] its calls follow: the sum of its passes' costs from [`flops`](super::flops).
 
 use super::flops::*;
+use super::{Ancestors, CrbaFrames, Plan};
 use crate::model::Model;
-use crate::plan::{Ancestors, CrbaFrames, Plan};
 
 /// The count of kernel `name` (as `spatial_dynamics bench` names them: `rnea`, `crba`,
 /// `fd_aba`, `fd_crba`, `fd_rnea_columns`, `gravity`) on `model` as `plan` runs it; `None` for another name, or
@@ -128,7 +128,7 @@ fn ltl(ancestors: &Ancestors) -> Flops {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::algorithms::flops::tests::chain;
+    use crate::plan::flops::tests::chain;
 
     /// For an unbranched chain `H` is dense and the sparse `LᵀL` is a dense Cholesky. Featherstone
     /// (RBDA §6.5) gives `n³/6 + n²/2 − 2n/3` multiplications for the factorisation, counting
