@@ -67,6 +67,16 @@ pub enum DynamicsError {
         pruned: bool,
         known: Vec<String>,
     },
+    /// The workspace was made ([`Workspace::new`](crate::Workspace::new)) for another model
+    /// than the one given: its buffers and plan belong to that model. Each model is named by
+    /// its robot name and its identity (every model built or reduced gets its own; a clone
+    /// keeps it).
+    ForeignWorkspace {
+        workspace_model: String,
+        workspace_model_id: u64,
+        model: String,
+        model_id: u64,
+    },
 }
 
 impl fmt::Display for DynamicsError {
@@ -115,6 +125,10 @@ impl fmt::Display for DynamicsError {
                 f,
                 "the model has no link named '{link}'; its links are: {}",
                 known.join(", ")
+            ),
+            DynamicsError::ForeignWorkspace { workspace_model, workspace_model_id, model, model_id } => write!(
+                f,
+                "the workspace was made for model '{workspace_model}' (#{workspace_model_id}), not for the model given, '{model}' (#{model_id}): make one with Workspace::new for each model"
             ),
         }
     }

@@ -2,6 +2,7 @@
 //! every call so that no call allocates.
 
 use crate::algorithms::frames::FrameScratch;
+use crate::error::DynamicsError;
 use crate::model::{JointKind, Model, MotionSubspace};
 use crate::plan::Plan;
 use crate::spatial::{Force, Inertia, Matrix6, Motion, Transform, Vector3};
@@ -11,6 +12,10 @@ use nalgebra::{DMatrix, DVector};
 /// body are expressed in that body's frame.
 #[derive(Clone, Debug)]
 pub struct Workspace {
+    /// The identity of the model the workspace was made for ([`Workspace::check`]) and its
+    /// robot name, for the error.
+    model_id: u64,
+    model_name: String,
     /// The model's plan: the choices every call follows, made once ([`Plan::new`]).
     pub(crate) plan: Plan,
     /// The joint's own position coordinates (a mimic follower's computed from its leader), for
@@ -91,6 +96,8 @@ impl Workspace {
         let n = model.nbodies();
         let nv = model.nv;
         Workspace {
+            model_id: model.id,
+            model_name: model.name.clone(),
             plan: Plan::new(model),
             q_joint: vec![[0.0; 7]; n],
             turn_angles: vec![0.0; n],
@@ -138,6 +145,28 @@ impl Workspace {
             bias: DVector::zeros(nv),
             unit: DVector::zeros(nv),
             frame_scratch: FrameScratch::new(model),
+        }
+    }
+
+    /// `Ok` when the workspace was made for `model` (or a clone of it), else
+    /// [`DynamicsError::ForeignWorkspace`]: every algorithm checks this first, one comparison
+    /// (as Pinocchio's `model.check(data)`).
+    #[inline(always)]
+    pub fn check(&self, model: &Model) -> Result<(), DynamicsError> {
+        if self.model_id == model.id {
+            Ok(())
+        } else {
+            Err(self.foreign(model))
+        }
+    }
+
+    #[cold]
+    fn foreign(&self, model: &Model) -> DynamicsError {
+        DynamicsError::ForeignWorkspace {
+            workspace_model: self.model_name.clone(),
+            workspace_model_id: self.model_id,
+            model: model.name.clone(),
+            model_id: model.id,
         }
     }
 

@@ -53,8 +53,8 @@ pub fn aba<'w>(
     tau: &[f64],
     ext: &Externals<'_>,
 ) -> Result<&'w [f64], DynamicsError> {
+    check_forward_inputs(model, ws, q, v, tau, ext)?;
     refuse_mimic(model)?;
-    check_forward_inputs(model, q, v, tau, ext)?;
     update_joints(model, ws, q);
     velocity_pass(model, ws, v, ext);
     articulated_pass(model, ws, tau)?;

@@ -165,6 +165,7 @@ pub(crate) fn place_support(
     placing: Placing,
 ) -> Result<(), DynamicsError> {
     let Some(last) = body else {
+        ws.check(model)?;
         return check_q_of(model, q, &[]);
     };
     let turns = support_turns(model, ws, q, last, placing)?;
@@ -193,6 +194,7 @@ pub(crate) fn support_turns(
     last: usize,
     placing: Placing,
 ) -> Result<usize, DynamicsError> {
+    ws.check(model)?;
     check_len("q", model.nq, q.len())?;
     let Workspace {
         plan,

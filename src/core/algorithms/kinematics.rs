@@ -181,7 +181,7 @@ pub fn body_placements<'w>(
     ws: &'w mut Workspace,
     q: &[f64],
 ) -> Result<&'w [Transform], DynamicsError> {
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     update_joints(model, ws, q);
     update_placements(model, ws);
     check_bodies(model, "placement", |i| {
@@ -349,7 +349,7 @@ pub fn body_motion(
     q: &[f64],
     v: &[f64],
 ) -> Result<(), DynamicsError> {
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     super::validate::check_v(model, "v", v)?;
     update_joints(model, ws, q);
     update_placements(model, ws);

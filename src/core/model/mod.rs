@@ -25,6 +25,7 @@ pub use spec::{joint_position, BodySpec, JointSpec, ModelOptions};
 
 use crate::error::ModelError;
 use crate::spatial::{Inertia, Transform, Vector3};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// How a joint's coordinates are found in the model's `q` and `v` vectors.
 ///
@@ -227,6 +228,19 @@ pub struct Model {
     /// path to the root (Featherstone's `λ` over degrees of freedom), when the tree's sparsity
     /// holds; `None` when a mimic joint couples coordinates across branches.
     pub dof_parent: Option<Vec<Option<usize>>>,
+    /// The model's identity: unique to each model built (or reduced) in this process, kept by a
+    /// clone and by [`with_gravity`](Self::with_gravity) (nothing a
+    /// [`Workspace`](crate::Workspace) holds depends on gravity). A workspace records it and
+    /// refuses any other model.
+    pub(crate) id: u64,
+}
+
+/// The identity of the next model built.
+static NEXT_MODEL_ID: AtomicU64 = AtomicU64::new(1);
+
+/// A model identity no model has had before in this process.
+pub(crate) fn new_model_id() -> u64 {
+    NEXT_MODEL_ID.fetch_add(1, Ordering::Relaxed)
 }
 
 /// One joint that carries coordinates, as listed by `model --json`.

@@ -48,7 +48,7 @@ pub fn crba<'w>(
     ws: &'w mut Workspace,
     q: &[f64],
 ) -> Result<&'w DMatrix<f64>, DynamicsError> {
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     update_joints(model, ws, q);
     // Finite inputs can still overflow (a prismatic coordinate of 1e200 under a revolute joint
     // puts m·x² on the diagonal). Only when the passes report a non-finite entry is the matrix
