@@ -10,6 +10,8 @@
 //! has `q = [x y z qx qy qz qw]` (position in the world, unit quaternion x, y, z, w) and
 //! `v = [linear; angular]` in the base frame; SI units throughout.
 
+#![forbid(unsafe_code)]
+
 pub mod algorithms;
 pub mod double_double;
 pub mod error;

@@ -225,7 +225,9 @@ fn sample_states(model: &Model) -> Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> {
         .map(|_| {
             let step = rng.vector(model.nv, 1.0);
             let mut q = vec![0.0; model.nq];
-            model.integrate(&neutral, &step, 1.0, &mut q);
+            model
+                .integrate(&neutral, &step, 1.0, &mut q)
+                .expect("q, the step and the output are sized from the model");
             let v = rng.vector(model.nv, 1.0);
             let tau = rng.vector(model.nv, 10.0);
             (q, v, tau)

@@ -23,7 +23,8 @@ pub use joint::{
 };
 pub use spec::{joint_position, BodySpec, JointSpec, ModelOptions};
 
-use crate::error::ModelError;
+use crate::algorithms::validate::check_len;
+use crate::error::{DynamicsError, ModelError};
 use crate::spatial::{Inertia, Transform, Vector3};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -315,12 +316,24 @@ impl Model {
         self.links.iter().find(|l| l.name == name)
     }
 
-    /// `q ⊕ v·dt` for the whole model (each joint on its own manifold), into `out`.
-    pub fn integrate(&self, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
+    /// `q ⊕ v·dt` for the whole model (each joint on its own manifold), into `out`. `q` and
+    /// `out` must have `nq` values and `v` `nv`: else [`DynamicsError::Length`] names the
+    /// vector, and `out` is untouched.
+    pub fn integrate(
+        &self,
+        q: &[f64],
+        v: &[f64],
+        dt: f64,
+        out: &mut [f64],
+    ) -> Result<(), DynamicsError> {
+        check_len("q", self.nq, q.len())?;
+        check_len("v", self.nv, v.len())?;
+        check_len("out", self.nq, out.len())?;
         for j in self.coordinate_joints() {
             let (qs, vs) = (j.q_index..j.q_index + j.nq, j.v_index..j.v_index + j.nv);
             j.kind.integrate(&q[qs.clone()], &v[vs], dt, &mut out[qs]);
         }
+        Ok(())
     }
 
     /// The neutral configuration: every joint at [`JointKind::neutral`].

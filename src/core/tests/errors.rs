@@ -71,6 +71,38 @@ fn bad_vectors_are_named() {
 }
 
 #[test]
+fn integrate_names_the_vector_of_the_wrong_length() {
+    let m = urdf::model_from_str(r#"<robot name="b"><link name="b"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link></robot>"#, &ModelOptions { floating_base: true, ..Default::default() }).unwrap();
+    let (q, v) = (m.neutral(), [0.0, 0.0, 1.0, 0.0, 0.0, 0.0]);
+    let mut out = [0.0; 7];
+    m.integrate(&q, &v, 0.5, &mut out).unwrap();
+    assert_eq!(out[2], 0.5, "the base rises along z: {out:?}");
+    // (q, v, out's length, the vector named, its expected and given lengths)
+    let cases: [(&[f64], &[f64], usize, &str, usize, usize); 3] = [
+        (&q[..6], &v, 7, "q", 7, 6),
+        (&q, &v[..5], 7, "v", 6, 5),
+        (&q, &v, 8, "out", 7, 8),
+    ];
+    for (q, v, n, vector, expected, got) in cases {
+        let mut out = vec![-1.0; n];
+        let err = m.integrate(q, v, 0.5, &mut out).unwrap_err();
+        assert_eq!(
+            err,
+            DynamicsError::Length {
+                vector,
+                expected,
+                got
+            }
+        );
+        assert_eq!(
+            err.to_string(),
+            format!("{vector} has {got} values, the model needs {expected}")
+        );
+        assert!(out.iter().all(|&x| x == -1.0), "out was written: {out:?}");
+    }
+}
+
+#[test]
 fn a_zero_quaternion_is_refused() {
     let m = urdf::model_from_str(r#"<robot name="b"><link name="b"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link></robot>"#, &ModelOptions { floating_base: true, ..Default::default() }).unwrap();
     let mut ws = Workspace::new(&m);

@@ -102,7 +102,7 @@ fn pose(
 /// constant twist in its own frame, so `q̈ = 0` along it).
 fn along(model: &Model, q0: &[f64], v: &[f64], t: f64) -> Vec<f64> {
     let mut q = vec![0.0; model.nq];
-    model.integrate(q0, v, t, &mut q);
+    model.integrate(q0, v, t, &mut q).unwrap();
     q
 }
 
