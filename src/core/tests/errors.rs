@@ -29,15 +29,58 @@ fn massless_leaf_behind_a_prismatic_joint_is_named() {
         let text = err.to_string();
         assert!(text.contains("slide"), "{method}: {text}");
         match method {
-            ForwardDynamicsMethod::Aba => assert!(matches!(
+            // The leaf's articulated inertia is zero: D = Sᵀ I^A S is exactly 0.
+            ForwardDynamicsMethod::Aba => assert_eq!(
                 err,
-                DynamicsError::SingularArticulatedInertia { .. }
-            )),
+                DynamicsError::SingularArticulatedInertia {
+                    joint: "slide".into(),
+                    body: "l2".into(),
+                    coordinate: "slide".into(),
+                    pivot: 0.0,
+                }
+            ),
             _ => assert!(matches!(err, DynamicsError::SingularMassMatrix { .. })),
         }
     }
     // Inverse dynamics is still well defined.
     assert!(rnea(&m, &mut ws, &q, &v, &tau).is_ok());
+}
+
+#[test]
+fn aba_names_the_pivot_of_a_floating_point_mass() {
+    // A point mass on a floating joint: D = I^A is positive along the three translations
+    // (`v[0..3]`, pivots m) and zero along the rotations: the fourth pivot, about 'x', fails.
+    let m = urdf::model_from_str(r#"<robot name="p"><link name="ball"><inertial><mass value="2"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link></robot>"#, &ModelOptions { floating_base: true, ..Default::default() }).unwrap();
+    let mut ws = Workspace::new(&m);
+    let (q, v, tau) = (m.neutral(), [0.0; 6], [0.0; 6]);
+    let err = forward_dynamics(
+        &m,
+        &mut ws,
+        &q,
+        &v,
+        &tau,
+        ForwardDynamicsMethod::Aba,
+        &Externals::none(),
+    )
+    .unwrap_err();
+    match &err {
+        DynamicsError::SingularArticulatedInertia {
+            joint,
+            body,
+            coordinate,
+            pivot,
+        } => {
+            assert_eq!((joint.as_str(), body.as_str()), ("root_joint", "ball"));
+            assert_eq!(coordinate, "root_joint[3]");
+            assert!(pivot.abs() < 1e-12, "{err}");
+        }
+        other => panic!("{other:?}"),
+    }
+    let text = err.to_string();
+    assert!(
+        text.contains("(body 'ball')") && text.contains("coordinate 'root_joint[3]'"),
+        "{text}"
+    );
 }
 
 #[test]
