@@ -25,9 +25,7 @@ use spatial_dynamics_core::spatial::{
     AxisTransform, Force, Inertia, Matrix6, Motion, Transform, Translation, Vector3,
 };
 use spatial_dynamics_core::urdf::{model_from_file, model_from_str};
-use spatial_dynamics_core::{
-    Externals, ForwardDynamicsMethod, Model, ModelOptions, Plan, Workspace,
-};
+use spatial_dynamics_core::{Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
 use std::hint::black_box;
 use std::path::Path;
 
@@ -61,7 +59,7 @@ fn run(args: &[String]) -> Result<(), String> {
         return operation(name, calls);
     }
     let model = load(model_name)?;
-    let table = flop_table::kernel_flops(&model, &Plan::new(&model), kernel)
+    let table = flop_table::kernel_flops(&model, kernel)
         .ok_or_else(|| format!("no FLOP count for kernel '{kernel}' on this model"))?;
     let states: Vec<State> = {
         let mut rng = Rng::new(1);
@@ -78,7 +76,7 @@ fn run(args: &[String]) -> Result<(), String> {
     }
     println!(
         "{{\"model\": \"{model_name}\", \"nv\": {}, \"kernel\": \"{kernel}\", \"mul\": {}, \"add\": {}, \"div\": {}, \"sqrt\": {}, \"sincos\": {}}}",
-        model.nv, table.mul, table.add, table.div, table.sqrt, table.sincos
+        model.nv(), table.mul, table.add, table.div, table.sqrt, table.sincos
     );
     Ok(())
 }
@@ -352,8 +350,8 @@ impl State {
         let q = random_q(model, rng);
         State {
             q,
-            v: rng.vector(model.nv, 1.0),
-            a: rng.vector(model.nv, 1.0),
+            v: rng.vector(model.nv(), 1.0),
+            a: rng.vector(model.nv(), 1.0),
         }
     }
 }

@@ -170,11 +170,6 @@ impl Workspace {
         }
     }
 
-    /// The choices the algorithms follow for this workspace's model.
-    pub fn plan(&self) -> &Plan {
-        &self.plan
-    }
-
     /// The last generalized forces computed (inverse dynamics, bias or gravity).
     pub fn tau(&self) -> &[f64] {
         self.tau.as_slice()

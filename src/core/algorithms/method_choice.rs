@@ -87,9 +87,8 @@ pub fn choose_method(
 ) -> Result<MethodChoice, DynamicsError> {
     let mut ws = Workspace::new(model);
     let states = sample_states(model);
-    let plan = ws.plan().clone();
     let flops_of = |m: ForwardDynamicsMethod| {
-        flop_table::kernel_flops(model, &plan, &format!("fd_{}", m.name())).map(|f| f.total())
+        flop_table::kernel_flops(model, &format!("fd_{}", m.name())).map(|f| f.total())
     };
     // Cheapest first (FLOP counts tie only between identical costs: then the order of ALL).
     // A method without a count (aba on a mimic model) does not apply.
@@ -246,7 +245,7 @@ mod tests {
     }
 
     fn flops(m: ForwardDynamicsMethod, model: &Model) -> u64 {
-        flop_table::kernel_flops(model, &crate::Plan::new(model), &format!("fd_{}", m.name()))
+        flop_table::kernel_flops(model, &format!("fd_{}", m.name()))
             .unwrap()
             .total()
     }

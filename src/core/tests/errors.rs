@@ -210,19 +210,19 @@ fn doubtful_inertias_load_with_a_warning_naming_the_link() {
         <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="5"/></inertial></link>
         <joint name="j" type="continuous"><parent link="a"/><child link="b"/></joint></robot>"#;
     let m = model(text).unwrap();
-    assert_eq!(m.warnings.len(), 1, "{:?}", m.warnings);
+    assert_eq!(m.warnings().len(), 1, "{:?}", m.warnings());
     assert!(
-        m.warnings[0].contains("link 'b'") && m.warnings[0].contains("triangle"),
+        m.warnings()[0].contains("link 'b'") && m.warnings()[0].contains("triangle"),
         "{:?}",
-        m.warnings
+        m.warnings()
     );
     let fine = model(&text.replace(r#"izz="5""#, r#"izz="1.5""#)).unwrap();
-    assert!(fine.warnings.is_empty(), "{:?}", fine.warnings);
+    assert!(fine.warnings().is_empty(), "{:?}", fine.warnings());
     let not_psd = model(&text.replace(r#"izz="5""#, r#"izz="-1""#)).unwrap();
     assert!(
-        not_psd.warnings[0].contains("not positive semi-definite"),
+        not_psd.warnings()[0].contains("not positive semi-definite"),
         "{:?}",
-        not_psd.warnings
+        not_psd.warnings()
     );
 }
 
@@ -390,7 +390,7 @@ fn a_model_without_coordinates_answers_every_algorithm() {
         <inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>"#,
     )
     .unwrap();
-    assert_eq!((m.nq, m.nv), (0, 0));
+    assert_eq!((m.nq(), m.nv()), (0, 0));
     let mut ws = ws_for(&m);
     assert!(rnea(&m, &mut ws, &[], &[], &[]).unwrap().is_empty());
     assert!(gravity(&m, &mut ws, &[]).unwrap().is_empty());

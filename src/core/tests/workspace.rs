@@ -26,12 +26,12 @@ fn load(text: &str) -> Model {
 /// Every algorithm taking `(model, ws, …)` called on `model` with `ws`, at a valid state of
 /// `model`: the name of each call with its result (`Ok(())` or the error).
 fn every_algorithm(model: &Model, ws: &mut Workspace) -> Vec<(String, Result<(), DynamicsError>)> {
-    let (nq, nv) = (model.nq, model.nv);
+    let (nq, nv) = (model.nq(), model.nv());
     let q = model.neutral();
     let (v, a, tau) = (vec![0.1; nv], vec![0.2; nv], vec![0.3; nv]);
     assert_eq!(q.len(), nq);
     let ext = Externals::none();
-    let link = model.links.last().unwrap().name.clone();
+    let link = model.links().last().unwrap().name.clone();
     let frame = find_frame(model, &link).unwrap();
     let mut results: Vec<(String, Result<(), DynamicsError>)> = vec![
         ("rnea".into(), rnea(model, ws, &q, &v, &a).map(drop)),
@@ -121,8 +121,8 @@ fn assert_refused(a: &Model, b: &Model) {
                 model,
                 ..
             }) => {
-                assert_eq!(workspace_model, a.name, "{call}");
-                assert_eq!(model, b.name, "{call}");
+                assert_eq!(workspace_model, a.name(), "{call}");
+                assert_eq!(model, b.name(), "{call}");
             }
             other => panic!("{call}: a workspace of another model gave {other:?}"),
         }
@@ -132,7 +132,7 @@ fn assert_refused(a: &Model, b: &Model) {
 #[test]
 fn another_model_with_the_same_shape_is_refused_by_every_algorithm() {
     let (a, b) = (load(TURN_SLIDE), turned_slide());
-    assert_eq!((a.nbodies(), a.nq, a.nv), (b.nbodies(), b.nq, b.nv));
+    assert_eq!((a.nbodies(), a.nq(), a.nv()), (b.nbodies(), b.nq(), b.nv()));
     assert_refused(&a, &b);
     assert_refused(&b, &a);
     // The same description loaded twice makes two models.
