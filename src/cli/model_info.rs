@@ -11,7 +11,7 @@ pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
             .coordinate_joints()
             .map(|j| json!({"name": j.name, "type": j.kind.type_name(), "q_index": j.q_index, "nq": j.nq, "v_index": j.v_index, "nv": j.nv}))
             .collect();
-        let r = &model.reduction();
+        let r = model.reduction();
         let reduction = json!({
             "root": r.root, "tips": r.tips,
             "frozen_joints": r.frozen_joints, "payload_links": r.payload_links,

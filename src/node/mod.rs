@@ -854,7 +854,7 @@ async fn serve(
             _ = diagnostics.tick() => {
                 let now = time.now(&mut node, &engine, &mut health, None);
                 let stamp = NodeClock::stamp(now);
-                let mut status = health.report(&diagnostics_name, &engine.model.name(), true);
+                let mut status = health.report(&diagnostics_name, engine.model.name(), true);
                 status.values.push(KeyValue { key: "clock".into(), value: clock::source_name(time.clock.use_sim_time(), engine.simulated_time().is_some()).into() });
                 status.values.push(KeyValue { key: "clock time (s)".into(), value: now.map_or_else(|| "none yet".into(), |n| format!("{:.9}", n as f64 * 1e-9)) });
                 if let Some((t, rtf, paused, diverged, clamped)) = engine.simulation_status() {

@@ -120,15 +120,18 @@ fn integrate_names_the_vector_of_the_wrong_length() {
     let mut out = [0.0; 7];
     m.integrate(&q, &v, 0.5, &mut out).unwrap();
     assert_eq!(out[2], 0.5, "the base rises along z: {out:?}");
-    // (q, v, out's length, the vector named, its expected and given lengths)
-    let cases: [(&[f64], &[f64], usize, &str, usize, usize); 3] = [
-        (&q[..6], &v, 7, "q", 7, 6),
-        (&q, &v[..5], 7, "v", 6, 5),
-        (&q, &v, 8, "out", 7, 8),
-    ];
-    for (q, v, n, vector, expected, got) in cases {
+    // Each vector of the wrong length in turn: its error, and `out` untouched.
+    let refused = |q: &[f64], v: &[f64], n: usize| {
         let mut out = vec![-1.0; n];
         let err = m.integrate(q, v, 0.5, &mut out).unwrap_err();
+        assert!(out.iter().all(|&x| x == -1.0), "out was written: {out:?}");
+        err
+    };
+    for (err, vector, expected, got) in [
+        (refused(&q[..6], &v, 7), "q", 7, 6),
+        (refused(&q, &v[..5], 7), "v", 6, 5),
+        (refused(&q, &v, 8), "out", 7, 8),
+    ] {
         assert_eq!(
             err,
             DynamicsError::Length {
@@ -141,7 +144,6 @@ fn integrate_names_the_vector_of_the_wrong_length() {
             err.to_string(),
             format!("{vector} has {got} values, the model needs {expected}")
         );
-        assert!(out.iter().all(|&x| x == -1.0), "out was written: {out:?}");
     }
 }
 

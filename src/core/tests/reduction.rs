@@ -158,7 +158,7 @@ fn a_tip_keeps_the_chain_and_lumps_the_rest_onto_it() {
         },
     );
     assert_eq!(reduced.nv(), 4);
-    let r = &reduced.reduction();
+    let r = reduced.reduction();
     assert_eq!(r.frozen_joint_names(), ["joint5", "joint7"]);
     assert_eq!(reduced.locked_joints(), [("joint6".to_string(), 0.8)]);
     assert!(r.payload_links.contains(&"link5".to_string()));
