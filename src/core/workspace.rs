@@ -149,8 +149,9 @@ impl Workspace {
     }
 
     /// `Ok` when the workspace was made for `model` (or a clone of it), else
-    /// [`DynamicsError::ForeignWorkspace`]: every algorithm checks this first, one comparison
-    /// (as Pinocchio's `model.check(data)`).
+    /// [`DynamicsError::ForeignWorkspace`]: every algorithm checks this before it reads the
+    /// workspace, one comparison of identities (where Pinocchio's `model.check(data)` compares
+    /// sizes, which two models of the same shape share).
     #[inline(always)]
     pub fn check(&self, model: &Model) -> Result<(), DynamicsError> {
         if self.model_id == model.id {
