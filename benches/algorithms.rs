@@ -28,8 +28,8 @@ fn random_states(model: &Model) -> Vec<State> {
     (0..STATES)
         .map(|_| State {
             q: random_q(model, &mut rng),
-            v: rng.vector(model.nv, 1.0),
-            a_or_tau: rng.vector(model.nv, 1.0),
+            v: rng.vector(model.nv(), 1.0),
+            a_or_tau: rng.vector(model.nv(), 1.0),
         })
         .collect()
 }

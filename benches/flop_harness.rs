@@ -14,21 +14,19 @@
 //! product, 27 m + 18 a). Everything but the calls (model loading, the 8 random states) is the
 //! same whatever `CALLS` is, so the difference of two runs' counts divided by the difference of
 //! `CALLS` is the count of one call. The kernel's own count from the table
-//! (`plan::flop_table::kernel_flops`) is printed as JSON, so the script needs no other binary.
+//! (`flop_table::kernel_flops`) is printed as JSON, so the script needs no other binary.
 
 use nalgebra::{Matrix3, Rotation3, Vector6};
 use spatial_dynamics_core::algorithms::cholesky::spd_inverse;
 use spatial_dynamics_core::algorithms::{crba, forward_dynamics, gravity, rnea};
 use spatial_dynamics_core::model::{examples, JointKind, MotionSubspace};
-use spatial_dynamics_core::plan::{flop_table, flops};
+use spatial_dynamics_core::{flop_table, flops};
 use spatial_dynamics_core::sampling::{random_q, Rng};
 use spatial_dynamics_core::spatial::{
     AxisTransform, Force, Inertia, Matrix6, Motion, Transform, Translation, Vector3,
 };
 use spatial_dynamics_core::urdf::{model_from_file, model_from_str};
-use spatial_dynamics_core::{
-    Externals, ForwardDynamicsMethod, Model, ModelOptions, Plan, Workspace,
-};
+use spatial_dynamics_core::{Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
 use std::hint::black_box;
 use std::path::Path;
 
@@ -62,7 +60,7 @@ fn run(args: &[String]) -> Result<(), String> {
         return operation(name, calls);
     }
     let model = load(model_name)?;
-    let table = flop_table::kernel_flops(&model, &Plan::new(&model), kernel)
+    let table = flop_table::kernel_flops(&model, kernel)
         .ok_or_else(|| format!("no FLOP count for kernel '{kernel}' on this model"))?;
     let states: Vec<State> = {
         let mut rng = Rng::new(1);
@@ -79,7 +77,7 @@ fn run(args: &[String]) -> Result<(), String> {
     }
     println!(
         "{{\"model\": \"{model_name}\", \"nv\": {}, \"kernel\": \"{kernel}\", \"mul\": {}, \"add\": {}, \"div\": {}, \"sqrt\": {}, \"sincos\": {}}}",
-        model.nv, table.mul, table.add, table.div, table.sqrt, table.sincos
+        model.nv(), table.mul, table.add, table.div, table.sqrt, table.sincos
     );
     Ok(())
 }
@@ -289,7 +287,7 @@ fn operation(name: &str, calls: usize) -> Result<(), String> {
         "spd_inverse6" => {
             let spd = m6.transpose() * m6 + Matrix6::identity();
             let mut inv = Matrix6::zeros();
-            repeat!(spd_inverse(black_box(&spd), 6, |p| p > 0.0, &mut inv));
+            repeat!(spd_inverse(black_box(&spd), 6, |p| p > 0.0, &mut inv).is_ok());
             flops::spd_inverse(6)
         }
         "inertia_to_matrix" => {
@@ -353,8 +351,8 @@ impl State {
         let q = random_q(model, rng);
         State {
             q,
-            v: rng.vector(model.nv, 1.0),
-            a: rng.vector(model.nv, 1.0),
+            v: rng.vector(model.nv(), 1.0),
+            a: rng.vector(model.nv(), 1.0),
         }
     }
 }

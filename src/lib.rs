@@ -3,6 +3,8 @@
 //! executable `ros2 run` and launch files start). Not a library to build on: that is
 //! `spatial_dynamics_core`. The modules stay private; only the two entry points are public.
 
+#![forbid(unsafe_code)]
+
 #[cfg(feature = "replay")]
 mod bag;
 mod cli;

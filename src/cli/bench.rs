@@ -17,11 +17,9 @@ use spatial_dynamics_core::algorithms::{
     center_of_mass_jacobian, choose_method, crba, find_frame, forward_dynamics, frame_jacobian,
     gravity, rnea, ReferenceFrame,
 };
-use spatial_dynamics_core::plan::flop_table;
+use spatial_dynamics_core::flop_table;
 use spatial_dynamics_core::sampling::{random_q, Rng};
-use spatial_dynamics_core::{
-    DynamicsError, Externals, ForwardDynamicsMethod, Model, Plan, Workspace,
-};
+use spatial_dynamics_core::{DynamicsError, Externals, ForwardDynamicsMethod, Model, Workspace};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
@@ -78,13 +76,13 @@ pub const KINEMATICS_KERNELS: [&str; 2] = ["frame_jacobian", "center_of_mass"];
 pub fn deepest_link(model: &Model) -> &str {
     let mut depth = vec![0usize; model.nbodies()];
     let mut deepest: Option<usize> = None;
-    for (i, body) in model.bodies.iter().enumerate() {
+    for (i, body) in model.bodies().iter().enumerate() {
         depth[i] = body.parent.map_or(1, |p| depth[p] + 1);
         if deepest.is_none_or(|d| depth[i] > depth[d]) {
             deepest = Some(i);
         }
     }
-    deepest.map_or(model.root_link.as_str(), |i| model.bodies[i].name.as_str())
+    deepest.map_or(model.root_link(), |i| model.bodies()[i].name.as_str())
 }
 
 /// Times every kernel (or those named in `only`) and prints the result; with a reduction asked
@@ -130,7 +128,7 @@ pub fn run(
                 .map(|(k, ns)| (k.to_string(), json!(ns)))
                 .collect()
         };
-        let mut out = json!({"nv": model.nv, "ns_per_call": per_call(&times), "flops_per_call": flops,
+        let mut out = json!({"nv": model.nv(), "ns_per_call": per_call(&times), "flops_per_call": flops,
                              "gflops": gflops, "frame": deepest_link(&model)});
         match &auto {
             Ok(choice) => out["auto_method"] = json!(choice.method.name()),
@@ -140,7 +138,7 @@ pub fn run(
             }
         }
         if let Some((full, full_times)) = &full {
-            out["full"] = json!({"nv": full.nv, "ns_per_call": per_call(full_times)});
+            out["full"] = json!({"nv": full.nv(), "ns_per_call": per_call(full_times)});
             out["speedup"] = all
                 .iter()
                 .enumerate()
@@ -158,7 +156,12 @@ pub fn run(
     }
     println!(
         "robot '{}': nq = {}, nv = {}; {} random states, median of {} repeats of at least {:.2} s",
-        model.name, model.nq, model.nv, settings.states, settings.repeats, settings.min_time
+        model.name(),
+        model.nq(),
+        model.nv(),
+        settings.states,
+        settings.repeats,
+        settings.min_time
     );
     let cell = |ns: Option<f64>| ns.map_or("n/a (mimic)".to_string(), |x| format!("{x:.1}"));
     match &full {
@@ -167,7 +170,7 @@ pub fn run(
                 "{:<16} {:>12} {:>16} {:>9}",
                 "kernel",
                 "ns/call",
-                format!("full nv={}", full.nv),
+                format!("full nv={}", full.nv()),
                 "speed-up"
             );
             for (k, name) in all.iter().enumerate() {
@@ -210,11 +213,10 @@ fn flops_per_call(
     model: &Model,
     results: &[(&str, Option<f64>)],
 ) -> (Map<String, Value>, Map<String, Value>) {
-    let plan = Plan::new(model);
     let mut flops_map = Map::new();
     let mut gflops_map = Map::new();
     for (name, ns) in results {
-        let count = flop_table::kernel_flops(model, &plan, name).map(|f| f.total());
+        let count = flop_table::kernel_flops(model, name).map(|f| f.total());
         flops_map.insert(name.to_string(), json!(count));
         let rate = match (count, ns) {
             (Some(count), Some(ns)) if *ns > 0.0 => {
@@ -240,8 +242,8 @@ pub fn time_kernels(
     let states: Vec<State> = (0..settings.states)
         .map(|_| State {
             q: random_q(model, &mut rng),
-            v: rng.vector(model.nv, 1.0),
-            a_or_tau: rng.vector(model.nv, 1.0),
+            v: rng.vector(model.nv(), 1.0),
+            a_or_tau: rng.vector(model.nv(), 1.0),
         })
         .collect();
     kernels

@@ -11,7 +11,7 @@ pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
             .coordinate_joints()
             .map(|j| json!({"name": j.name, "type": j.kind.type_name(), "q_index": j.q_index, "nq": j.nq, "v_index": j.v_index, "nv": j.nv}))
             .collect();
-        let r = &model.reduction;
+        let r = model.reduction();
         let reduction = json!({
             "root": r.root, "tips": r.tips,
             "frozen_joints": r.frozen_joints, "payload_links": r.payload_links,
@@ -19,24 +19,24 @@ pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
             "pruned_links": r.pruned_links,
         });
         let locked: Vec<_> = model
-            .locked_joints
+            .locked_joints()
             .iter()
             .map(|(n, v)| json!([n, v]))
             .collect();
         println!(
             "{}",
-            json!({"nq": model.nq, "nv": model.nv, "nbodies": model.nbodies(), "joints": joints,
-                   "locked_joints": locked, "fused_links": model.fused_links, "reduction": reduction})
+            json!({"nq": model.nq(), "nv": model.nv(), "nbodies": model.nbodies(), "joints": joints,
+                   "locked_joints": locked, "fused_links": model.fused_links(), "reduction": reduction})
         );
         return Ok(());
     }
     println!(
         "robot '{}': nq = {}, nv = {}, {} bodies, root link '{}'",
-        model.name,
-        model.nq,
-        model.nv,
+        model.name(),
+        model.nq(),
+        model.nv(),
         model.nbodies(),
-        model.root_link
+        model.root_link()
     );
     println!(
         "{:<24} {:<11} {:>7} {:>4} {:>7} {:>4}",
@@ -53,7 +53,7 @@ pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
             j.nv
         );
     }
-    for b in &model.bodies {
+    for b in model.bodies() {
         if let Some(m) = &b.joint.mimics {
             println!(
                 "mimic: '{}' = {} × '{}' + {}",
@@ -61,14 +61,14 @@ pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
             );
         }
     }
-    for (name, value) in &model.locked_joints {
+    for (name, value) in model.locked_joints() {
         println!("locked: '{name}' at {value}");
     }
-    for line in model.reduction.summary() {
+    for line in model.reduction().summary() {
         println!("reduced: {line}");
     }
-    if !model.fused_links.is_empty() {
-        println!("fused (fixed joints): {}", model.fused_links.join(", "));
+    if !model.fused_links().is_empty() {
+        println!("fused (fixed joints): {}", model.fused_links().join(", "));
     }
     Ok(())
 }

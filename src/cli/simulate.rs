@@ -85,7 +85,7 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
         Column::Position,
         &mut q,
     )?;
-    let mut tau = vec![0.0; model.nv];
+    let mut tau = vec![0.0; model.nv()];
     apply_map(
         &model,
         args.effort.as_deref(),
@@ -102,7 +102,7 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
             .map_err(|e| format!("--passive: {e}"))?,
         ground: ground(model_args, args)?,
     };
-    let zero = vec![0.0; model.nv];
+    let zero = vec![0.0; model.nv()];
     let mut sim = Simulator::new(&model, config)?;
     let mut state = State::at_rest(&model, q);
     let file = std::fs::File::create(&args.output)

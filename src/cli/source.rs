@@ -70,7 +70,7 @@ impl ModelArgs {
             (None, None) => urdf::model_from_str(examples::DEFAULT_ARM_URDF, &options),
         };
         let model = result.map_err(|e| e.to_string())?;
-        for warning in &model.warnings {
+        for warning in model.warnings() {
             eprintln!("spatial_dynamics: warning: {warning}");
         }
         Ok(model)

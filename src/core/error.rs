@@ -47,8 +47,14 @@ pub enum DynamicsError {
     NonFiniteWrench { body: String },
     /// The mass matrix is singular or not positive definite at this coordinate.
     SingularMassMatrix { coordinate: String, pivot: f64 },
-    /// The articulated inertia seen by a joint is singular (ABA).
-    SingularArticulatedInertia { joint: String, pivot: f64 },
+    /// The articulated inertia seen by a joint is singular (ABA): the Cholesky pivot of
+    /// `D = Sᵀ I^A S` that failed, at velocity `coordinate` of `joint` (carrying `body`).
+    SingularArticulatedInertia {
+        joint: String,
+        body: String,
+        coordinate: String,
+        pivot: f64,
+    },
     /// The method cannot handle this model.
     Unsupported {
         method: &'static str,
@@ -66,6 +72,16 @@ pub enum DynamicsError {
         link: String,
         pruned: bool,
         known: Vec<String>,
+    },
+    /// The workspace was made ([`Workspace::new`](crate::Workspace::new)) for another model
+    /// than the one given: its buffers and plan belong to that model. Each model is named by
+    /// its robot name and its identity (every model built or reduced gets its own; a clone
+    /// keeps it).
+    ForeignWorkspace {
+        workspace_model: String,
+        workspace_model_id: u64,
+        model: String,
+        model_id: u64,
     },
 }
 
@@ -90,17 +106,17 @@ impl fmt::Display for DynamicsError {
                 f,
                 "the mass matrix at coordinate '{coordinate}' overflowed to a non-finite value (pivot {pivot}): the state is too extreme to compute with"
             ),
-            DynamicsError::SingularArticulatedInertia { joint, pivot } if !pivot.is_finite() => write!(
+            DynamicsError::SingularArticulatedInertia { joint, body, coordinate, pivot } if !pivot.is_finite() => write!(
                 f,
-                "the articulated inertia at joint '{joint}' overflowed to a non-finite value (pivot {pivot}): the state is too extreme to compute with"
+                "the articulated inertia at joint '{joint}' (body '{body}') overflowed to a non-finite value (pivot of coordinate '{coordinate}': {pivot}): the state is too extreme to compute with"
             ),
             DynamicsError::SingularMassMatrix { coordinate, pivot } => write!(
                 f,
                 "the mass matrix is singular or not positive definite at coordinate '{coordinate}' (pivot {pivot:e}): a massless body or one that cannot move along this joint"
             ),
-            DynamicsError::SingularArticulatedInertia { joint, pivot } => write!(
+            DynamicsError::SingularArticulatedInertia { joint, body, coordinate, pivot } => write!(
                 f,
-                "the articulated inertia at joint '{joint}' is singular (pivot {pivot:e}): nothing with mass moves when this joint moves"
+                "the articulated inertia at joint '{joint}' (body '{body}') is singular: the pivot of coordinate '{coordinate}' is {pivot:e}: nothing with mass moves when this joint moves"
             ),
             DynamicsError::Unsupported { method, reason } => write!(f, "method '{method}' cannot be used: {reason}"),
             DynamicsError::NonFiniteResult { quantity, coordinate } => {
@@ -115,6 +131,10 @@ impl fmt::Display for DynamicsError {
                 f,
                 "the model has no link named '{link}'; its links are: {}",
                 known.join(", ")
+            ),
+            DynamicsError::ForeignWorkspace { workspace_model, workspace_model_id, model, model_id } => write!(
+                f,
+                "the workspace was made for model '{workspace_model}' (#{workspace_model_id}), not for the model given, '{model}' (#{model_id}): make one with Workspace::new for each model"
             ),
         }
     }

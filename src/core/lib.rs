@@ -21,11 +21,13 @@
 //! RNEA in spatial vectors, eq. 21 gravity as an upward acceleration of the world, §3.1 the
 //! particle example, Appendices A and B the spatial terms and operators (the README says more).
 
+#![forbid(unsafe_code)]
+
 pub mod algorithms;
 pub mod double_double;
 pub mod error;
 pub mod model;
-pub mod plan;
+pub(crate) mod plan;
 pub mod requests;
 pub mod sampling;
 pub mod sim;
@@ -36,7 +38,9 @@ mod workspace;
 pub use algorithms::{Externals, ForwardDynamicsMethod};
 pub use error::{DynamicsError, ModelError};
 pub use model::{Model, ModelOptions};
-pub use plan::Plan;
+/// The FLOP model the plan chooses by, public for the benchmarks: `flops` prices each spatial
+/// operation, `flop_table::kernel_flops(model, name)` counts a kernel on a model.
+pub use plan::{flop_table, flops};
 pub use workspace::Workspace;
 
 /// The README's and docs/library.md's Rust examples, compiled by `cargo test --doc` so that they

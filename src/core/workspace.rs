@@ -2,6 +2,7 @@
 //! every call so that no call allocates.
 
 use crate::algorithms::frames::FrameScratch;
+use crate::error::DynamicsError;
 use crate::model::{JointKind, Model, MotionSubspace};
 use crate::plan::Plan;
 use crate::spatial::{Force, Inertia, Matrix6, Motion, Transform, Vector3};
@@ -11,6 +12,10 @@ use nalgebra::{DMatrix, DVector};
 /// body are expressed in that body's frame.
 #[derive(Clone, Debug)]
 pub struct Workspace {
+    /// The identity of the model the workspace was made for ([`Workspace::check`]) and its
+    /// robot name, for the error.
+    model_id: u64,
+    model_name: String,
     /// The model's plan: the choices every call follows, made once ([`Plan::new`]).
     pub(crate) plan: Plan,
     /// The joint's own position coordinates (a mimic follower's computed from its leader), for
@@ -94,6 +99,8 @@ impl Workspace {
         let n = model.nbodies();
         let nv = model.nv;
         Workspace {
+            model_id: model.id,
+            model_name: model.name.clone(),
             plan: Plan::new(model),
             q_joint: vec![[0.0; 7]; n],
             turn_angles: vec![0.0; n],
@@ -144,9 +151,27 @@ impl Workspace {
         }
     }
 
-    /// The choices the algorithms follow for this workspace's model.
-    pub fn plan(&self) -> &Plan {
-        &self.plan
+    /// `Ok` when the workspace was made for `model` (or a clone of it), else
+    /// [`DynamicsError::ForeignWorkspace`]: every algorithm checks this before it reads the
+    /// workspace, one comparison of identities (where Pinocchio's `model.check(data)` compares
+    /// sizes, which two models of the same shape share).
+    #[inline(always)]
+    pub fn check(&self, model: &Model) -> Result<(), DynamicsError> {
+        if self.model_id == model.id {
+            Ok(())
+        } else {
+            Err(self.foreign(model))
+        }
+    }
+
+    #[cold]
+    fn foreign(&self, model: &Model) -> DynamicsError {
+        DynamicsError::ForeignWorkspace {
+            workspace_model: self.model_name.clone(),
+            workspace_model_id: self.model_id,
+            model: model.name.clone(),
+            model_id: model.id,
+        }
     }
 
     /// The last generalized forces computed (inverse dynamics, bias or gravity).

@@ -41,9 +41,9 @@ impl JointStateDynamics {
         JointStateDynamics {
             combined: JointStateOutputs::new(model),
             from_combined: true,
-            g: vec![0.0; model.nv],
-            qdd: vec![0.0; model.nv],
-            tau: vec![0.0; model.nv],
+            g: vec![0.0; model.nv()],
+            qdd: vec![0.0; model.nv()],
+            tau: vec![0.0; model.nv()],
         }
     }
 
@@ -121,10 +121,10 @@ mod tests {
         let model = urdf::model_from_str(DEFAULT_ARM_URDF, &ModelOptions::default()).unwrap();
         let mut ws = Workspace::new(&model);
         let mut d = JointStateDynamics::new(&model);
-        let q: Vec<f64> = (0..model.nq).map(|k| 0.1 * k as f64).collect();
-        let v: Vec<f64> = (0..model.nv).map(|k| 0.3 - 0.05 * k as f64).collect();
-        let tau: Vec<f64> = (0..model.nv).map(|k| 1.0 - 0.2 * k as f64).collect();
-        let a: Vec<f64> = (0..model.nv).map(|k| -0.5 + 0.1 * k as f64).collect();
+        let q: Vec<f64> = (0..model.nq()).map(|k| 0.1 * k as f64).collect();
+        let v: Vec<f64> = (0..model.nv()).map(|k| 0.3 - 0.05 * k as f64).collect();
+        let tau: Vec<f64> = (0..model.nv()).map(|k| 1.0 - 0.2 * k as f64).collect();
+        let a: Vec<f64> = (0..model.nv()).map(|k| -0.5 + 0.1 * k as f64).collect();
         let input = JointStateInputs {
             q: &q,
             v: &v,
@@ -154,7 +154,7 @@ mod tests {
         assert!(close(&id, rnea(&model, &mut ws, &q, &v, &a).unwrap()));
 
         // Huge velocities overflow: gravity alone would hold, but FD and RNEA fail.
-        let fast = vec![1e200; model.nv];
+        let fast = vec![1e200; model.nv()];
         let input = JointStateInputs { v: &fast, ..input };
         let e = d.evaluate(&model, &mut ws, ForwardDynamicsMethod::Aba, &input);
         assert!(e.node.is_err() && e.measured.is_err(), "{e:?}");

@@ -47,12 +47,12 @@ impl JointMap {
     /// as the node's topics and services do.
     pub fn for_model(model: &Model) -> Result<JointMap, String> {
         let passive: Vec<String> = model
-            .locked_joints
+            .locked_joints()
             .iter()
             .map(|(n, _)| n.clone())
-            .chain(model.fixed_joints.iter().cloned())
-            .chain(model.reduction.frozen_joint_names())
-            .chain(model.reduction.pruned_joints.iter().cloned())
+            .chain(model.fixed_joints().iter().cloned())
+            .chain(model.reduction().frozen_joint_names())
+            .chain(model.reduction().pruned_joints.iter().cloned())
             .collect();
         JointMap::new(model, &passive)
     }
@@ -68,7 +68,7 @@ impl JointMap {
             order: Vec::new(),
             seen: Vec::new(),
         };
-        for body in model.bodies.iter() {
+        for body in model.bodies().iter() {
             let joint = &body.joint;
             if joint.is_mimic() {
                 map.passive.insert(joint.name.clone(), ());

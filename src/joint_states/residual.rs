@@ -114,10 +114,10 @@ impl<T> Lagged<T> {
         Lagged {
             max_gap_ns,
             window: [None, None, None],
-            nq: model.nq,
-            nv: model.nv,
-            a: vec![0.0; model.nv],
-            r: vec![0.0; model.nv],
+            nq: model.nq(),
+            nv: model.nv(),
+            a: vec![0.0; model.nv()],
+            r: vec![0.0; model.nv()],
         }
     }
 
@@ -215,8 +215,8 @@ mod tests {
     #[test]
     fn lagged_residual_recovers_an_added_torque_one_sample_late() {
         let model = urdf::model_from_str(DEFAULT_ARM_URDF, &ModelOptions::default()).unwrap();
-        assert_eq!(model.nq, model.nv);
-        let nv = model.nv;
+        assert_eq!(model.nq(), model.nv());
+        let nv = model.nv();
         let mut ws = Workspace::new(&model);
         let c: Vec<[f64; 3]> = (0..nv)
             .map(|k| {
@@ -276,9 +276,9 @@ mod tests {
         let model = urdf::model_from_str(DEFAULT_ARM_URDF, &ModelOptions::default()).unwrap();
         let mut ws = Workspace::new(&model);
         let (q, v, e) = (
-            vec![0.1; model.nq],
-            vec![0.2; model.nv],
-            vec![1.0; model.nv],
+            vec![0.1; model.nq()],
+            vec![0.2; model.nv()],
+            vec![1.0; model.nv()],
         );
         let mut lagged = Lagged::new(&model, 10);
         let mut push = |t: i64, has_v: bool| {
@@ -306,7 +306,7 @@ mod tests {
         let mut map = JointMap::for_model(&model).unwrap();
         let names = map.names().to_vec();
         map.match_names(&names, "name").unwrap();
-        let mut out = vec![0.0; model.nv];
+        let mut out = vec![0.0; model.nv()];
         assert_eq!(read_effort(&map, &[], &mut out), Ok(false));
         let mut r = [0.0; 2];
         assert!(effort_residual(&[1.0, 2.0], &[0.5, -1.0], &mut r).is_ok() && r == [0.5, 3.0]);

@@ -88,7 +88,7 @@ pub fn run(args: &[String]) -> Result<(), String> {
         settings.apply_arg(name, value)?;
     }
     let engine = Engine::from_settings(&settings, None)?;
-    for warning in &engine.model.warnings {
+    for warning in engine.model.warnings() {
         log!(logger, Warn, "{warning}");
     }
     let runtime = tokio::runtime::Builder::new_current_thread()
@@ -617,9 +617,9 @@ async fn serve(
         Info,
         "{} serving robot '{}' ({} joints, nv = {}), method {}{}",
         node.fully_qualified_name(),
-        engine.model.name,
+        engine.model.name(),
         engine.names().len(),
-        engine.model.nv,
+        engine.model.nv(),
         engine.method,
         engine.method_choice.as_ref().map_or(String::new(), |c| format!(
             ", chosen by FLOP count among the methods agreeing with aba; timings for information only ({c})"
@@ -739,7 +739,7 @@ async fn serve(
                             Ok(new) => {
                                 *topic_description.lock().map_err(|e| e.to_string())? = Some(m.data);
                                 if new.source == engine::ModelSource::Topic {
-                                    log!(logger, Info, "loaded robot '{}' from {description_name}", new.model.name);
+                                    log!(logger, Info, "loaded robot '{}' from {description_name}", new.model.name());
                                     engine = new;
                                 } else {
                                     let why = match &new.source {
@@ -753,7 +753,7 @@ async fn serve(
                                     }
                                 }
                             }
-                            Err(e) => health.dropped(&description_name, &format!("unusable robot description, keeping robot '{}': {e}", engine.model.name)),
+                            Err(e) => health.dropped(&description_name, &format!("unusable robot description, keeping robot '{}': {e}", engine.model.name())),
                         }
                     }
                     Err(e) => health.dropped(&description_name, &format!("unreadable message: {e:?}")),
@@ -843,7 +843,7 @@ async fn serve(
                     let description = topic_description.lock().map_err(|e| e.to_string())?.clone();
                     match Engine::from_settings(&settings, description.as_deref()) {
                         Ok(new) => engine = new,
-                        Err(e) => log!(logger, Error, "parameter '{name}' was accepted but the model could not be rebuilt, keeping robot '{}': {e}", engine.model.name),
+                        Err(e) => log!(logger, Error, "parameter '{name}' was accepted but the model could not be rebuilt, keeping robot '{}': {e}", engine.model.name()),
                     }
                 }
                 sim_timer = simulation_timer(&engine);
@@ -853,7 +853,7 @@ async fn serve(
             _ = diagnostics.tick() => {
                 let now = time.now(&mut node, &engine, &mut health, None);
                 let stamp = NodeClock::stamp(now);
-                let mut status = health.report(&diagnostics_name, &engine.model.name, true);
+                let mut status = health.report(&diagnostics_name, engine.model.name(), true);
                 status.values.push(KeyValue { key: "clock".into(), value: clock::source_name(time.clock.use_sim_time(), engine.simulated_time().is_some()).into() });
                 status.values.push(KeyValue { key: "clock time (s)".into(), value: now.map_or_else(|| "none yet".into(), |n| format!("{:.9}", n as f64 * 1e-9)) });
                 if let Some((t, rtf, paused, diverged, clamped)) = engine.simulation_status() {

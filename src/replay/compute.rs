@@ -25,8 +25,8 @@ impl Scratch {
         Scratch {
             ws: Workspace::new(model),
             builder,
-            a: vec![0.0; model.nv],
-            r: vec![0.0; model.nv],
+            a: vec![0.0; model.nv()],
+            r: vec![0.0; model.nv()],
             dynamics: JointStateDynamics::new(model),
         }
     }
@@ -41,7 +41,7 @@ pub fn compute(
     channels: [u16; 4],
     s: &mut Scratch,
 ) -> Result<(), String> {
-    let (nq, nv) = (model.nq, model.nv);
+    let (nq, nv) = (model.nq(), model.nv());
     let tables = block.tables.clone();
     for i in block.lo..block.hi {
         let q = &block.q[i * nq..(i + 1) * nq];

@@ -52,8 +52,8 @@ impl Decoder {
         max_gap_ns: i64,
     ) -> Decoder {
         Decoder {
-            nq: model.nq,
-            nv: model.nv,
+            nq: model.nq(),
+            nv: model.nv(),
             map,
             commands,
             time_source,

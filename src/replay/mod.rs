@@ -197,7 +197,7 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
         channels[k] = writer.add_topic(&out_topics[k], type_name, &definition)?;
     }
 
-    let commands = Commands::new(&map, model.nv, &args.command_joints).map_err(|e| {
+    let commands = Commands::new(&map, model.nv(), &args.command_joints).map_err(|e| {
         format!(
             "--command-joints: {}",
             e.trim_start_matches("command_joints: ")
@@ -341,7 +341,7 @@ fn load_model(
     };
     let model = urdf::model_from_str(text, &options)
         .map_err(|e| format!("the robot description from {source}: {e}"))?;
-    for warning in &model.warnings {
+    for warning in model.warnings() {
         eprintln!("spatial_dynamics: warning: {warning}");
     }
     Ok((model, source))

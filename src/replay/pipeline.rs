@@ -36,7 +36,7 @@ pub fn pipeline(
     channels: [u16; 4],
     mut progress: Option<Progress>,
 ) -> Result<Outcome, String> {
-    let (nq, nv) = (model.nq, model.nv);
+    let (nq, nv) = (model.nq(), model.nv());
     let (work_tx, work_rx) = channel::<Box<Block>>();
     let work_rx = Mutex::new(work_rx);
     let (done_tx, done_rx) = channel::<Box<Block>>();

@@ -27,7 +27,8 @@ pub fn report(
     let skipped_commands = outcome.problems.total("commands");
     eprintln!(
         "spatial_dynamics replay: robot '{}' ({} coordinates) from {model_source}",
-        model.name, model.nv
+        model.name(),
+        model.nv()
     );
     eprintln!(
         "read {} {js_topic}, {} {cmd_topic} and {} {commands_topic} messages in {seconds:.2} s ({}{jobs} jobs)",
@@ -86,7 +87,7 @@ pub fn report(
             json!({"total": outcome.problems.total(what), "kinds": kinds})
         };
         let summary = json!({
-            "model": {"name": model.name, "nv": model.nv, "source": model_source},
+            "model": {"name": model.name(), "nv": model.nv(), "source": model_source},
             "read": {
                 js_topic: outcome.read[0],
                 cmd_topic: outcome.read[1],

@@ -239,9 +239,9 @@ mod tests {
         let chain = Chain::new(geometric_masses(12, 1e-7)).unwrap();
         let text = chain_urdf(&chain);
         let model = urdf::model_from_str(&text, &ModelOptions::default()).unwrap();
-        assert_eq!(model.nv, 12);
-        assert_eq!(model.gravity.z, -G);
-        for (k, body) in model.bodies.iter().enumerate() {
+        assert_eq!(model.nv(), 12);
+        assert_eq!(model.gravity().z, -G);
+        for (k, body) in model.bodies().iter().enumerate() {
             assert_eq!(body.joint.name, format!("j{}", k + 1));
             assert_eq!(body.inertia.mass, chain.masses[k], "link{k}");
             assert_eq!(chain.iyy[k], chain.masses[k] / 12.0);

@@ -114,17 +114,17 @@ fn time_model(
     };
     let model: Model =
         urdf::model_from_file(&spec.path, &options).map_err(|e| format!("{}: {e}", spec.name))?;
-    let settings = settings(model.nv, quick);
+    let settings = settings(model.nv(), quick);
     let ours = bench::time_kernels(&model, &KERNELS, &settings)
         .map_err(|e| format!("{}: {e}", spec.name))?;
     let pinocchio = pinocchio
-        .map(|bin| run_pinocchio(bin, spec, &settings, model.nv))
+        .map(|bin| run_pinocchio(bin, spec, &settings, model.nv()))
         .transpose()?;
-    eprintln!("chart timing: {} (nv = {}) done", spec.name, model.nv);
+    eprintln!("chart timing: {} (nv = {}) done", spec.name, model.nv());
     Ok(Timed {
         name: spec.name.clone(),
         chain,
-        nv: model.nv,
+        nv: model.nv(),
         states: settings.states,
         ours,
         pinocchio,

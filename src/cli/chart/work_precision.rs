@@ -74,7 +74,7 @@ fn simulate(problem: &Problem, integrator: Integrator, steps: usize) -> Result<V
     let model = &problem.model;
     let mut sim = Simulator::new(model, config).expect("no contact points, nothing to look up");
     let mut state = State::at_rest(model, problem.q0.clone());
-    let tau = vec![0.0; model.nv];
+    let tau = vec![0.0; model.nv()];
     for _ in 0..steps {
         sim.step(model, &mut state, &tau)?;
     }

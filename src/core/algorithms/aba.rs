@@ -53,8 +53,8 @@ pub fn aba<'w>(
     tau: &[f64],
     ext: &Externals<'_>,
 ) -> Result<&'w [f64], DynamicsError> {
+    check_forward_inputs(model, ws, q, v, tau, ext)?;
     refuse_mimic(model)?;
-    check_forward_inputs(model, q, v, tau, ext)?;
     // [X_J, S_i] = jcalc(jtype(i), q_i),  ⁱX_λ(i) = X_J X_T(i)   (RBDA Table 7.1, for every i)
     update_joints(model, ws, q);
     velocity_pass(model, ws, v, ext);
@@ -142,11 +142,8 @@ pub(crate) fn articulated_pass(
             // u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
             u[k] = tau[c.v_index + k] - s.project(k, &ws.pa[i]);
         }
-        if !invert_spd(&d, nv, &ws.ia[i], d_inv) {
-            return Err(DynamicsError::SingularArticulatedInertia {
-                joint: body.joint.name.clone(),
-                pivot: smallest_pivot(&d, nv),
-            });
+        if let Err((k, pivot)) = invert_spd(&d, nv, &ws.ia[i], d_inv) {
+            return Err(singular_pivot(model, i, k, pivot));
         }
         if let Some(p) = body.parent {
             // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA
@@ -208,8 +205,14 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
 /// Writes into the top-left `nv × nv` block of `d_inv` the inverse of the symmetric positive
 /// definite top-left `nv × nv` block of `d` ([`spd_inverse`]; for one degree of freedom, one
 /// division), in place: false when a Cholesky pivot is not clearly positive relative to the
-/// scale of the articulated inertia `ia`.
-fn invert_spd(d: &Matrix6, nv: usize, ia: &Matrix6, d_inv: &mut Matrix6) -> bool {
+/// scale of the articulated inertia `ia`: then `Err((k, pivot))`, the pivot's row `k` in the
+/// joint's coordinates and its value.
+fn invert_spd(
+    d: &Matrix6,
+    nv: usize,
+    ia: &Matrix6,
+    d_inv: &mut Matrix6,
+) -> Result<(), (usize, f64)> {
     // D's scale is that of the articulated inertia; a pivot within a few ulps of it is zero,
     // and a subnormal one has no finite inverse (D⁻¹ would overflow). For a positive
     // semi-definite `ia` the largest entry is on the diagonal (|a_jk| ≤ √(a_jj a_kk)).
@@ -218,13 +221,24 @@ fn invert_spd(d: &Matrix6, nv: usize, ia: &Matrix6, d_inv: &mut Matrix6) -> bool
     if nv == 1 {
         let pivot = d[(0, 0)];
         d_inv[(0, 0)] = 1.0 / pivot;
-        return sound(pivot);
+        return if sound(pivot) {
+            Ok(())
+        } else {
+            Err((0, pivot))
+        };
     }
     spd_inverse(d, nv, sound, d_inv)
 }
 
-fn smallest_pivot(d: &Matrix6, nv: usize) -> f64 {
-    (0..nv)
-        .map(|k| d[(k, k)].abs())
-        .fold(f64::INFINITY, f64::min)
+/// The error for the failed pivot `k` (value `pivot`) of `D = Sᵀ I^A S` at body `i`: its body,
+/// joint and velocity coordinate.
+#[cold]
+fn singular_pivot(model: &Model, i: usize, k: usize, pivot: f64) -> DynamicsError {
+    let body = &model.bodies[i];
+    DynamicsError::SingularArticulatedInertia {
+        joint: body.joint.name.clone(),
+        body: body.name.clone(),
+        coordinate: model.v_name(body.joint.coords.v_index + k),
+        pivot,
+    }
 }

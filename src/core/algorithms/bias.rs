@@ -17,7 +17,7 @@ pub fn bias<'w>(
     v: &[f64],
     ext: &Externals<'_>,
 ) -> Result<&'w [f64], DynamicsError> {
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     check_v(model, "v", v)?;
     check_externals(model, ext)?;
     update_joints(model, ws, q);

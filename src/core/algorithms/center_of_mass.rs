@@ -43,7 +43,7 @@ pub fn center_of_mass(
     ws: &mut Workspace,
     q: &[f64],
 ) -> Result<CenterOfMass, DynamicsError> {
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     place_all(model, ws, q);
     subtree_moments(model, ws);
     total(model, ws)

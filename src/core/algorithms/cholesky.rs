@@ -95,14 +95,14 @@ pub fn cholesky_solve(factor: &DMatrix<f64>, x: &mut DVector<f64>) {
 /// ```
 ///
 /// (about `n³/2` multiplications, 156 for `n = 6`, and `n` divisions, where an inverse through
-/// the factor solves `n` right-hand sides). False as soon as a pivot `D_jj − Σ L_jk²` fails
-/// `sound` (`d_inv` is then unspecified).
+/// the factor solves `n` right-hand sides). As soon as a pivot `D_jj − Σ L_jk²` fails `sound`,
+/// `Err((j, pivot))`: its row `j` and its value (`d_inv` is then unspecified).
 pub fn spd_inverse(
     d: &Matrix6,
     n: usize,
     sound: impl Fn(f64) -> bool,
     d_inv: &mut Matrix6,
-) -> bool {
+) -> Result<(), (usize, f64)> {
     let mut l = [[0.0; 6]; 6]; // lower triangle, row by row
     let mut inv_diag = [0.0; 6]; // 1 / L_jj
     for j in 0..n {
@@ -111,7 +111,7 @@ pub fn spd_inverse(
             pivot -= l[j][k] * l[j][k];
         }
         if !sound(pivot) {
-            return false;
+            return Err((j, pivot));
         }
         inv_diag[j] = 1.0 / pivot.sqrt();
         for i in j + 1..n {
@@ -142,7 +142,7 @@ pub fn spd_inverse(
             (d_inv[(i, j)], d_inv[(j, i)]) = (s, s);
         }
     }
-    true
+    Ok(())
 }
 
 #[cfg(test)]
@@ -156,7 +156,7 @@ mod tests {
         let spd = a.transpose() * a + Matrix6::identity() * 0.1;
         for n in 1..=6 {
             let mut inv = Matrix6::zeros();
-            assert!(spd_inverse(&spd, n, |p| p > 1e-12, &mut inv));
+            assert_eq!(spd_inverse(&spd, n, |p| p > 1e-12, &mut inv), Ok(()));
             let block = spd.view((0, 0), (n, n)) * inv.view((0, 0), (n, n));
             let err = (block - nalgebra::DMatrix::<f64>::identity(n, n)).amax();
             assert!(err < 1e-12, "n = {n}: D⁻¹ D off the identity by {err:e}");
@@ -168,11 +168,10 @@ mod tests {
         let mut singular = spd;
         singular.set_column(2, &singular.column(1).clone_owned());
         singular.set_row(2, &singular.row(1).clone_owned());
-        assert!(!spd_inverse(
-            &singular,
-            6,
-            |p| p > 1e-9,
-            &mut Matrix6::zeros()
-        ));
+        // Row 2 repeats row 1: the third pivot is (to rounding) zero.
+        let (j, pivot) =
+            spd_inverse(&singular, 6, |p| p > 1e-9, &mut Matrix6::zeros()).unwrap_err();
+        assert_eq!(j, 2);
+        assert!(pivot.abs() < 1e-9 * singular.amax(), "pivot {pivot:e}");
     }
 }

@@ -14,7 +14,7 @@ pub fn energy(
     q: &[f64],
     v: &[f64],
 ) -> Result<(f64, f64), DynamicsError> {
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     check_v(model, "v", v)?;
     update_joints(model, ws, q);
     update_placements(model, ws);

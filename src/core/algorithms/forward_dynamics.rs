@@ -89,7 +89,7 @@ fn crba_solve<'w>(
     tau: &[f64],
     ext: &Externals<'_>,
 ) -> Result<&'w [f64], DynamicsError> {
-    check_forward_inputs(model, q, v, tau, ext)?;
+    check_forward_inputs(model, ws, q, v, tau, ext)?;
     update_joints(model, ws, q);
     crba_solve_on_joints(model, ws, v, tau, ext)
 }

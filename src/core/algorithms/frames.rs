@@ -37,11 +37,28 @@ use nalgebra::DMatrix;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frame {
     /// Index of the link in [`Model::links`].
-    pub link: usize,
+    pub(crate) link: usize,
     /// The body carrying the link; `None` for a link fixed to the world.
-    pub body: Option<usize>,
+    pub(crate) body: Option<usize>,
     /// `ᴸX_B`: the carrying body's frame (the world for `body = None`) → the link frame.
-    pub x_body_link: Transform,
+    pub(crate) x_body_link: Transform,
+}
+
+impl Frame {
+    /// Index of the link in [`Model::links`].
+    pub fn link(&self) -> usize {
+        self.link
+    }
+
+    /// The body carrying the link; `None` for a link fixed to the world.
+    pub fn body(&self) -> Option<usize> {
+        self.body
+    }
+
+    /// `ᴸX_B`: the carrying body's frame (the world for `body = None`) → the link frame.
+    pub fn x_body_link(&self) -> Transform {
+        self.x_body_link
+    }
 }
 
 /// The frame of link `name`, or an error naming it and listing the model's links.
@@ -167,6 +184,7 @@ pub(crate) fn place_support(
     placing: Placing,
 ) -> Result<(), DynamicsError> {
     let Some(last) = body else {
+        ws.check(model)?;
         return check_q_of(model, q, &[]);
     };
     let turns = support_turns(model, ws, q, last, placing)?;
@@ -195,6 +213,7 @@ pub(crate) fn support_turns(
     last: usize,
     placing: Placing,
 ) -> Result<usize, DynamicsError> {
+    ws.check(model)?;
     check_len("q", model.nq, q.len())?;
     let Workspace {
         plan,

@@ -28,7 +28,7 @@ pub fn gravity<'w>(
     ws: &'w mut Workspace,
     q: &[f64],
 ) -> Result<&'w [f64], DynamicsError> {
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     update_joints(model, ws, q);
     gravity_passes(model, ws);
     check_result(model, "gravity", ws.tau.as_slice())?;

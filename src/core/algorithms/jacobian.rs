@@ -76,6 +76,7 @@ pub fn frame_jacobian<'w>(
     frame: &Frame,
     reference: ReferenceFrame,
 ) -> Result<&'w DMatrix<f64>, DynamicsError> {
+    ws.check(model)?;
     let turns_and_slides = frame.body.filter(|&b| ws.plan.supports.turns_and_slides(b));
     // One loop per reference, each compiled with its own map. The world columns read of the
     // frame's body only its joint axis and origin (`Placing::UpToLastTurn`).
@@ -242,7 +243,7 @@ pub fn joint_jacobians<'w>(
     ws: &'w mut Workspace,
     q: &[f64],
 ) -> Result<JointJacobians<'w>, DynamicsError> {
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     place_all(model, ws, q);
     let scratch = &mut ws.frame_scratch;
     for i in 0..model.nbodies() {

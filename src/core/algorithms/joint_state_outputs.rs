@@ -110,7 +110,7 @@ pub fn joint_state_outputs(
         effort_command: tau,
         measured_acceleration: a,
     } = *input;
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     check_v(model, "v", v)?;
     check_v(model, "tau", tau)?;
     if let Some(a) = a {

@@ -28,7 +28,7 @@ use nalgebra::{DMatrix, DVector};
 ///
 /// Fails, naming the coordinate, when a pivot is not positive, or is so small against the
 /// original diagonal entry that every digit was lost (`H` singular or indefinite).
-pub fn ltl_factor(
+pub(crate) fn ltl_factor(
     model: &Model,
     ancestors: &Ancestors,
     h: &DMatrix<f64>,
@@ -78,7 +78,7 @@ fn column_dot(l: &[f64], n: usize, a: usize, b: usize, rows: std::ops::Range<usi
 }
 
 /// Solves `Lᵀ L x = b` in place (`x` holds `b` on entry), `factor` as [`ltl_factor`] left it.
-pub fn ltl_solve(ancestors: &Ancestors, factor: &DMatrix<f64>, x: &mut DVector<f64>) {
+pub(crate) fn ltl_solve(ancestors: &Ancestors, factor: &DMatrix<f64>, x: &mut DVector<f64>) {
     let n = ancestors.len();
     let l = factor.as_slice();
     let x = x.as_mut_slice();

@@ -88,9 +88,8 @@ pub fn choose_method(
 ) -> Result<MethodChoice, DynamicsError> {
     let mut ws = Workspace::new(model);
     let states = sample_states(model);
-    let plan = ws.plan().clone();
     let flops_of = |m: ForwardDynamicsMethod| {
-        flop_table::kernel_flops(model, &plan, &format!("fd_{}", m.name())).map(|f| f.total())
+        flop_table::kernel_flops(model, &format!("fd_{}", m.name())).map(|f| f.total())
     };
     // Cheapest first (FLOP counts tie only between identical costs: then the order of ALL).
     // A method without a count (aba on a mimic model) does not apply.
@@ -226,7 +225,9 @@ fn sample_states(model: &Model) -> Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> {
         .map(|_| {
             let step = rng.vector(model.nv, 1.0);
             let mut q = vec![0.0; model.nq];
-            model.integrate(&neutral, &step, 1.0, &mut q);
+            model
+                .integrate(&neutral, &step, 1.0, &mut q)
+                .expect("q, the step and the output are sized from the model");
             let v = rng.vector(model.nv, 1.0);
             let tau = rng.vector(model.nv, 10.0);
             (q, v, tau)
@@ -245,7 +246,7 @@ mod tests {
     }
 
     fn flops(m: ForwardDynamicsMethod, model: &Model) -> u64 {
-        flop_table::kernel_flops(model, &crate::Plan::new(model), &format!("fd_{}", m.name()))
+        flop_table::kernel_flops(model, &format!("fd_{}", m.name()))
             .unwrap()
             .total()
     }

@@ -40,7 +40,7 @@ pub mod ltl;
 pub mod method_choice;
 pub mod rnea;
 pub mod rnea_columns;
-mod validate;
+pub(crate) mod validate;
 
 pub use aba::aba;
 pub use bias::bias;

@@ -52,7 +52,7 @@ pub fn rnea_with<'w>(
     a: &[f64],
     ext: &Externals<'_>,
 ) -> Result<&'w [f64], DynamicsError> {
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     check_v(model, "v", v)?;
     check_v(model, "a", a)?;
     check_externals(model, ext)?;

@@ -27,7 +27,7 @@ pub fn rnea_columns<'w>(
     tau: &[f64],
     ext: &Externals<'_>,
 ) -> Result<&'w [f64], DynamicsError> {
-    check_forward_inputs(model, q, v, tau, ext)?;
+    check_forward_inputs(model, ws, q, v, tau, ext)?;
     inverse_dynamics(model, ws, q, v, None, ext);
     ws.bias.copy_from(&ws.tau);
     ws.unit.fill(0.0);

@@ -4,9 +4,12 @@
 use super::Externals;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model};
+use crate::Workspace;
 
-/// `q` has `nq` finite values and every floating joint's quaternion is not (near) zero.
-pub(crate) fn check_q(model: &Model, q: &[f64]) -> Result<(), DynamicsError> {
+/// `ws` was made for `model` ([`Workspace::check`]), `q` has `nq` finite values and every
+/// floating joint's quaternion is not (near) zero.
+pub(crate) fn check_q(model: &Model, ws: &Workspace, q: &[f64]) -> Result<(), DynamicsError> {
+    ws.check(model)?;
     check_len("q", model.nq, q.len())?;
     if !all_finite(q) {
         let index = q.iter().position(|x| !x.is_finite()).unwrap_or(0);
@@ -125,15 +128,16 @@ pub(crate) fn check_externals(model: &Model, ext: &Externals<'_>) -> Result<(), 
     Ok(())
 }
 
-/// The inputs of forward dynamics: `q`, `v`, `τ` and the externals.
+/// The inputs of forward dynamics: the workspace, `q`, `v`, `τ` and the externals.
 pub(crate) fn check_forward_inputs(
     model: &Model,
+    ws: &Workspace,
     q: &[f64],
     v: &[f64],
     tau: &[f64],
     ext: &Externals<'_>,
 ) -> Result<(), DynamicsError> {
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     check_v(model, "v", v)?;
     check_v(model, "tau", tau)?;
     check_externals(model, ext)

@@ -17,9 +17,9 @@ fn main() -> Result<(), Box<dyn Error>> {
     };
     let mut ws = Workspace::new(&model);
 
-    let q = vec![0.0; model.nq];
-    let v = vec![0.0; model.nv];
-    let tau = vec![0.0; model.nv]; // no torque: the arm falls under gravity
+    let q = vec![0.0; model.nq()];
+    let v = vec![0.0; model.nv()];
+    let tau = vec![0.0; model.nv()]; // no torque: the arm falls under gravity
     for method in [
         ForwardDynamicsMethod::Aba,
         ForwardDynamicsMethod::Crba,

@@ -17,9 +17,9 @@ fn main() -> Result<(), Box<dyn Error>> {
     // Scratch for every algorithm, sized once: no call below allocates.
     let mut ws = Workspace::new(&model);
 
-    let q: Vec<f64> = (0..model.nq).map(|i| 0.1 * i as f64).collect();
-    let v = vec![0.5; model.nv];
-    let a = vec![1.0; model.nv];
+    let q: Vec<f64> = (0..model.nq()).map(|i| 0.1 * i as f64).collect();
+    let v = vec![0.5; model.nv()];
+    let a = vec![1.0; model.nv()];
 
     let tau = rnea(&model, &mut ws, &q, &v, &a)?.to_vec();
     let g = gravity(&model, &mut ws, &q)?.to_vec();

@@ -15,7 +15,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     };
     let mut ws = Workspace::new(&model);
 
-    let q = vec![0.3; model.nq];
+    let q = vec![0.3; model.nq()];
     let h = crba(&model, &mut ws, &q)?;
     println!(
         "H(q) ({} × {}, kg·m² for revolute joints):",

@@ -246,6 +246,7 @@ impl TreeState {
             nq: 0,
             nv: 0,
             dof_parent: None,
+            id: super::new_model_id(),
         };
         let mut mimic = Vec::new();
         if options.floating_base {

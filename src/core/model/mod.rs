@@ -23,8 +23,10 @@ pub use joint::{
 };
 pub use spec::{joint_position, BodySpec, JointSpec, ModelOptions};
 
-use crate::error::ModelError;
+use crate::algorithms::validate::check_len;
+use crate::error::{DynamicsError, ModelError};
 use crate::spatial::{Inertia, Transform, Vector3};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// How a joint's coordinates are found in the model's `q` and `v` vectors.
 ///
@@ -199,34 +201,47 @@ impl Reduction {
 #[derive(Clone, Debug)]
 pub struct Model {
     /// Robot name from URDF.
-    pub name: String,
+    pub(crate) name: String,
     /// Bodies in topological order.
-    pub bodies: Vec<Body>,
+    pub(crate) bodies: Vec<Body>,
     /// Every URDF link, fused or not, in document order.
-    pub links: Vec<LinkFrame>,
+    pub(crate) links: Vec<LinkFrame>,
     /// Name of the root link (the world when the base is fixed).
-    pub root_link: String,
+    pub(crate) root_link: String,
     /// Links fused into a parent body through fixed joints (or into the root).
-    pub fused_links: Vec<String>,
+    pub(crate) fused_links: Vec<String>,
     /// Joints locked at a position (turned fixed), with that position.
-    pub locked_joints: Vec<(String, f64)>,
+    pub(crate) locked_joints: Vec<(String, f64)>,
     /// Joints that are fixed in the description.
-    pub fixed_joints: Vec<String>,
+    pub(crate) fixed_joints: Vec<String>,
     /// What the root/tip reduction and massless pruning removed.
-    pub reduction: Reduction,
+    pub(crate) reduction: Reduction,
     /// Doubts about the description that did not stop it loading (each names the link), such as
     /// an inertia that breaks the triangle inequality, as some real robots' URDFs do.
-    pub warnings: Vec<String>,
+    pub(crate) warnings: Vec<String>,
     /// Gravity acceleration in root (world) coordinates, m/s²; default (0, 0, −9.81).
-    pub gravity: Vector3,
+    pub(crate) gravity: Vector3,
     /// Number of position coordinates.
-    pub nq: usize,
+    pub(crate) nq: usize,
     /// Number of velocity coordinates.
-    pub nv: usize,
+    pub(crate) nv: usize,
     /// For each velocity coordinate, the velocity coordinate of the nearest coordinate on the
     /// path to the root (Featherstone's `λ` over degrees of freedom), when the tree's sparsity
     /// holds; `None` when a mimic joint couples coordinates across branches.
-    pub dof_parent: Option<Vec<Option<usize>>>,
+    pub(crate) dof_parent: Option<Vec<Option<usize>>>,
+    /// The model's identity: unique to each model built (or reduced) in this process, kept by a
+    /// clone and by [`with_gravity`](Self::with_gravity) (nothing a
+    /// [`Workspace`](crate::Workspace) holds depends on gravity). A workspace records it and
+    /// refuses any other model.
+    pub(crate) id: u64,
+}
+
+/// The identity of the next model built.
+static NEXT_MODEL_ID: AtomicU64 = AtomicU64::new(1);
+
+/// A model identity no model has had before in this process.
+pub(crate) fn new_model_id() -> u64 {
+    NEXT_MODEL_ID.fetch_add(1, Ordering::Relaxed)
 }
 
 /// One joint that carries coordinates, as listed by `model --json`.
@@ -241,6 +256,73 @@ pub struct CoordinateJoint<'a> {
 }
 
 impl Model {
+    /// Robot name from URDF.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Bodies in topological order (a parent before its children).
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
+    }
+
+    /// Every URDF link, fused or not, in document order.
+    pub fn links(&self) -> &[LinkFrame] {
+        &self.links
+    }
+
+    /// Name of the root link (the world when the base is fixed).
+    pub fn root_link(&self) -> &str {
+        &self.root_link
+    }
+
+    /// Links fused into a parent body through fixed joints (or into the root).
+    pub fn fused_links(&self) -> &[String] {
+        &self.fused_links
+    }
+
+    /// Joints locked at a position (turned fixed), with that position.
+    pub fn locked_joints(&self) -> &[(String, f64)] {
+        &self.locked_joints
+    }
+
+    /// Joints that are fixed in the description.
+    pub fn fixed_joints(&self) -> &[String] {
+        &self.fixed_joints
+    }
+
+    /// What the root/tip reduction and massless pruning removed.
+    pub fn reduction(&self) -> &Reduction {
+        &self.reduction
+    }
+
+    /// Doubts about the description that did not stop it loading (each names the link).
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// Gravity acceleration in root (world) coordinates, m/s².
+    pub fn gravity(&self) -> Vector3 {
+        self.gravity
+    }
+
+    /// Number of position coordinates.
+    pub fn nq(&self) -> usize {
+        self.nq
+    }
+
+    /// Number of velocity coordinates.
+    pub fn nv(&self) -> usize {
+        self.nv
+    }
+
+    /// For each velocity coordinate, the velocity coordinate of the nearest coordinate on the
+    /// path to the root (Featherstone's `λ` over degrees of freedom), when the tree's sparsity
+    /// holds; `None` when a mimic joint couples coordinates across branches.
+    pub fn dof_parent(&self) -> Option<&[Option<usize>]> {
+        self.dof_parent.as_deref()
+    }
+
     /// Number of bodies.
     pub fn nbodies(&self) -> usize {
         self.bodies.len()
@@ -304,12 +386,24 @@ impl Model {
         self.links.iter().find(|l| l.name == name)
     }
 
-    /// `q ⊕ v·dt` for the whole model (each joint on its own manifold), into `out`.
-    pub fn integrate(&self, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
+    /// `q ⊕ v·dt` for the whole model (each joint on its own manifold), into `out`. `q` and
+    /// `out` must have `nq` values and `v` `nv`: else [`DynamicsError::Length`] names the
+    /// vector, and `out` is untouched.
+    pub fn integrate(
+        &self,
+        q: &[f64],
+        v: &[f64],
+        dt: f64,
+        out: &mut [f64],
+    ) -> Result<(), DynamicsError> {
+        check_len("q", self.nq, q.len())?;
+        check_len("v", self.nv, v.len())?;
+        check_len("out", self.nq, out.len())?;
         for j in self.coordinate_joints() {
             let (qs, vs) = (j.q_index..j.q_index + j.nq, j.v_index..j.v_index + j.nv);
             j.kind.integrate(&q[qs.clone()], &v[vs], dt, &mut out[qs]);
         }
+        Ok(())
     }
 
     /// The neutral configuration: every joint at [`JointKind::neutral`].

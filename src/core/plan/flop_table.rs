@@ -6,9 +6,10 @@ use super::{Ancestors, CrbaFrames, Plan};
 use crate::model::Model;
 
 /// The count of kernel `name` (as `spatial_dynamics bench` names them: `rnea`, `crba`,
-/// `fd_aba`, `fd_crba`, `fd_rnea_columns`, `gravity`) on `model` as `plan` runs it; `None` for another name, or
-/// for `fd_aba` on a model with mimic joints (ABA refuses them).
-pub fn kernel_flops(model: &Model, plan: &Plan, name: &str) -> Option<Flops> {
+/// `fd_aba`, `fd_crba`, `fd_rnea_columns`, `gravity`) on `model` as its [`Plan`] runs it; `None`
+/// for another name, or for `fd_aba` on a model with mimic joints (ABA refuses them).
+pub fn kernel_flops(model: &Model, name: &str) -> Option<Flops> {
+    let plan = &Plan::new(model);
     let n = model.nv as u64;
     let check = check_q(model);
     Some(match name {
@@ -184,11 +185,7 @@ mod tests {
         for n in [1usize, 4, 9] {
             let model = chain(n);
             let expected = root + per_body * n as u64 + below_root * (n as u64 - 1);
-            assert_eq!(
-                kernel_flops(&model, &Plan::new(&model), "rnea"),
-                Some(expected),
-                "n = {n}"
-            );
+            assert_eq!(kernel_flops(&model, "rnea"), Some(expected), "n = {n}");
         }
     }
 }

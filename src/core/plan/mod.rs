@@ -289,11 +289,6 @@ impl Ancestors {
     pub fn len(&self) -> usize {
         self.start.len() - 1
     }
-
-    /// True for a model without degrees of freedom.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
 }
 
 /// The range from the first to the last body whose joint turns about a coordinate axis (empty

@@ -73,13 +73,13 @@ pub(super) fn advance(
     match integrator {
         Integrator::ExplicitEuler => {
             eval.acceleration(model, &state.q, &state.v, tau, &mut s.k_a[0])?;
-            move_q(model, &mut state.q, &state.v, h, &mut s.q_stage);
+            move_q(model, &mut state.q, &state.v, h, &mut s.q_stage)?;
             axpy(&mut state.v, h, &s.k_a[0]);
         }
         Integrator::SemiImplicitEuler => {
             eval.acceleration(model, &state.q, &state.v, tau, &mut s.k_a[0])?;
             axpy(&mut state.v, h, &s.k_a[0]);
-            move_q(model, &mut state.q, &state.v, h, &mut s.q_stage);
+            move_q(model, &mut state.q, &state.v, h, &mut s.q_stage)?;
         }
         Integrator::Rk4 => rk4(eval, s, model, state, tau, h)?,
         Integrator::ImplicitEuler => implicit_euler(eval, s, model, state, tau, h)?,
@@ -88,9 +88,16 @@ pub(super) fn advance(
 }
 
 /// `q ← q ⊕ h v` on the configuration manifold (`scratch` holds the new `q` on the way).
-fn move_q(model: &Model, q: &mut [f64], v: &[f64], h: f64, scratch: &mut [f64]) {
-    model.integrate(q, v, h, scratch);
+fn move_q(
+    model: &Model,
+    q: &mut [f64],
+    v: &[f64],
+    h: f64,
+    scratch: &mut [f64],
+) -> Result<(), DynamicsError> {
+    model.integrate(q, v, h, scratch)?;
     q.copy_from_slice(scratch);
+    Ok(())
 }
 
 fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
@@ -116,7 +123,7 @@ fn rk4(
             s.q_stage.copy_from_slice(&state.q);
             rest[0].copy_from_slice(&state.v);
         } else {
-            model.integrate(&state.q, &done[stage - 1], c, &mut s.q_stage);
+            model.integrate(&state.q, &done[stage - 1], c, &mut s.q_stage)?;
             for ((k, v), a) in rest[0].iter_mut().zip(&state.v).zip(&s.k_a[stage - 1]) {
                 *k = v + c * a;
             }
@@ -128,8 +135,7 @@ fn rk4(
         s.v_stage[i] = (k_v[0][i] + 2.0 * k_v[1][i] + 2.0 * k_v[2][i] + k_v[3][i]) / 6.0;
         state.v[i] += h / 6.0 * (k_a[0][i] + 2.0 * k_a[1][i] + 2.0 * k_a[2][i] + k_a[3][i]);
     }
-    move_q(model, &mut state.q, &s.v_stage, h, &mut s.q_stage);
-    Ok(())
+    move_q(model, &mut state.q, &s.v_stage, h, &mut s.q_stage)
 }
 
 /// Backward Euler with Newton iterations on `v'`:
@@ -147,7 +153,7 @@ fn implicit_euler(
     let [a_new, ..] = &mut s.k_a;
     v_new.copy_from_slice(&state.v);
     for _ in 0..4 {
-        model.integrate(&state.q, v_new, h, &mut s.q_stage);
+        model.integrate(&state.q, v_new, h, &mut s.q_stage)?;
         eval.acceleration(model, &s.q_stage, v_new, tau, a_new)?;
         let mut norm = 0.0;
         for i in 0..n {
@@ -160,7 +166,7 @@ fn implicit_euler(
         for j in 0..n {
             let eps = 1e-7 * (1.0 + v_new[j].abs());
             v_new[j] += eps;
-            model.integrate(&state.q, v_new, h, &mut s.q_probe);
+            model.integrate(&state.q, v_new, h, &mut s.q_probe)?;
             let result = eval.acceleration(model, &s.q_probe, v_new, tau, &mut s.a_probe);
             v_new[j] -= eps;
             result?;
@@ -175,8 +181,7 @@ fn implicit_euler(
         }
     }
     state.v.copy_from_slice(v_new);
-    move_q(model, &mut state.q, &state.v, h, &mut s.q_stage);
-    Ok(())
+    move_q(model, &mut state.q, &state.v, h, &mut s.q_stage)
 }
 /// Solves `A x = b` in place by Gaussian elimination with partial pivoting (`b` becomes `x`).
 fn solve_in_place(a: &mut nalgebra::DMatrix<f64>, b: &mut nalgebra::DVector<f64>) {

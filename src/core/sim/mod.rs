@@ -230,6 +230,11 @@ impl Simulator {
         state: &mut State,
         tau_cmd: &[f64],
     ) -> Result<f64, SimError> {
+        // A simulator made for another model: refused before any buffer is indexed.
+        self.eval
+            .ws
+            .check(model)
+            .map_err(|source| SimError::Dynamics { t: state.t, source })?;
         if self.initial_energy.is_none() {
             self.initial_energy = Some(self.energy(model, state)?);
         }

@@ -191,7 +191,7 @@ fn free_body_newton_euler() {
         },
     )
     .unwrap();
-    assert_eq!((model.nq, model.nv), (7, 6));
+    assert_eq!((model.nq(), model.nv()), (7, 6));
     let inertia = Matrix3::new(0.11, 0.01, -0.02, 0.01, 0.23, 0.015, -0.02, 0.015, 0.31);
     let mut ws = Workspace::new(&model);
     let mut rng = Rng::new(4);

@@ -63,8 +63,8 @@ fn finite(x: &[f64]) -> bool {
 /// run; `methods` are the other forward-dynamics methods to run (their factorisations are O(n³)
 /// on a chain).
 fn run_every_algorithm(label: &str, model: &Model, methods: &[ForwardDynamicsMethod]) {
-    let n = model.nv;
-    let q: Vec<f64> = (0..model.nq)
+    let n = model.nv();
+    let q: Vec<f64> = (0..model.nq())
         .map(|i| 0.3 * ((i % 7) as f64 - 3.0))
         .collect();
     let v: Vec<f64> = (0..n).map(|i| 0.01 * ((i % 5) as f64 - 2.0)).collect();
@@ -162,7 +162,7 @@ fn load(label: &str, text: &str, links: usize) -> Model {
     let (model, took) = timed(&format!("{label}: load"), || {
         urdf::model_from_str(text, &ModelOptions::default()).unwrap()
     });
-    assert_eq!((model.nbodies(), model.nv), (links, links));
+    assert_eq!((model.nbodies(), model.nv()), (links, links));
     assert!(
         took < Duration::from_secs(20),
         "{label}: loading took {took:?}"
@@ -225,7 +225,7 @@ fn load_big(label: &str, text: &str) -> Result<Model, String> {
 fn fifty_megabyte_comment_loads() {
     let text = with_filler(&format!("<!--{}-->", "x".repeat(BIG)));
     let model = load_big("comment", &text).unwrap();
-    assert_eq!(model.links.len(), 1);
+    assert_eq!(model.links().len(), 1);
 }
 
 #[test]
@@ -233,7 +233,7 @@ fn fifty_megabyte_link_name_loads() {
     let name = "n".repeat(BIG);
     let text = format!(r#"<robot name="big">{}</robot>"#, link(&name));
     let model = load_big("giant link name", &text).unwrap();
-    assert_eq!(model.links[0].name.len(), BIG);
+    assert_eq!(model.links()[0].name.len(), BIG);
 }
 
 #[test]
@@ -243,7 +243,7 @@ fn fifty_megabyte_number_loads() {
         "0".repeat(BIG)
     );
     let model = load_big("giant number", &text).unwrap();
-    assert_eq!(model.links.len(), 1);
+    assert_eq!(model.links().len(), 1);
 }
 
 #[test]

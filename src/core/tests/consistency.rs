@@ -62,8 +62,8 @@ fn forward_dynamics_inverts_inverse_dynamics() {
         let mut rng = Rng::new(10);
         for _ in 0..10 {
             let q = random_q(&model, &mut rng);
-            let v = rng.vector(model.nv, 2.0);
-            let tau = rng.vector(model.nv, 10.0);
+            let v = rng.vector(model.nv(), 2.0);
+            let tau = rng.vector(model.nv(), 10.0);
             for method in ForwardDynamicsMethod::ALL {
                 let a = forward_dynamics(&model, &mut ws, &q, &v, &tau, method, &Externals::none())
                     .unwrap()
@@ -86,8 +86,8 @@ fn mass_matrix_from_rnea_columns_equals_crba() {
         let mut rng = Rng::new(11);
         for _ in 0..5 {
             let q = random_q(&model, &mut rng);
-            let v = rng.vector(model.nv, 2.0);
-            let tau = vec![0.0; model.nv];
+            let v = rng.vector(model.nv(), 2.0);
+            let tau = vec![0.0; model.nv()];
             rnea_columns(&model, &mut ws, &q, &v, &tau, &Externals::none()).unwrap();
             let from_columns = ws.mass_matrix().clone();
             let from_crba = crba(&model, &mut ws, &q).unwrap();
@@ -128,7 +128,7 @@ fn power_balance_along_a_trajectory() {
             };
             let mut ws = Workspace::new(&model);
             let mut rng = Rng::new(12);
-            let n = model.nv;
+            let n = model.nv();
             let mut q = random_q(&model, &mut rng);
             let mut v = rng.vector(n, 1.0);
             let amplitude = rng.vector(n, 3.0);

@@ -29,15 +29,58 @@ fn massless_leaf_behind_a_prismatic_joint_is_named() {
         let text = err.to_string();
         assert!(text.contains("slide"), "{method}: {text}");
         match method {
-            ForwardDynamicsMethod::Aba => assert!(matches!(
+            // The leaf's articulated inertia is zero: D = Sᵀ I^A S is exactly 0.
+            ForwardDynamicsMethod::Aba => assert_eq!(
                 err,
-                DynamicsError::SingularArticulatedInertia { .. }
-            )),
+                DynamicsError::SingularArticulatedInertia {
+                    joint: "slide".into(),
+                    body: "l2".into(),
+                    coordinate: "slide".into(),
+                    pivot: 0.0,
+                }
+            ),
             _ => assert!(matches!(err, DynamicsError::SingularMassMatrix { .. })),
         }
     }
     // Inverse dynamics is still well defined.
     assert!(rnea(&m, &mut ws, &q, &v, &tau).is_ok());
+}
+
+#[test]
+fn aba_names_the_pivot_of_a_floating_point_mass() {
+    // A point mass on a floating joint: D = I^A is positive along the three translations
+    // (`v[0..3]`, pivots m) and zero along the rotations: the fourth pivot, about 'x', fails.
+    let m = urdf::model_from_str(r#"<robot name="p"><link name="ball"><inertial><mass value="2"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link></robot>"#, &ModelOptions { floating_base: true, ..Default::default() }).unwrap();
+    let mut ws = Workspace::new(&m);
+    let (q, v, tau) = (m.neutral(), [0.0; 6], [0.0; 6]);
+    let err = forward_dynamics(
+        &m,
+        &mut ws,
+        &q,
+        &v,
+        &tau,
+        ForwardDynamicsMethod::Aba,
+        &Externals::none(),
+    )
+    .unwrap_err();
+    match &err {
+        DynamicsError::SingularArticulatedInertia {
+            joint,
+            body,
+            coordinate,
+            pivot,
+        } => {
+            assert_eq!((joint.as_str(), body.as_str()), ("root_joint", "ball"));
+            assert_eq!(coordinate, "root_joint[3]");
+            assert!(pivot.abs() < 1e-12, "{err}");
+        }
+        other => panic!("{other:?}"),
+    }
+    let text = err.to_string();
+    assert!(
+        text.contains("(body 'ball')") && text.contains("coordinate 'root_joint[3]'"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -68,6 +111,40 @@ fn bad_vectors_are_named() {
         "{err}"
     );
     assert!(crba(&m, &mut ws, &[0.1, 0.2]).is_ok());
+}
+
+#[test]
+fn integrate_names_the_vector_of_the_wrong_length() {
+    let m = urdf::model_from_str(r#"<robot name="b"><link name="b"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link></robot>"#, &ModelOptions { floating_base: true, ..Default::default() }).unwrap();
+    let (q, v) = (m.neutral(), [0.0, 0.0, 1.0, 0.0, 0.0, 0.0]);
+    let mut out = [0.0; 7];
+    m.integrate(&q, &v, 0.5, &mut out).unwrap();
+    assert_eq!(out[2], 0.5, "the base rises along z: {out:?}");
+    // Each vector of the wrong length in turn: its error, and `out` untouched.
+    let refused = |q: &[f64], v: &[f64], n: usize| {
+        let mut out = vec![-1.0; n];
+        let err = m.integrate(q, v, 0.5, &mut out).unwrap_err();
+        assert!(out.iter().all(|&x| x == -1.0), "out was written: {out:?}");
+        err
+    };
+    for (err, vector, expected, got) in [
+        (refused(&q[..6], &v, 7), "q", 7, 6),
+        (refused(&q, &v[..5], 7), "v", 6, 5),
+        (refused(&q, &v, 8), "out", 7, 8),
+    ] {
+        assert_eq!(
+            err,
+            DynamicsError::Length {
+                vector,
+                expected,
+                got
+            }
+        );
+        assert_eq!(
+            err.to_string(),
+            format!("{vector} has {got} values, the model needs {expected}")
+        );
+    }
 }
 
 #[test]
@@ -135,19 +212,19 @@ fn doubtful_inertias_load_with_a_warning_naming_the_link() {
         <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="5"/></inertial></link>
         <joint name="j" type="continuous"><parent link="a"/><child link="b"/></joint></robot>"#;
     let m = model(text).unwrap();
-    assert_eq!(m.warnings.len(), 1, "{:?}", m.warnings);
+    assert_eq!(m.warnings().len(), 1, "{:?}", m.warnings());
     assert!(
-        m.warnings[0].contains("link 'b'") && m.warnings[0].contains("triangle"),
+        m.warnings()[0].contains("link 'b'") && m.warnings()[0].contains("triangle"),
         "{:?}",
-        m.warnings
+        m.warnings()
     );
     let fine = model(&text.replace(r#"izz="5""#, r#"izz="1.5""#)).unwrap();
-    assert!(fine.warnings.is_empty(), "{:?}", fine.warnings);
+    assert!(fine.warnings().is_empty(), "{:?}", fine.warnings());
     let not_psd = model(&text.replace(r#"izz="5""#, r#"izz="-1""#)).unwrap();
     assert!(
-        not_psd.warnings[0].contains("not positive semi-definite"),
+        not_psd.warnings()[0].contains("not positive semi-definite"),
         "{:?}",
-        not_psd.warnings
+        not_psd.warnings()
     );
 }
 
@@ -315,7 +392,7 @@ fn a_model_without_coordinates_answers_every_algorithm() {
         <inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>"#,
     )
     .unwrap();
-    assert_eq!((m.nq, m.nv), (0, 0));
+    assert_eq!((m.nq(), m.nv()), (0, 0));
     let mut ws = ws_for(&m);
     assert!(rnea(&m, &mut ws, &[], &[], &[]).unwrap().is_empty());
     assert!(gravity(&m, &mut ws, &[]).unwrap().is_empty());

@@ -155,9 +155,9 @@ fn joint_space_dynamics_do_not_depend_on_where_the_robot_stands() {
         for _ in 0..5 {
             let q = random_q(&case.near, &mut rng);
             let q_far = (case.move_q)(&q);
-            let v = rng.vector(case.near.nv, 2.0);
-            let a = rng.vector(case.near.nv, 3.0);
-            let tau = rng.vector(case.near.nv, 10.0);
+            let v = rng.vector(case.near.nv(), 2.0);
+            let a = rng.vector(case.near.nv(), 3.0);
+            let tau = rng.vector(case.near.nv(), 10.0);
             let name = case.name;
 
             let near = crba(&case.near, &mut ws_near, &q)
@@ -226,8 +226,8 @@ fn forward_dynamics_far_from_origin_inverts_rnea_with_a_moving_root() {
         let mut rng = Rng::new(42);
         for _ in 0..5 {
             let q = (case.move_q)(&random_q(&case.near, &mut rng));
-            let v = rng.vector(model.nv, 2.0);
-            let tau = rng.vector(model.nv, 10.0);
+            let v = rng.vector(model.nv(), 2.0);
+            let tau = rng.vector(model.nv(), 10.0);
             let motion = |r: &mut Rng, scale| {
                 let x = r.vector(6, scale);
                 Motion::new(

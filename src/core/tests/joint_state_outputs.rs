@@ -58,15 +58,15 @@ fn assert_close(what: &str, got: &[f64], want: &[f64]) {
 #[test]
 fn equals_the_separate_calls() {
     for (name, model) in models() {
-        let mimic = model.bodies.iter().any(|b| b.joint.is_mimic());
+        let mimic = model.bodies().iter().any(|b| b.joint.is_mimic());
         let (mut ws, mut separate) = (Workspace::new(&model), Workspace::new(&model));
         let mut out = JointStateOutputs::new(&model);
         let mut rng = Rng::new(7);
         for trial in 0..8 {
             let q = random_q(&model, &mut rng);
-            let v = rng.vector(model.nv, 2.0);
-            let tau = rng.vector(model.nv, 10.0);
-            let a = rng.vector(model.nv, 5.0);
+            let v = rng.vector(model.nv(), 2.0);
+            let tau = rng.vector(model.nv(), 10.0);
+            let a = rng.vector(model.nv(), 5.0);
             for method in ForwardDynamicsMethod::ALL {
                 let measured = (trial % 2 == 0).then_some(a.as_slice());
                 let input = JointStateInputs {
@@ -120,11 +120,11 @@ fn bad_input_is_an_error_naming_it() {
     let mut ws = Workspace::new(&model);
     let mut out = JointStateOutputs::new(&model);
     let (q, v, tau) = (
-        vec![0.1; model.nq],
-        vec![0.2; model.nv],
-        vec![0.3; model.nv],
+        vec![0.1; model.nq()],
+        vec![0.2; model.nv()],
+        vec![0.3; model.nv()],
     );
-    let mut a = vec![0.0; model.nv];
+    let mut a = vec![0.0; model.nv()];
     a[3] = f64::NAN;
     let input = JointStateInputs {
         q: &q,
@@ -204,9 +204,9 @@ fn allocates_nothing() {
         let mut out = JointStateOutputs::new(&model);
         let q = random_q(&model, &mut Rng::new(3));
         let (v, tau, a) = (
-            vec![0.2; model.nv],
-            vec![0.3; model.nv],
-            vec![-0.1; model.nv],
+            vec![0.2; model.nv()],
+            vec![0.3; model.nv()],
+            vec![-0.1; model.nv()],
         );
         let input = JointStateInputs {
             q: &q,
@@ -215,7 +215,7 @@ fn allocates_nothing() {
             measured_acceleration: Some(&a),
         };
         for method in [ForwardDynamicsMethod::Crba, ForwardDynamicsMethod::Aba] {
-            if model.bodies.iter().any(|b| b.joint.is_mimic())
+            if model.bodies().iter().any(|b| b.joint.is_mimic())
                 && method == ForwardDynamicsMethod::Aba
             {
                 continue;

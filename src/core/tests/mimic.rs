@@ -44,7 +44,7 @@ fn mimic_model_is_the_projected_full_model() {
         },
     )
     .unwrap();
-    assert_eq!((reduced.nq, full.nq), (2, 4));
+    assert_eq!((reduced.nq(), full.nq()), (2, 4));
     // J maps reduced coordinates to full ones, found by joint name: q_full = J q + offset.
     let index = |m: &spatial_dynamics_core::Model, name: &str| {
         m.coordinate_joints()

@@ -32,12 +32,12 @@ fn algorithms_do_not_allocate() {
         };
         let model = urdf::model_from_str(&text, &ModelOptions::default()).unwrap();
         let mut ws = Workspace::new(&model);
-        let mut q = vec![0.1; model.nq];
+        let mut q = vec![0.1; model.nq()];
         if floating_base {
             q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
         }
-        let v = vec![0.2; model.nv];
-        let a = vec![-0.3; model.nv];
+        let v = vec![0.2; model.nv()];
+        let a = vec![-0.3; model.nv()];
         let wrenches = vec![Force::zero(); model.nbodies()];
         let ext = Externals {
             wrenches: Some(&wrenches),

@@ -48,10 +48,10 @@ fn slots(model: &Model, name: &str) -> (usize, usize, usize, usize) {
 /// ones random (position, velocity and acceleration).
 fn assert_exact(full: &Model, reduced: &Model, seed: u64) {
     let held: Vec<(String, Vec<f64>)> = reduced
-        .locked_joints
+        .locked_joints()
         .iter()
         .map(|(n, v)| (n.clone(), vec![*v]))
-        .chain(reduced.reduction.frozen_joints.iter().cloned())
+        .chain(reduced.reduction().frozen_joints.iter().cloned())
         .collect();
     // (reduced v index, full v index) of every kept velocity coordinate.
     let kept: Vec<(usize, usize)> = reduced
@@ -72,10 +72,10 @@ fn assert_exact(full: &Model, reduced: &Model, seed: u64) {
     let mut rng = Rng::new(seed);
     for _ in 0..5 {
         let qr = random_q(reduced, &mut rng);
-        let (vr, ar) = (rng.vector(reduced.nv, 1.0), rng.vector(reduced.nv, 1.0));
+        let (vr, ar) = (rng.vector(reduced.nv(), 1.0), rng.vector(reduced.nv(), 1.0));
         // Pruned coordinates (and anything else not held) random; held ones overwritten below.
         let mut qf = random_q(full, &mut rng);
-        let (mut vf, mut af) = (rng.vector(full.nv, 1.0), rng.vector(full.nv, 1.0));
+        let (mut vf, mut af) = (rng.vector(full.nv(), 1.0), rng.vector(full.nv(), 1.0));
         for (name, position) in &held {
             if let Some(j) = full.coordinate_joints().find(|j| j.name == name) {
                 qf[j.q_index..j.q_index + j.nq].copy_from_slice(position);
@@ -142,7 +142,7 @@ fn locking_a_joint_keeps_the_other_coordinates_exact() {
             ..Default::default()
         },
     );
-    assert_eq!(reduced.nv, full.nv - 2);
+    assert_eq!(reduced.nv(), full.nv() - 2);
     assert_exact(&full, &reduced, 14);
 }
 
@@ -157,10 +157,10 @@ fn a_tip_keeps_the_chain_and_lumps_the_rest_onto_it() {
             ..Default::default()
         },
     );
-    assert_eq!(reduced.nv, 4);
-    let r = &reduced.reduction;
+    assert_eq!(reduced.nv(), 4);
+    let r = reduced.reduction();
     assert_eq!(r.frozen_joint_names(), ["joint5", "joint7"]);
-    assert_eq!(reduced.locked_joints, [("joint6".to_string(), 0.8)]);
+    assert_eq!(reduced.locked_joints(), [("joint6".to_string(), 0.8)]);
     assert!(r.payload_links.contains(&"link5".to_string()));
     assert_exact(&full, &reduced, 21);
 }
@@ -181,7 +181,7 @@ fn root_and_tips_keep_a_subtree_of_a_branching_tree() {
     let names: Vec<&str> = reduced.coordinate_joints().map(|j| j.name).collect();
     assert_eq!(names, ["left_shoulder", "left_slide", "right_shoulder"]);
     assert_eq!(
-        reduced.reduction.frozen_joints[0],
+        reduced.reduction().frozen_joints[0],
         ("base".to_string(), vec![0.0; 3])
     );
     assert_exact(&full, &reduced, 22);
@@ -193,7 +193,7 @@ fn root_and_tips_keep_a_subtree_of_a_branching_tree() {
             ..Default::default()
         },
     );
-    assert_eq!(subtree.nv, full.nv - 3);
+    assert_eq!(subtree.nv(), full.nv() - 3);
     assert_exact(&full, &subtree, 23);
 }
 
@@ -208,14 +208,14 @@ fn massless_leaves_are_pruned_with_their_coordinates() {
             ..Default::default()
         },
     );
-    assert_eq!((full.nv, pruned.nv), (9, 7));
+    assert_eq!((full.nv(), pruned.nv()), (9, 7));
     assert_eq!(
-        pruned.reduction.pruned_joints,
+        pruned.reduction().pruned_joints,
         ["sensor_pan", "sensor_tilt", "sensor_optical"]
     );
     // The full model cannot even run forward dynamics: H has zero rows.
     let mut ws = Workspace::new(&full);
-    let (q, v) = (vec![0.1; full.nq], vec![0.0; full.nv]);
+    let (q, v) = (vec![0.1; full.nq()], vec![0.0; full.nv()]);
     assert!(forward_dynamics(
         &full,
         &mut ws,
@@ -235,7 +235,7 @@ fn massless_leaves_are_pruned_with_their_coordinates() {
             ..Default::default()
         },
     );
-    assert!(arm.reduction.is_empty() && arm.nv == 7);
+    assert!(arm.reduction().is_empty() && arm.nv() == 7);
 }
 
 #[test]
@@ -250,7 +250,7 @@ fn reductions_combine_with_mimic_joints() {
             ..Default::default()
         },
     );
-    assert_eq!(reduced.nv, 1);
+    assert_eq!(reduced.nv(), 1);
     assert_exact(&full, &reduced, 25);
 }
 

@@ -41,7 +41,7 @@ fn run(
     .unwrap();
     let mut state = State::at_rest(model, q0.to_vec());
     let mut energies = vec![sim.energy(model, &state).unwrap()];
-    let tau = vec![0.0; model.nv];
+    let tau = vec![0.0; model.nv()];
     for _ in 0..steps {
         match sim.step(model, &mut state, &tau) {
             Ok(e) => energies.push(e),

@@ -57,11 +57,11 @@ impl Engine {
         };
         // Each link answers 6 × nv numbers: a request may name each of the model's links once
         // (or one link that many times), not make the answer as large as it likes.
-        if req.links.len() > self.model.links.len() {
+        if req.links.len() > self.model.links().len() {
             return Err(format!(
                 "links has {} entries: at most {} (the model's number of links) per request",
                 req.links.len(),
-                self.model.links.len()
+                self.model.links().len()
             ));
         }
         let frames = req
@@ -77,7 +77,7 @@ impl Engine {
             .collect();
         let mut columns: Vec<String> = match self.map.base() {
             Some(_) => {
-                let joint = &self.model.bodies[0].joint.name;
+                let joint = &self.model.bodies()[0].joint.name;
                 BASE_COLUMNS
                     .iter()
                     .map(|c| format!("{joint}/{c}"))
@@ -170,7 +170,12 @@ impl Engine {
 /// The frame of `link`; a name longer than any of the model's links is refused without being
 /// echoed whole (a reason is a sentence, not a copy of the request).
 fn frame_named(model: &Model, link: &str) -> Result<Frame, String> {
-    let longest = model.links.iter().map(|l| l.name.len()).max().unwrap_or(0);
+    let longest = model
+        .links()
+        .iter()
+        .map(|l| l.name.len())
+        .max()
+        .unwrap_or(0);
     if link.len() > longest {
         let start: String = link.chars().take(40).collect();
         return Err(format!(
@@ -249,7 +254,7 @@ mod tests {
         let r = engine.frame_kinematics(&request);
         assert!(r.success, "{}", r.message);
         let n = r.columns.len();
-        assert_eq!(n, engine.model.nv);
+        assert_eq!(n, engine.model.nv());
         assert_eq!(
             r.columns[..6]
                 .iter()
@@ -260,7 +265,7 @@ mod tests {
         assert_eq!(r.columns[6..], names[..]);
         assert_eq!(r.jacobians.len(), 2 * 6 * n);
         // Our q: the base pose, then each joint where the request put it.
-        let mut q = vec![0.0; engine.model.nq];
+        let mut q = vec![0.0; engine.model.nq()];
         q[..7].copy_from_slice(&[0.5, -1.0, 2.0, 0.0, 0.6, 0.0, 0.8]);
         let v_index: Vec<usize> = (0..6)
             .chain(names.iter().map(|name| {

@@ -118,8 +118,8 @@ impl Engine {
         };
         let model = model.map_err(|e| e.to_string())?;
         let map = JointMap::for_model(&model)?;
-        let commands = Commands::new(&map, model.nv, &settings.command_joints)?;
-        let (nq, nv, nb) = (model.nq, model.nv, model.nbodies());
+        let commands = Commands::new(&map, model.nv(), &settings.command_joints)?;
+        let (nq, nv, nb) = (model.nq(), model.nv(), model.nbodies());
         let mut engine = Engine {
             ws: Workspace::new(&model),
             dynamics: JointStateDynamics::new(&model),
@@ -324,10 +324,10 @@ impl Engine {
     pub fn describe(&self) -> DescribeModelResponse {
         let mut r = DescribeModelResponse {
             success: true,
-            nq: self.model.nq as u32,
-            nv: self.model.nv as u32,
+            nq: self.model.nq() as u32,
+            nv: self.model.nv() as u32,
             floating_base: self.map.base().is_some(),
-            gravity: self.model.gravity.into(),
+            gravity: self.model.gravity().into(),
             method: self.method.name().into(),
             ..Default::default()
         };
@@ -338,7 +338,7 @@ impl Engine {
             let joint = self
                 .model
                 .joint_of_q(q)
-                .and_then(|(joint, _)| self.model.bodies.iter().find(|b| b.joint.name == joint))
+                .and_then(|(joint, _)| self.model.bodies().iter().find(|b| b.joint.name == joint))
                 .map(|b| &b.joint)
                 .expect("a named coordinate belongs to a joint");
             let limits = &joint.limits;
@@ -349,27 +349,23 @@ impl Engine {
             r.velocity_limit.push(limits.velocity);
             r.effort_limit.push(limits.effort);
         }
-        r.link_names = self.model.links.iter().map(|l| l.name.clone()).collect();
-        r.locked_joints = self
-            .model
-            .locked_joints
-            .iter()
-            .map(|(n, v)| format!("{n}={v:?}"))
-            .chain(
-                self.model
-                    .reduction
-                    .frozen_joints
-                    .iter()
-                    .map(|(n, q)| match q.as_slice() {
+        r.link_names = self.model.links().iter().map(|l| l.name.clone()).collect();
+        r.locked_joints =
+            self.model
+                .locked_joints()
+                .iter()
+                .map(|(n, v)| format!("{n}={v:?}"))
+                .chain(self.model.reduction().frozen_joints.iter().map(
+                    |(n, q)| match q.as_slice() {
                         [v] => format!("{n}={v:?}"),
                         q => format!("{n}={q:?}"),
-                    }),
-            )
-            .collect();
-        r.fused_links = self.model.fused_links.clone();
+                    },
+                ))
+                .collect();
+        r.fused_links = self.model.fused_links().to_vec();
         r.message = format!(
             "robot '{}' from {}",
-            self.model.name,
+            self.model.name(),
             match &self.source {
                 ModelSource::Parameter => "the robot_description parameter".to_string(),
                 ModelSource::File(f) => format!("file {f}"),
@@ -381,7 +377,7 @@ impl Engine {
             r.message += "; method ";
             r.message += choice;
         }
-        for line in self.model.reduction.summary() {
+        for line in self.model.reduction().summary() {
             r.message += "; ";
             r.message += &line;
         }

@@ -43,7 +43,7 @@ impl Engine {
             passive: parse_passive(&settings.passive)?,
             ground: (!settings.ground.points.is_empty()).then(|| settings.ground.clone()),
         };
-        let mut q = vec![0.0; self.model.nq];
+        let mut q = vec![0.0; self.model.nq()];
         if let Some((qi, _)) = self.map.base() {
             q[qi + 6] = 1.0;
         }
@@ -66,7 +66,7 @@ impl Engine {
             command_timeout: settings.command_timeout,
             measured_since: (Instant::now(), 0.0),
             measured_rtf: 0.0,
-            zero: vec![0.0; self.model.nv],
+            zero: vec![0.0; self.model.nv()],
         });
         Ok(())
     }
@@ -166,7 +166,7 @@ impl Engine {
         let (q, v) = (&sim.state.q[qi..qi + 7], &sim.state.v[vi..vi + 6]);
         let base = self
             .model
-            .bodies
+            .bodies()
             .iter()
             .find(|b| b.parent.is_none() && b.joint.coords.q_index == qi)?;
         let vector = |x: &[f64]| Vector3 {

@@ -12,7 +12,7 @@ use std::sync::OnceLock;
 
 /// A revolute joint carrying a prismatic one: the mass matrix holds `m x²`, so a finite
 /// `x = 1e200` overflows it.
-const TURN_SLIDE_URDF: &str = include_str!("../../models/turn_slide.urdf");
+const TURN_SLIDE_URDF: &str = include_str!("../../../src/core/tests/models/turn_slide.urdf");
 
 /// The robots the requests go to: a fixed-base arm, a planar-base model with a fused link, a
 /// gripper with mimic joints, a turning slide, and the arm on a floating base.

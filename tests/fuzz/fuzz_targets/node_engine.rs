@@ -128,9 +128,9 @@ struct Vocabulary {
 impl Vocabulary {
     fn new(engine: &Engine) -> Self {
         let model = &engine.model;
-        let mut others: Vec<String> = model.links.iter().map(|l| l.name.clone()).collect();
-        others.extend(model.bodies.iter().map(|b| b.joint.name.clone()));
-        others.extend(model.fixed_joints.iter().cloned());
+        let mut others: Vec<String> = model.links().iter().map(|l| l.name.clone()).collect();
+        others.extend(model.bodies().iter().map(|b| b.joint.name.clone()));
+        others.extend(model.fixed_joints().iter().cloned());
         others
             .extend(["", "unknown", "root_joint", "world", "base/x", "joint1 "].map(String::from));
         Vocabulary {

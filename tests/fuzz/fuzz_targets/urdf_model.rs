@@ -57,10 +57,10 @@ fn check<T: AsRef<[f64]>>(what: &str, result: Result<T, DynamicsError>) {
 
 fn run_every_algorithm(model: &Model, data: &[u8]) {
     let mut ws = Workspace::new(model);
-    let q = numbers(data, 0, model.nq);
-    let v = numbers(data, 1, model.nv);
-    let a = numbers(data, 2, model.nv);
-    let tau = numbers(data, 3, model.nv);
+    let q = numbers(data, 0, model.nq());
+    let v = numbers(data, 1, model.nv());
+    let a = numbers(data, 2, model.nv());
+    let tau = numbers(data, 3, model.nv());
     let wrenches: Vec<Force> = numbers(data, 4, 6 * model.nbodies())
         .chunks(6)
         .map(|w| {

@@ -48,7 +48,7 @@ pub fn crba<'w>(
     ws: &'w mut Workspace,
     q: &[f64],
 ) -> Result<&'w DMatrix<f64>, DynamicsError> {
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     // [X_J, S_i] = jcalc(jtype(i), q_i),  ⁱX_λ(i) = X_J X_T(i)   (as RBDA Table 5.1)
     update_joints(model, ws, q);
     // Finite inputs can still overflow (a prismatic coordinate of 1e200 under a revolute joint

@@ -14,7 +14,7 @@ pub fn body_placements<'w>(
     ws: &'w mut Workspace,
     q: &[f64],
 ) -> Result<&'w [Transform], DynamicsError> {
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     update_joints(model, ws, q);
     update_placements(model, ws);
     check_placements(model, ws)?;

@@ -28,7 +28,7 @@ pub fn body_motion(
     q: &[f64],
     v: &[f64],
 ) -> Result<(), DynamicsError> {
-    check_q(model, q)?;
+    check_q(model, ws, q)?;
     check_v(model, "v", v)?;
     update_joints(model, ws, q);
     update_placements(model, ws);
