@@ -1,0 +1,31 @@
+//! `spatial_dynamics_c`: the library [`spatial_dynamics_core`] called in-process from C and C++
+//! (a real-time ros2_control controller's `update()`, say), through the header
+//! `include/spatial_dynamics.h` generated from this crate by cbindgen, and the header-only C++
+//! wrapper `include/spatial_dynamics.hpp` over it.
+//!
+//! | module | holds |
+//! |---|---|
+//! | [`status`] | return codes, the thread's last error message, the guard every entry runs in |
+//! | [`model`] | `sd_model`: a URDF model, its coordinate names and its forward-dynamics method |
+//! | [`workspace`] | `sd_workspace`: the scratch of one model's calls |
+//! | [`dynamics`] | inverse dynamics, gravity, forward dynamics, the mass matrix |
+//! | [`frames`] | frame Jacobians |
+//!
+//! The conventions are the library's: SI units; `q` and `v` in the order of
+//! `sd_model_v_name` (the order `spatial_dynamics model --json` lists), a floating base's
+//! `q = [x y z qx qy qz qw]` and `v = [linear; angular]` in the base frame; matrices row-major.
+//! Every function returns 0 on success, or a non-zero [`status`] code with a message for
+//! `sd_last_error`; no panic crosses the boundary, a NULL pointer is an error, and no call
+//! after a model and its workspace are made allocates.
+
+// The C names of the types are the header's (`sd_model`, ...).
+#![allow(non_camel_case_types)]
+
+pub mod dynamics;
+pub mod frames;
+pub mod model;
+pub mod status;
+pub mod workspace;
+
+pub use model::{sd_model, sd_model_options};
+pub use workspace::sd_workspace;
