@@ -18,8 +18,19 @@
 //! `sd_last_error`; no panic crosses the boundary, a NULL pointer is an error, and no call
 //! after a model and its workspace are made allocates.
 
+//!
+//! # Safety
+//!
+//! What every `unsafe extern "C"` function here requires of its caller (stated once here rather
+//! than in each function's doc comment, which becomes the header's): each pointer is NULL (an
+//! error, never dereferenced) or valid: a model or workspace made by this library and not yet
+//! freed, an array of at least the length the function's doc gives, a NUL-terminated string;
+//! a workspace is used by one thread at a time. An output array may be one of the inputs.
+
 // The C names of the types are the header's (`sd_model`, ...).
 #![allow(non_camel_case_types)]
+// The contract is the crate's `# Safety` section above, the same for every function.
+#![allow(clippy::missing_safety_doc)]
 
 pub mod dynamics;
 pub mod frames;

@@ -266,7 +266,8 @@ fn bad_input_gives_the_librarys_error_and_leaves_outputs() {
         )
     };
     assert_eq!(last_error(), format!("sd_rnea: {expected}"));
-    let calls: [(&str, Box<dyn Fn(*mut f64) -> c_int>); 3] = [
+    type Call<'a> = Box<dyn Fn(*mut f64) -> c_int + 'a>;
+    let calls: [(&str, Call); 3] = [
         (
             "sd_gravity",
             Box::new(|o| unsafe { sd_gravity(h.model, h.ws, q.as_ptr(), o) }),
