@@ -10,7 +10,8 @@ example-robot-data URDFs of test_pinocchio_reference.py, mimic tags ignored as P
 model does) every one must match Pinocchio's to 1e-9 relative to the quantity's largest entry
 (coordinates matched by name). Bad input from C and C++ (a NaN in q, an unknown frame, a
 description that does not parse, and from C++ a span of the wrong length) must give the status
-code and a message naming what is wrong.
+code and a message naming what is wrong. Panda with its finger mimic followed is checked against
+Pinocchio's model constrained by the mimic map (test_pinocchio_reference.ProjectedMimicRef).
 
 Then builds src/c/examples (gravity_compensation.cpp) with CMake through
 ``find_package(spatial_dynamics_c)`` and src/c/cmake, runs it for one second on UR5, and checks
@@ -31,7 +32,13 @@ import pinocchio as pin
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_pinocchio_reference import REPO, binary_path, build_pin_model, robots_dir  # noqa: E402
+from test_pinocchio_reference import (  # noqa: E402  (the sibling reference test's tools)
+    REPO,
+    ProjectedMimicRef,
+    binary_path,
+    build_pin_model,
+    robots_dir,
+)
 
 C_DIR = REPO / "src" / "c"
 PROGRAMS = C_DIR / "tests" / "programs"
@@ -91,9 +98,10 @@ def test_static_probes_do_not_load_the_shared_library(probes):
         assert "libspatial_dynamics_c.so" in needed, needed
 
 
-def run_probe(probe: Path, urdf: Path, frame: str, values: np.ndarray) -> dict:
+def run_probe(probe: Path, urdf: Path, frame: str, values: np.ndarray, ignore_mimic: bool = True) -> dict:
     stdin = " ".join(repr(float(x)) for x in values)
-    done = subprocess.run([str(probe), str(urdf), "1", frame], input=stdin, capture_output=True, text=True)
+    command = [str(probe), str(urdf), "1" if ignore_mimic else "0", frame]
+    done = subprocess.run(command, input=stdin, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     lines = {}
     for line in done.stdout.splitlines():
@@ -156,6 +164,33 @@ def test_matches_pinocchio(probes, robot, relative, frame, language, link):
     if language == "c++":
         status, message = ours["error length"]
         assert status == 2 and f"q has {nv - 1} values, the model needs {nv}" in message, message
+
+
+@pytest.mark.parametrize("language", LANGUAGES)
+def test_mimic_joints_follow_their_leader(probes, language):
+    """Panda with its finger mimic followed (the default): the forward-dynamics method chosen for
+    the model handles it (aba does not), and every answer is Pinocchio's mimic-ignored model
+    constrained by the mimic map."""
+    urdf = robots_dir() / ROBOTS[1][1]
+    ref = ProjectedMimicRef(urdf, floating=False)
+    nv = ref.nv
+    assert ref.nq == nv and ref.mimic_rows, "panda: one mimic joint, no floating base"
+    probe = probes[language, "shared"]
+    names = run_probe(probe, urdf, "panda_hand", np.zeros(4 * nv), ignore_mimic=False)["names"]
+    index = {j.name: j.idx_v for j in ref.joints}
+    pin_index = np.array([index[n] for n in names])
+    assert sorted(pin_index) == list(range(nv)), names
+    rng = np.random.default_rng(2828)
+    q = rng.uniform(-1.0, 1.0, nv)
+    v, a, tau = (rng.standard_normal(nv) for _ in range(3))
+    stdin = np.concatenate([x[pin_index] for x in (q, v, a, tau)])
+    ours = run_probe(probe, urdf, "panda_hand", stdin, ignore_mimic=False)
+    values = {k: np.array(ours[k], dtype=float) for k in ("tau", "g", "qdd", "M")}
+    close(values["tau"], ref.rnea(q, v, a)[pin_index], f"panda mimic {language} tau")
+    close(values["g"], ref.gravity(q)[pin_index], f"panda mimic {language} g")
+    close(values["qdd"], ref.forward_dynamics(q, v, tau)[pin_index], f"panda mimic {language} qdd")
+    mass = ref.mass_matrix(q)[np.ix_(pin_index, pin_index)]
+    close(values["M"].reshape(nv, nv), mass, f"panda mimic {language} M")
 
 
 def cmake() -> str:
