@@ -184,3 +184,39 @@ pub(crate) unsafe fn write_row_major(out: *mut f64, matrix: &nalgebra::DMatrix<f
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn last_error() -> String {
+        let e = sd_last_error();
+        assert!(!e.is_null());
+        unsafe { std::ffi::CStr::from_ptr(e) }
+            .to_str()
+            .unwrap()
+            .to_string()
+    }
+
+    #[test]
+    fn a_panic_becomes_an_internal_error_with_its_message() {
+        let status = guard("sd_test", || panic!("boom at joint 'j1'"));
+        assert_eq!(status, sd_status::SD_ERROR_INTERNAL as c_int);
+        assert_eq!(
+            last_error(),
+            "sd_test: internal error (please report): boom at joint 'j1'"
+        );
+        let value = guard_value("sd_test_value", 7usize, || {
+            panic!("{}", String::from("owned"))
+        });
+        assert_eq!(value, 7);
+        assert!(last_error().ends_with("owned"), "{}", last_error());
+    }
+
+    #[test]
+    fn a_nul_in_a_message_is_written_out() {
+        let status = guard("sd_test", || Err(Failure::Usage("link 'a\0b'".into())));
+        assert_eq!(status, sd_status::SD_ERROR_USAGE as c_int);
+        assert_eq!(last_error(), "sd_test: link 'a\\0b'");
+    }
+}

@@ -565,3 +565,30 @@ fn a_workspace_of_another_model_is_refused() {
     }
     assert!(out[arm.library.nv..].iter().all(|&x| x == 7.0));
 }
+
+#[test]
+fn a_model_without_coordinates_answers_with_empty_arrays() {
+    let text = CString::new(
+        "<robot name='block'><link name='base'><inertial><mass value='1'/>\
+         <inertia ixx='1' iyy='1' izz='1' ixy='0' ixz='0' iyz='0'/></inertial></link></robot>",
+    )
+    .unwrap();
+    unsafe {
+        let model = sd_model_from_urdf_string(text.as_ptr(), ptr::null());
+        assert!(!model.is_null(), "{}", last_error());
+        assert_eq!((sd_model_nq(model), sd_model_nv(model)), (0, 0));
+        let ws = sd_workspace_new(model);
+        let (none, out) = (ptr::null::<f64>(), ptr::null_mut::<f64>());
+        assert_eq!(sd_rnea(model, ws, none, none, none, out), OK);
+        assert_eq!(sd_gravity(model, ws, none, out), OK);
+        assert_eq!(sd_forward_dynamics(model, ws, none, none, none, out), OK);
+        assert_eq!(sd_mass_matrix(model, ws, none, out), OK);
+        let base = CString::new("base").unwrap();
+        assert_eq!(
+            sd_frame_jacobian(model, ws, none, base.as_ptr(), 0, out),
+            OK
+        );
+        sd_workspace_free(ws);
+        sd_model_free(model);
+    }
+}
