@@ -17,13 +17,13 @@ fn read(path: &str) -> String {
 }
 
 /// The folders that hold tests, from the repository root.
-const TEST_DIRS: [&str; 2] = ["tests", "src/core/tests"];
+const TEST_DIRS: [&str; 3] = ["tests", "src/core/tests", "src/c/tests"];
 
 /// Build output, fuzzing inputs and caches: not test files.
 const NOT_TESTS: [&str; 5] = ["target", "corpus", "artifacts", "__pycache__", "coverage"];
 
 /// Extensions of the files that make up the tests: code, and the models the tests load.
-const TEST_EXTENSIONS: [&str; 3] = ["rs", "py", "urdf"];
+const TEST_EXTENSIONS: [&str; 6] = ["rs", "py", "urdf", "c", "cpp", "hpp"];
 
 fn is_test_file(path: &Path) -> bool {
     path.extension()

@@ -1,0 +1,217 @@
+// spatial_dynamics: rigid-body dynamics of URDF robots, called in-process from C++.
+//
+// Header-only, over the C ABI of spatial_dynamics.h (link libspatial_dynamics_c; with CMake,
+// find_package(spatial_dynamics_c) and the target spatial_dynamics_c::spatial_dynamics_c).
+// sd::Model and sd::Workspace own their C objects (movable, not copyable); every function
+// throws sd::Error, carrying the library's message, when the C call fails. Made once, outside
+// a real-time loop, a model and its workspace serve calls that allocate nothing (an error
+// allocates its message). The array overloads take std::span (C++20) and check lengths; the
+// pointer overloads take arrays of the lengths the model gives (nq for q, nv for velocities,
+// accelerations and efforts, nv·nv for the mass matrix, 6·nv for a Jacobian). Conventions:
+// coordinates in the order of Model::v_name, matrices row-major, SI units (see
+// spatial_dynamics.h for each function's quantities and frames).
+#ifndef SPATIAL_DYNAMICS_HPP
+#define SPATIAL_DYNAMICS_HPP
+
+#include "spatial_dynamics.h"
+
+#include <cstddef>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <utility>
+#if __has_include(<span>)
+#include <span>
+#endif
+
+namespace sd {
+
+// A failed call: what() is the library's message (the function, and the joint, coordinate,
+// link or value at fault); status() the sd_status code.
+class Error : public std::runtime_error {
+ public:
+  Error(int status, const std::string& message) : std::runtime_error(message), status_(status) {}
+  int status() const noexcept { return status_; }
+
+ private:
+  int status_;
+};
+
+namespace detail {
+// Throws the C library's last error when `status` is not SD_OK.
+inline void check(int status) {
+  if (status != SD_OK) {
+    const char* message = sd_last_error();
+    throw Error(status, message ? message : "spatial_dynamics: unknown error");
+  }
+}
+}  // namespace detail
+
+// The frame a Jacobian is expressed in, with Pinocchio's meaning (pinocchio::ReferenceFrame).
+enum class Reference : int {
+  World = SD_WORLD,                            // world axes, about the world origin
+  Local = SD_LOCAL,                            // link axes, at the link origin
+  LocalWorldAligned = SD_LOCAL_WORLD_ALIGNED,  // world axes, at the link origin
+};
+
+// Choices made when a model is built.
+struct ModelOptions {
+  bool floating_base = false;  // a floating joint between the world and the root link
+  bool ignore_mimic = false;   // <mimic> joints get coordinates of their own
+};
+
+// A robot model (immutable), built from URDF.
+class Model {
+ public:
+  static Model from_urdf_file(const std::string& path, ModelOptions options = {}) {
+    const sd_model_options c = to_c(options);
+    return Model(made(sd_model_from_urdf_file(path.c_str(), &c)));
+  }
+  static Model from_urdf_string(const std::string& urdf, ModelOptions options = {}) {
+    const sd_model_options c = to_c(options);
+    return Model(made(sd_model_from_urdf_string(urdf.c_str(), &c)));
+  }
+
+  Model(Model&& other) noexcept : model_(std::exchange(other.model_, nullptr)) {}
+  Model& operator=(Model&& other) noexcept {
+    std::swap(model_, other.model_);
+    return *this;
+  }
+  Model(const Model&) = delete;
+  Model& operator=(const Model&) = delete;
+  ~Model() { sd_model_free(model_); }
+
+  // Position and velocity coordinates.
+  std::size_t nq() const noexcept { return sd_model_nq(model_); }
+  std::size_t nv() const noexcept { return sd_model_nv(model_); }
+  // The name of velocity coordinate `index` (throws for index >= nv).
+  std::string_view v_name(std::size_t index) const {
+    const char* name = sd_model_v_name(model_, index);
+    if (!name) detail::check(SD_ERROR_USAGE);
+    return name;
+  }
+  // "aba", "crba" or "rnea_columns": the method forward_dynamics uses for this model.
+  std::string_view forward_dynamics_method() const {
+    return sd_model_forward_dynamics_method(model_);
+  }
+  // The C handle (owned by this object).
+  const sd_model* get() const noexcept { return model_; }
+
+ private:
+  explicit Model(sd_model* model) : model_(model) {}
+  static sd_model* made(sd_model* model) {
+    if (!model) detail::check(SD_ERROR_INPUT);
+    return model;
+  }
+  static sd_model_options to_c(ModelOptions options) {
+    return sd_model_options{options.floating_base ? 1 : 0, options.ignore_mimic ? 1 : 0};
+  }
+  sd_model* model_;
+};
+
+// The scratch buffers of one model's calls; one per thread. Must not outlive its model.
+class Workspace {
+ public:
+  explicit Workspace(const Model& model) : workspace_(sd_workspace_new(model.get())) {
+    if (!workspace_) detail::check(SD_ERROR_USAGE);
+  }
+  Workspace(Workspace&& other) noexcept : workspace_(std::exchange(other.workspace_, nullptr)) {}
+  Workspace& operator=(Workspace&& other) noexcept {
+    std::swap(workspace_, other.workspace_);
+    return *this;
+  }
+  Workspace(const Workspace&) = delete;
+  Workspace& operator=(const Workspace&) = delete;
+  ~Workspace() { sd_workspace_free(workspace_); }
+
+  // The C handle (owned by this object).
+  sd_workspace* get() const noexcept { return workspace_; }
+
+ private:
+  sd_workspace* workspace_;
+};
+
+// ---- raw arrays (lengths as the model gives them) -------------------------------------------
+
+// Inverse dynamics: tau = M(q) a + C(q, v) + g(q).
+inline void rnea(const Model& model, Workspace& ws, const double* q, const double* v,
+                 const double* a, double* tau) {
+  detail::check(sd_rnea(model.get(), ws.get(), q, v, a, tau));
+}
+// Generalized gravity g(q).
+inline void gravity(const Model& model, Workspace& ws, const double* q, double* g) {
+  detail::check(sd_gravity(model.get(), ws.get(), q, g));
+}
+// Forward dynamics: qdd = M(q)⁻¹ (tau − C(q, v) − g(q)).
+inline void forward_dynamics(const Model& model, Workspace& ws, const double* q, const double* v,
+                             const double* tau, double* qdd) {
+  detail::check(sd_forward_dynamics(model.get(), ws.get(), q, v, tau, qdd));
+}
+// The mass matrix M(q), nv × nv, row-major.
+inline void mass_matrix(const Model& model, Workspace& ws, const double* q, double* m) {
+  detail::check(sd_mass_matrix(model.get(), ws.get(), q, m));
+}
+// The Jacobian of URDF link `frame`, 6 × nv, row-major, rows [linear; angular].
+inline void frame_jacobian(const Model& model, Workspace& ws, const double* q, const char* frame,
+                           Reference reference, double* j) {
+  detail::check(
+      sd_frame_jacobian(model.get(), ws.get(), q, frame, static_cast<int>(reference), j));
+}
+
+#if defined(__cpp_lib_span) && __cpp_lib_span >= 202002L
+// ---- std::span (lengths checked) ------------------------------------------------------------
+
+namespace detail {
+// Throws SD_ERROR_USAGE when `array` does not have `expected` values.
+inline void check_length(const char* function, const char* array, std::size_t size,
+                         std::size_t expected) {
+  if (size != expected) {
+    throw Error(SD_ERROR_USAGE, std::string(function) + ": " + array + " has " +
+                                    std::to_string(size) + " values, the model needs " +
+                                    std::to_string(expected));
+  }
+}
+}  // namespace detail
+
+inline void rnea(const Model& model, Workspace& ws, std::span<const double> q,
+                 std::span<const double> v, std::span<const double> a, std::span<double> tau) {
+  const std::size_t nq = model.nq(), nv = model.nv();
+  detail::check_length("sd::rnea", "q", q.size(), nq);
+  detail::check_length("sd::rnea", "v", v.size(), nv);
+  detail::check_length("sd::rnea", "a", a.size(), nv);
+  detail::check_length("sd::rnea", "tau", tau.size(), nv);
+  rnea(model, ws, q.data(), v.data(), a.data(), tau.data());
+}
+inline void gravity(const Model& model, Workspace& ws, std::span<const double> q,
+                    std::span<double> g) {
+  detail::check_length("sd::gravity", "q", q.size(), model.nq());
+  detail::check_length("sd::gravity", "g", g.size(), model.nv());
+  gravity(model, ws, q.data(), g.data());
+}
+inline void forward_dynamics(const Model& model, Workspace& ws, std::span<const double> q,
+                             std::span<const double> v, std::span<const double> tau,
+                             std::span<double> qdd) {
+  const std::size_t nq = model.nq(), nv = model.nv();
+  detail::check_length("sd::forward_dynamics", "q", q.size(), nq);
+  detail::check_length("sd::forward_dynamics", "v", v.size(), nv);
+  detail::check_length("sd::forward_dynamics", "tau", tau.size(), nv);
+  detail::check_length("sd::forward_dynamics", "qdd", qdd.size(), nv);
+  forward_dynamics(model, ws, q.data(), v.data(), tau.data(), qdd.data());
+}
+inline void mass_matrix(const Model& model, Workspace& ws, std::span<const double> q,
+                        std::span<double> m) {
+  detail::check_length("sd::mass_matrix", "q", q.size(), model.nq());
+  detail::check_length("sd::mass_matrix", "m", m.size(), model.nv() * model.nv());
+  mass_matrix(model, ws, q.data(), m.data());
+}
+inline void frame_jacobian(const Model& model, Workspace& ws, std::span<const double> q,
+                           const char* frame, Reference reference, std::span<double> j) {
+  detail::check_length("sd::frame_jacobian", "q", q.size(), model.nq());
+  detail::check_length("sd::frame_jacobian", "j", j.size(), 6 * model.nv());
+  frame_jacobian(model, ws, q.data(), frame, reference, j.data());
+}
+#endif
+
+}  // namespace sd
+
+#endif  // SPATIAL_DYNAMICS_HPP

@@ -1,0 +1,594 @@
+//! The `extern "C"` functions called from Rust: their answers are the library's, bit for bit;
+//! their errors are non-zero codes with the library's message; NULL pointers, foreign
+//! workspaces and bad arguments are refused, never answered.
+
+use spatial_dynamics_c::dynamics::*;
+use spatial_dynamics_c::frames::sd_reference_frame::*;
+use spatial_dynamics_c::frames::*;
+use spatial_dynamics_c::model::*;
+use spatial_dynamics_c::status::*;
+use spatial_dynamics_c::workspace::*;
+use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
+use spatial_dynamics_core::algorithms::{
+    choose_method, crba, find_frame, forward_dynamics, frame_jacobian, gravity, rnea,
+    ReferenceFrame,
+};
+use spatial_dynamics_core::model::examples::{DEFAULT_ARM_URDF, MIMIC_GRIPPER_URDF};
+use spatial_dynamics_core::{urdf, Externals, Model, ModelOptions, Workspace};
+use std::ffi::{c_int, CStr, CString};
+use std::ptr;
+use std::time::Duration;
+
+const TREE: &str = include_str!("../../core/tests/models/tree.urdf");
+const OK: c_int = sd_status::SD_OK as c_int;
+const INPUT: c_int = sd_status::SD_ERROR_INPUT as c_int;
+const USAGE: c_int = sd_status::SD_ERROR_USAGE as c_int;
+
+/// A model and a workspace made through the C ABI, freed on drop, with the library's own
+/// model built from the same text.
+struct Handles {
+    model: *mut sd_model,
+    ws: *mut sd_workspace,
+    library: Model,
+}
+
+impl Handles {
+    fn new(text: &str, floating_base: bool) -> Self {
+        let options = sd_model_options {
+            floating_base: floating_base as c_int,
+            ignore_mimic: 0,
+        };
+        let c_text = CString::new(text).unwrap();
+        let model = unsafe { sd_model_from_urdf_string(c_text.as_ptr(), &options) };
+        assert!(!model.is_null(), "{}", last_error());
+        let library = urdf::model_from_str(
+            text,
+            &ModelOptions {
+                floating_base,
+                ..ModelOptions::default()
+            },
+        )
+        .unwrap();
+        Handles {
+            model,
+            ws: unsafe { sd_workspace_new(model) },
+            library,
+        }
+    }
+
+    /// A state: `q` on the joints' manifolds (a unit quaternion for a floating base), `v`, `a`.
+    fn state(&self) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let (nq, nv) = (self.library.nq, self.library.nv);
+        let mut q: Vec<f64> = (0..nq).map(|i| 0.3 + 0.17 * i as f64).collect();
+        if nq > nv {
+            let norm = q[3..7].iter().map(|x| x * x).sum::<f64>().sqrt();
+            q[3..7].iter_mut().for_each(|x| *x /= norm);
+        }
+        let v = (0..nv).map(|i| 0.5 - 0.11 * i as f64).collect();
+        let a = (0..nv).map(|i| -0.2 + 0.23 * i as f64).collect();
+        (q, v, a)
+    }
+}
+
+impl Drop for Handles {
+    fn drop(&mut self) {
+        unsafe {
+            sd_workspace_free(self.ws);
+            sd_model_free(self.model);
+        }
+    }
+}
+
+fn last_error() -> String {
+    let e = sd_last_error();
+    assert!(!e.is_null(), "no error message");
+    unsafe { CStr::from_ptr(e) }.to_str().unwrap().to_string()
+}
+
+/// Every model the tests use: a tree with a planar base, the same with a floating joint in the
+/// description, a 7-DOF arm on a fixed and on a floating base, a gripper with mimic joints.
+fn models() -> Vec<Handles> {
+    let floating = TREE.replace(r#"type="planar""#, r#"type="floating""#);
+    vec![
+        Handles::new(TREE, false),
+        Handles::new(&floating, false),
+        Handles::new(DEFAULT_ARM_URDF, false),
+        Handles::new(DEFAULT_ARM_URDF, true),
+        Handles::new(MIMIC_GRIPPER_URDF, false),
+    ]
+}
+
+#[test]
+fn answers_are_the_librarys() {
+    for h in models() {
+        let m = &h.library;
+        let (nq, nv) = (m.nq, m.nv);
+        assert_eq!(
+            unsafe { (sd_model_nq(h.model), sd_model_nv(h.model)) },
+            (nq, nv)
+        );
+        let mut ws = Workspace::new(m);
+        let (q, v, a) = h.state();
+        let mut out = vec![f64::NAN; nv];
+        unsafe {
+            assert_eq!(
+                sd_rnea(
+                    h.model,
+                    h.ws,
+                    q.as_ptr(),
+                    v.as_ptr(),
+                    a.as_ptr(),
+                    out.as_mut_ptr()
+                ),
+                OK
+            )
+        };
+        assert_eq!(out, rnea(m, &mut ws, &q, &v, &a).unwrap(), "{}", m.name);
+        unsafe { assert_eq!(sd_gravity(h.model, h.ws, q.as_ptr(), out.as_mut_ptr()), OK) };
+        assert_eq!(out, gravity(m, &mut ws, &q).unwrap(), "{}", m.name);
+        // The method `auto` picks, which handles the gripper's mimic joints (aba does not).
+        let method = choose_method(m, AUTO_TOLERANCE, Duration::ZERO)
+            .unwrap()
+            .method;
+        let name = unsafe { CStr::from_ptr(sd_model_forward_dynamics_method(h.model)) };
+        assert_eq!(name.to_str().unwrap(), method.name());
+        unsafe {
+            assert_eq!(
+                sd_forward_dynamics(
+                    h.model,
+                    h.ws,
+                    q.as_ptr(),
+                    v.as_ptr(),
+                    a.as_ptr(),
+                    out.as_mut_ptr()
+                ),
+                OK
+            )
+        };
+        let expected =
+            forward_dynamics(m, &mut ws, &q, &v, &a, method, &Externals::none()).unwrap();
+        assert_eq!(out, expected, "{}", m.name);
+        let mut matrix = vec![f64::NAN; nv * nv];
+        unsafe {
+            assert_eq!(
+                sd_mass_matrix(h.model, h.ws, q.as_ptr(), matrix.as_mut_ptr()),
+                OK
+            )
+        };
+        let expected = crba(m, &mut ws, &q).unwrap();
+        for r in 0..nv {
+            assert_eq!(
+                &matrix[r * nv..(r + 1) * nv],
+                expected.row(r).iter().copied().collect::<Vec<_>>()
+            );
+        }
+        for i in 0..nv {
+            let name = unsafe { CStr::from_ptr(sd_model_v_name(h.model, i)) };
+            assert_eq!(name.to_str().unwrap(), m.v_name(i));
+        }
+        assert!(unsafe { sd_model_v_name(h.model, nv) }.is_null());
+        assert!(last_error().contains(&format!("index {nv} is out of range")));
+        let mut j = vec![f64::NAN; 6 * nv];
+        let references = [
+            (SD_WORLD, ReferenceFrame::World),
+            (SD_LOCAL, ReferenceFrame::Local),
+            (SD_LOCAL_WORLD_ALIGNED, ReferenceFrame::LocalWorldAligned),
+        ];
+        for link in &m.links {
+            let c_link = CString::new(link.name.as_str()).unwrap();
+            let frame = find_frame(m, &link.name).unwrap();
+            for (c_reference, reference) in references {
+                let status = unsafe {
+                    sd_frame_jacobian(
+                        h.model,
+                        h.ws,
+                        q.as_ptr(),
+                        c_link.as_ptr(),
+                        c_reference as c_int,
+                        j.as_mut_ptr(),
+                    )
+                };
+                assert_eq!(status, OK);
+                let expected = frame_jacobian(m, &mut ws, &q, &frame, reference).unwrap();
+                for r in 0..6 {
+                    let row: Vec<f64> = expected.row(r).iter().copied().collect();
+                    assert_eq!(
+                        &j[r * nv..(r + 1) * nv],
+                        row,
+                        "{} {} {reference:?}",
+                        m.name,
+                        link.name
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn an_output_may_be_an_input() {
+    let h = Handles::new(DEFAULT_ARM_URDF, false);
+    let (q, v, a) = h.state();
+    let mut tau = vec![0.0; h.library.nv];
+    let mut in_place = a.clone();
+    unsafe {
+        assert_eq!(
+            sd_rnea(
+                h.model,
+                h.ws,
+                q.as_ptr(),
+                v.as_ptr(),
+                a.as_ptr(),
+                tau.as_mut_ptr()
+            ),
+            OK
+        );
+        let a_ptr = in_place.as_mut_ptr();
+        assert_eq!(
+            sd_rnea(h.model, h.ws, q.as_ptr(), v.as_ptr(), a_ptr, a_ptr),
+            OK
+        );
+    }
+    assert_eq!(in_place, tau);
+}
+
+#[test]
+fn bad_input_gives_the_librarys_error_and_leaves_outputs() {
+    let h = Handles::new(DEFAULT_ARM_URDF, false);
+    let m = &h.library;
+    let mut ws = Workspace::new(m);
+    let (mut q, v, a) = h.state();
+    q[2] = f64::NAN;
+    let mut out = vec![7.0; m.nv];
+    let status = unsafe {
+        sd_rnea(
+            h.model,
+            h.ws,
+            q.as_ptr(),
+            v.as_ptr(),
+            a.as_ptr(),
+            out.as_mut_ptr(),
+        )
+    };
+    assert_eq!(status, INPUT);
+    let expected = rnea(m, &mut ws, &q, &v, &a).unwrap_err().to_string();
+    assert_eq!(last_error(), format!("sd_rnea: {expected}"));
+    assert!(
+        expected.contains("q[2]") && expected.contains("NaN"),
+        "{expected}"
+    );
+    assert_eq!(out, vec![7.0; m.nv]);
+    // The message stays through a successful call.
+    unsafe {
+        assert_eq!(
+            sd_gravity(h.model, h.ws, h.state().0.as_ptr(), out.as_mut_ptr()),
+            OK
+        )
+    };
+    assert_eq!(last_error(), format!("sd_rnea: {expected}"));
+    type Call<'a> = Box<dyn Fn(*mut f64) -> c_int + 'a>;
+    let calls: [(&str, Call); 3] = [
+        (
+            "sd_gravity",
+            Box::new(|o| unsafe { sd_gravity(h.model, h.ws, q.as_ptr(), o) }),
+        ),
+        (
+            "sd_mass_matrix",
+            Box::new(|o| unsafe { sd_mass_matrix(h.model, h.ws, q.as_ptr(), o) }),
+        ),
+        (
+            "sd_forward_dynamics",
+            Box::new(|o| unsafe {
+                sd_forward_dynamics(h.model, h.ws, q.as_ptr(), v.as_ptr(), a.as_ptr(), o)
+            }),
+        ),
+    ];
+    let mut big = vec![7.0; m.nv * m.nv];
+    for (function, call) in calls {
+        assert_eq!(call(big.as_mut_ptr()), INPUT, "{function}");
+        assert_eq!(last_error(), format!("{function}: {expected}"));
+    }
+    assert!(big.iter().all(|&x| x == 7.0));
+}
+
+#[test]
+fn an_unknown_frame_is_named_with_the_links() {
+    let h = Handles::new(DEFAULT_ARM_URDF, false);
+    let (q, _, _) = h.state();
+    let mut j = vec![0.0; 6 * h.library.nv];
+    let name = CString::new("no_such_link").unwrap();
+    let status = unsafe {
+        sd_frame_jacobian(
+            h.model,
+            h.ws,
+            q.as_ptr(),
+            name.as_ptr(),
+            SD_WORLD as c_int,
+            j.as_mut_ptr(),
+        )
+    };
+    assert_eq!(status, INPUT);
+    let expected = find_frame(&h.library, "no_such_link")
+        .unwrap_err()
+        .to_string();
+    assert_eq!(last_error(), format!("sd_frame_jacobian: {expected}"));
+    assert!(expected.contains("no_such_link") && expected.contains(&h.library.links[1].name));
+    // A reference that is none of the three.
+    let link = CString::new(h.library.links[1].name.as_str()).unwrap();
+    let status =
+        unsafe { sd_frame_jacobian(h.model, h.ws, q.as_ptr(), link.as_ptr(), 3, j.as_mut_ptr()) };
+    assert_eq!(status, USAGE);
+    assert!(
+        last_error().contains("reference 3 is not SD_WORLD"),
+        "{}",
+        last_error()
+    );
+    // A name that is not UTF-8.
+    let bad = CString::new(vec![b'l', 0xff]).unwrap();
+    let status = unsafe {
+        sd_frame_jacobian(
+            h.model,
+            h.ws,
+            q.as_ptr(),
+            bad.as_ptr(),
+            SD_WORLD as c_int,
+            j.as_mut_ptr(),
+        )
+    };
+    assert_eq!(status, USAGE);
+    assert!(
+        last_error().contains("frame is not UTF-8"),
+        "{}",
+        last_error()
+    );
+}
+
+#[test]
+fn a_bad_description_gives_null_and_the_reason() {
+    let text = CString::new("<robot name='r'><link name='a'/><joint name='j' type='revolute'><parent link='a'/><child link='missing'/></joint></robot>").unwrap();
+    let model = unsafe { sd_model_from_urdf_string(text.as_ptr(), ptr::null()) };
+    assert!(model.is_null());
+    let expected =
+        urdf::model_from_str(text.to_str().unwrap(), &ModelOptions::default()).unwrap_err();
+    assert_eq!(
+        last_error(),
+        format!("sd_model_from_urdf_string: {expected}")
+    );
+    let text = CString::new("<robot").unwrap();
+    assert!(unsafe { sd_model_from_urdf_string(text.as_ptr(), ptr::null()) }.is_null());
+    assert!(
+        last_error().contains("cannot parse the URDF"),
+        "{}",
+        last_error()
+    );
+    let path = CString::new("/no/such/robot.urdf").unwrap();
+    assert!(unsafe { sd_model_from_urdf_file(path.as_ptr(), ptr::null()) }.is_null());
+    let message = last_error();
+    assert!(
+        message.contains("/no/such/robot.urdf") && message.contains("cannot read"),
+        "{message}"
+    );
+}
+
+#[test]
+fn a_file_gives_the_model_of_its_text() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../core/tests/models/tree.urdf");
+    let path = CString::new(path.to_str().unwrap()).unwrap();
+    let options = sd_model_options {
+        floating_base: 1,
+        ignore_mimic: 0,
+    };
+    let model = unsafe { sd_model_from_urdf_file(path.as_ptr(), &options) };
+    assert!(!model.is_null(), "{}", last_error());
+    let library = urdf::model_from_str(
+        TREE,
+        &ModelOptions {
+            floating_base: true,
+            ..ModelOptions::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(
+        unsafe { (sd_model_nq(model), sd_model_nv(model)) },
+        (library.nq, library.nv)
+    );
+    unsafe { sd_model_free(model) };
+}
+
+#[test]
+fn ignore_mimic_gives_the_followers_coordinates() {
+    let text = CString::new(MIMIC_GRIPPER_URDF).unwrap();
+    let nv = |ignore_mimic| unsafe {
+        let model = sd_model_from_urdf_string(
+            text.as_ptr(),
+            &sd_model_options {
+                floating_base: 0,
+                ignore_mimic,
+            },
+        );
+        let nv = sd_model_nv(model);
+        sd_model_free(model);
+        nv
+    };
+    let options = |ignore_mimic| ModelOptions {
+        ignore_mimic,
+        ..ModelOptions::default()
+    };
+    assert_eq!(
+        nv(0),
+        urdf::model_from_str(MIMIC_GRIPPER_URDF, &options(false))
+            .unwrap()
+            .nv
+    );
+    assert_eq!(
+        nv(1),
+        urdf::model_from_str(MIMIC_GRIPPER_URDF, &options(true))
+            .unwrap()
+            .nv
+    );
+    assert!(nv(1) > nv(0));
+}
+
+#[test]
+fn null_pointers_are_refused_by_name() {
+    let h = Handles::new(DEFAULT_ARM_URDF, false);
+    let (q, v, a) = h.state();
+    let mut out = vec![0.0; h.library.nv * h.library.nv];
+    let (o, n) = (out.as_mut_ptr(), ptr::null_mut::<f64>());
+    let (q, v, a, null) = (q.as_ptr(), v.as_ptr(), a.as_ptr(), ptr::null::<f64>());
+    let frame = CString::new(h.library.links[1].name.as_str()).unwrap();
+    let f = frame.as_ptr();
+    type Call<'a> = Box<dyn Fn() -> c_int + 'a>;
+    let (model, ws) = (h.model as *const sd_model, h.ws);
+    let cases: Vec<(&str, Call)> = vec![
+        (
+            "sd_rnea: model is NULL",
+            Box::new(|| unsafe { sd_rnea(ptr::null(), ws, q, v, a, o) }),
+        ),
+        (
+            "sd_rnea: workspace is NULL",
+            Box::new(|| unsafe { sd_rnea(model, ptr::null_mut(), q, v, a, o) }),
+        ),
+        (
+            "sd_rnea: q is NULL",
+            Box::new(|| unsafe { sd_rnea(model, ws, null, v, a, o) }),
+        ),
+        (
+            "sd_rnea: v is NULL",
+            Box::new(|| unsafe { sd_rnea(model, ws, q, null, a, o) }),
+        ),
+        (
+            "sd_rnea: a is NULL",
+            Box::new(|| unsafe { sd_rnea(model, ws, q, v, null, o) }),
+        ),
+        (
+            "sd_rnea: tau is NULL",
+            Box::new(|| unsafe { sd_rnea(model, ws, q, v, a, n) }),
+        ),
+        (
+            "sd_gravity: q is NULL",
+            Box::new(|| unsafe { sd_gravity(model, ws, null, o) }),
+        ),
+        (
+            "sd_gravity: g is NULL",
+            Box::new(|| unsafe { sd_gravity(model, ws, q, n) }),
+        ),
+        (
+            "sd_forward_dynamics: tau is NULL",
+            Box::new(|| unsafe { sd_forward_dynamics(model, ws, q, v, null, o) }),
+        ),
+        (
+            "sd_forward_dynamics: qdd is NULL",
+            Box::new(|| unsafe { sd_forward_dynamics(model, ws, q, v, a, n) }),
+        ),
+        (
+            "sd_mass_matrix: q is NULL",
+            Box::new(|| unsafe { sd_mass_matrix(model, ws, null, o) }),
+        ),
+        (
+            "sd_mass_matrix: m is NULL",
+            Box::new(|| unsafe { sd_mass_matrix(model, ws, q, n) }),
+        ),
+        (
+            "sd_frame_jacobian: frame is NULL",
+            Box::new(|| unsafe { sd_frame_jacobian(model, ws, q, ptr::null(), 0, o) }),
+        ),
+        (
+            "sd_frame_jacobian: j is NULL",
+            Box::new(|| unsafe { sd_frame_jacobian(model, ws, q, f, 0, n) }),
+        ),
+        (
+            "sd_frame_jacobian: q is NULL",
+            Box::new(|| unsafe { sd_frame_jacobian(model, ws, null, f, 0, o) }),
+        ),
+    ];
+    for (expected, call) in cases {
+        assert_eq!(call(), USAGE, "{expected}");
+        assert_eq!(last_error(), expected);
+    }
+    assert!(out.iter().all(|&x| x == 0.0));
+    unsafe {
+        assert!(sd_model_from_urdf_string(ptr::null(), ptr::null()).is_null());
+        assert_eq!(last_error(), "sd_model_from_urdf_string: urdf is NULL");
+        assert!(sd_model_from_urdf_file(ptr::null(), ptr::null()).is_null());
+        assert_eq!(last_error(), "sd_model_from_urdf_file: path is NULL");
+        assert!(sd_workspace_new(ptr::null()).is_null());
+        assert_eq!(last_error(), "sd_workspace_new: model is NULL");
+        assert_eq!((sd_model_nq(ptr::null()), sd_model_nv(ptr::null())), (0, 0));
+        assert!(sd_model_v_name(ptr::null(), 0).is_null());
+        assert_eq!(last_error(), "sd_model_v_name: model is NULL");
+        assert!(sd_model_forward_dynamics_method(ptr::null()).is_null());
+        sd_model_free(ptr::null_mut());
+        sd_workspace_free(ptr::null_mut());
+    }
+}
+
+#[test]
+fn a_workspace_of_another_model_is_refused() {
+    let arm = Handles::new(DEFAULT_ARM_URDF, false);
+    // Same description, another model: still not the workspace's.
+    let twin = Handles::new(DEFAULT_ARM_URDF, false);
+    let (q, v, a) = arm.state();
+    let mut out = vec![7.0; arm.library.nv * arm.library.nv];
+    let o = out.as_mut_ptr();
+    let frame = CString::new(arm.library.links[1].name.as_str()).unwrap();
+    unsafe {
+        let statuses = [
+            (
+                "sd_rnea",
+                sd_rnea(twin.model, arm.ws, q.as_ptr(), v.as_ptr(), a.as_ptr(), o),
+            ),
+            ("sd_gravity", sd_gravity(twin.model, arm.ws, q.as_ptr(), o)),
+            (
+                "sd_forward_dynamics",
+                sd_forward_dynamics(twin.model, arm.ws, q.as_ptr(), v.as_ptr(), a.as_ptr(), o),
+            ),
+            (
+                "sd_mass_matrix",
+                sd_mass_matrix(twin.model, arm.ws, q.as_ptr(), o),
+            ),
+            (
+                "sd_frame_jacobian",
+                sd_frame_jacobian(twin.model, arm.ws, q.as_ptr(), frame.as_ptr(), 0, o),
+            ),
+        ];
+        for (function, status) in statuses {
+            assert_eq!(status, USAGE, "{function}");
+        }
+        assert!(
+            last_error().starts_with("sd_frame_jacobian: the workspace was made for another model"),
+            "{}",
+            last_error()
+        );
+        assert_eq!(sd_gravity(arm.model, arm.ws, q.as_ptr(), o), OK);
+    }
+    assert!(out[arm.library.nv..].iter().all(|&x| x == 7.0));
+}
+
+#[test]
+fn a_model_without_coordinates_answers_with_empty_arrays() {
+    let text = CString::new(
+        "<robot name='block'><link name='base'><inertial><mass value='1'/>\
+         <inertia ixx='1' iyy='1' izz='1' ixy='0' ixz='0' iyz='0'/></inertial></link></robot>",
+    )
+    .unwrap();
+    unsafe {
+        let model = sd_model_from_urdf_string(text.as_ptr(), ptr::null());
+        assert!(!model.is_null(), "{}", last_error());
+        assert_eq!((sd_model_nq(model), sd_model_nv(model)), (0, 0));
+        let ws = sd_workspace_new(model);
+        let (none, out) = (ptr::null::<f64>(), ptr::null_mut::<f64>());
+        assert_eq!(sd_rnea(model, ws, none, none, none, out), OK);
+        assert_eq!(sd_gravity(model, ws, none, out), OK);
+        assert_eq!(sd_forward_dynamics(model, ws, none, none, none, out), OK);
+        assert_eq!(sd_mass_matrix(model, ws, none, out), OK);
+        let base = CString::new("base").unwrap();
+        assert_eq!(
+            sd_frame_jacobian(model, ws, none, base.as_ptr(), 0, out),
+            OK
+        );
+        sd_workspace_free(ws);
+        sd_model_free(model);
+    }
+}
