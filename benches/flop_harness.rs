@@ -20,12 +20,12 @@ use nalgebra::{Matrix3, Rotation3, Vector6};
 use spatial_dynamics_core::algorithms::cholesky::spd_inverse;
 use spatial_dynamics_core::algorithms::{crba, forward_dynamics, gravity, rnea};
 use spatial_dynamics_core::model::{examples, JointKind, MotionSubspace};
-use spatial_dynamics_core::{flop_table, flops};
 use spatial_dynamics_core::sampling::{random_q, Rng};
 use spatial_dynamics_core::spatial::{
     AxisTransform, Force, Inertia, Matrix6, Motion, Transform, Translation, Vector3,
 };
 use spatial_dynamics_core::urdf::{model_from_file, model_from_str};
+use spatial_dynamics_core::{flop_table, flops};
 use spatial_dynamics_core::{Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace};
 use std::hint::black_box;
 use std::path::Path;

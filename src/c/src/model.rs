@@ -125,7 +125,9 @@ pub unsafe extern "C" fn sd_model_free(model: *mut sd_model) {
 /// Number of position coordinates `nq`: the length of every `q` array (0 for NULL).
 #[no_mangle]
 pub unsafe extern "C" fn sd_model_nq(model: *const sd_model) -> usize {
-    guard_value("sd_model_nq", 0, || Ok(non_null(model, "model")?.model.nq()))
+    guard_value("sd_model_nq", 0, || {
+        Ok(non_null(model, "model")?.model.nq())
+    })
 }
 
 /// Number of velocity coordinates `nv`: the length of every `v`, `a`, `tau`, `qdd` and `g`
@@ -133,7 +135,9 @@ pub unsafe extern "C" fn sd_model_nq(model: *const sd_model) -> usize {
 /// Jacobian (0 for NULL).
 #[no_mangle]
 pub unsafe extern "C" fn sd_model_nv(model: *const sd_model) -> usize {
-    guard_value("sd_model_nv", 0, || Ok(non_null(model, "model")?.model.nv()))
+    guard_value("sd_model_nv", 0, || {
+        Ok(non_null(model, "model")?.model.nv())
+    })
 }
 
 /// The name of velocity coordinate `index` (`0 ≤ index < nv`), in the order of `v`: the joint's

@@ -58,7 +58,7 @@ impl Handles {
 
     /// A state: `q` on the joints' manifolds (a unit quaternion for a floating base), `v`, `a`.
     fn state(&self) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-        let (nq, nv) = (self.library.nq, self.library.nv);
+        let (nq, nv) = (self.library.nq(), self.library.nv());
         let mut q: Vec<f64> = (0..nq).map(|i| 0.3 + 0.17 * i as f64).collect();
         if nq > nv {
             let norm = q[3..7].iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -102,7 +102,7 @@ fn models() -> Vec<Handles> {
 fn answers_are_the_librarys() {
     for h in models() {
         let m = &h.library;
-        let (nq, nv) = (m.nq, m.nv);
+        let (nq, nv) = (m.nq(), m.nv());
         assert_eq!(
             unsafe { (sd_model_nq(h.model), sd_model_nv(h.model)) },
             (nq, nv)
@@ -123,9 +123,9 @@ fn answers_are_the_librarys() {
                 OK
             )
         };
-        assert_eq!(out, rnea(m, &mut ws, &q, &v, &a).unwrap(), "{}", m.name);
+        assert_eq!(out, rnea(m, &mut ws, &q, &v, &a).unwrap(), "{}", m.name());
         unsafe { assert_eq!(sd_gravity(h.model, h.ws, q.as_ptr(), out.as_mut_ptr()), OK) };
-        assert_eq!(out, gravity(m, &mut ws, &q).unwrap(), "{}", m.name);
+        assert_eq!(out, gravity(m, &mut ws, &q).unwrap(), "{}", m.name());
         // The method `auto` picks, which handles the gripper's mimic joints (aba does not).
         let method = choose_method(m, AUTO_TOLERANCE, Duration::ZERO)
             .unwrap()
@@ -147,7 +147,7 @@ fn answers_are_the_librarys() {
         };
         let expected =
             forward_dynamics(m, &mut ws, &q, &v, &a, method, &Externals::none()).unwrap();
-        assert_eq!(out, expected, "{}", m.name);
+        assert_eq!(out, expected, "{}", m.name());
         let mut matrix = vec![f64::NAN; nv * nv];
         unsafe {
             assert_eq!(
@@ -174,7 +174,7 @@ fn answers_are_the_librarys() {
             (SD_LOCAL, ReferenceFrame::Local),
             (SD_LOCAL_WORLD_ALIGNED, ReferenceFrame::LocalWorldAligned),
         ];
-        for link in &m.links {
+        for link in m.links() {
             let c_link = CString::new(link.name.as_str()).unwrap();
             let frame = find_frame(m, &link.name).unwrap();
             for (c_reference, reference) in references {
@@ -196,7 +196,7 @@ fn answers_are_the_librarys() {
                         &j[r * nv..(r + 1) * nv],
                         row,
                         "{} {} {reference:?}",
-                        m.name,
+                        m.name(),
                         link.name
                     );
                 }
@@ -209,7 +209,7 @@ fn answers_are_the_librarys() {
 fn an_output_may_be_an_input() {
     let h = Handles::new(DEFAULT_ARM_URDF, false);
     let (q, v, a) = h.state();
-    let mut tau = vec![0.0; h.library.nv];
+    let mut tau = vec![0.0; h.library.nv()];
     let mut in_place = a.clone();
     unsafe {
         assert_eq!(
@@ -239,7 +239,7 @@ fn bad_input_gives_the_librarys_error_and_leaves_outputs() {
     let mut ws = Workspace::new(m);
     let (mut q, v, a) = h.state();
     q[2] = f64::NAN;
-    let mut out = vec![7.0; m.nv];
+    let mut out = vec![7.0; m.nv()];
     let status = unsafe {
         sd_rnea(
             h.model,
@@ -257,7 +257,7 @@ fn bad_input_gives_the_librarys_error_and_leaves_outputs() {
         expected.contains("q[2]") && expected.contains("NaN"),
         "{expected}"
     );
-    assert_eq!(out, vec![7.0; m.nv]);
+    assert_eq!(out, vec![7.0; m.nv()]);
     // The message stays through a successful call.
     unsafe {
         assert_eq!(
@@ -283,7 +283,7 @@ fn bad_input_gives_the_librarys_error_and_leaves_outputs() {
             }),
         ),
     ];
-    let mut big = vec![7.0; m.nv * m.nv];
+    let mut big = vec![7.0; m.nv() * m.nv()];
     for (function, call) in calls {
         assert_eq!(call(big.as_mut_ptr()), INPUT, "{function}");
         assert_eq!(last_error(), format!("{function}: {expected}"));
@@ -295,7 +295,7 @@ fn bad_input_gives_the_librarys_error_and_leaves_outputs() {
 fn an_unknown_frame_is_named_with_the_links() {
     let h = Handles::new(DEFAULT_ARM_URDF, false);
     let (q, _, _) = h.state();
-    let mut j = vec![0.0; 6 * h.library.nv];
+    let mut j = vec![0.0; 6 * h.library.nv()];
     let name = CString::new("no_such_link").unwrap();
     let status = unsafe {
         sd_frame_jacobian(
@@ -312,9 +312,9 @@ fn an_unknown_frame_is_named_with_the_links() {
         .unwrap_err()
         .to_string();
     assert_eq!(last_error(), format!("sd_frame_jacobian: {expected}"));
-    assert!(expected.contains("no_such_link") && expected.contains(&h.library.links[1].name));
+    assert!(expected.contains("no_such_link") && expected.contains(&h.library.links()[1].name));
     // A reference that is none of the three.
-    let link = CString::new(h.library.links[1].name.as_str()).unwrap();
+    let link = CString::new(h.library.links()[1].name.as_str()).unwrap();
     let status =
         unsafe { sd_frame_jacobian(h.model, h.ws, q.as_ptr(), link.as_ptr(), 3, j.as_mut_ptr()) };
     assert_eq!(status, USAGE);
@@ -391,7 +391,7 @@ fn a_file_gives_the_model_of_its_text() {
     .unwrap();
     assert_eq!(
         unsafe { (sd_model_nq(model), sd_model_nv(model)) },
-        (library.nq, library.nv)
+        (library.nq(), library.nv())
     );
     unsafe { sd_model_free(model) };
 }
@@ -419,13 +419,13 @@ fn ignore_mimic_gives_the_followers_coordinates() {
         nv(0),
         urdf::model_from_str(MIMIC_GRIPPER_URDF, &options(false))
             .unwrap()
-            .nv
+            .nv()
     );
     assert_eq!(
         nv(1),
         urdf::model_from_str(MIMIC_GRIPPER_URDF, &options(true))
             .unwrap()
-            .nv
+            .nv()
     );
     assert!(nv(1) > nv(0));
 }
@@ -434,10 +434,10 @@ fn ignore_mimic_gives_the_followers_coordinates() {
 fn null_pointers_are_refused_by_name() {
     let h = Handles::new(DEFAULT_ARM_URDF, false);
     let (q, v, a) = h.state();
-    let mut out = vec![0.0; h.library.nv * h.library.nv];
+    let mut out = vec![0.0; h.library.nv() * h.library.nv()];
     let (o, n) = (out.as_mut_ptr(), ptr::null_mut::<f64>());
     let (q, v, a, null) = (q.as_ptr(), v.as_ptr(), a.as_ptr(), ptr::null::<f64>());
-    let frame = CString::new(h.library.links[1].name.as_str()).unwrap();
+    let frame = CString::new(h.library.links()[1].name.as_str()).unwrap();
     let f = frame.as_ptr();
     type Call<'a> = Box<dyn Fn() -> c_int + 'a>;
     let (model, ws) = (h.model as *const sd_model, h.ws);
@@ -530,9 +530,9 @@ fn a_workspace_of_another_model_is_refused() {
     // Same description, another model: still not the workspace's.
     let twin = Handles::new(DEFAULT_ARM_URDF, false);
     let (q, v, a) = arm.state();
-    let mut out = vec![7.0; arm.library.nv * arm.library.nv];
+    let mut out = vec![7.0; arm.library.nv() * arm.library.nv()];
     let o = out.as_mut_ptr();
-    let frame = CString::new(arm.library.links[1].name.as_str()).unwrap();
+    let frame = CString::new(arm.library.links()[1].name.as_str()).unwrap();
     unsafe {
         let statuses = [
             (
@@ -563,7 +563,7 @@ fn a_workspace_of_another_model_is_refused() {
         );
         assert_eq!(sd_gravity(arm.model, arm.ws, q.as_ptr(), o), OK);
     }
-    assert!(out[arm.library.nv..].iter().all(|&x| x == 7.0));
+    assert!(out[arm.library.nv()..].iter().all(|&x| x == 7.0));
 }
 
 #[test]
