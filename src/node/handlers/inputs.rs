@@ -161,3 +161,253 @@ impl NodeState {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::test_support::*;
+    use super::*;
+    use crate::node::logging::Level;
+    use crate::node::params::Settings;
+    use spatial_dynamics_core::model::examples::PARTICLE_URDF;
+
+    const THETA: f64 = 0.7;
+
+    #[test]
+    fn a_joint_state_gives_the_closed_form_gravity_effort_and_acceleration_with_its_stamp() {
+        let mut state = serving(pendulum());
+        let out = state.joint_states(Ok(pendulum_state(THETA, 0.3, at(42))), Some(0));
+        let gravity = out.gravity.expect("gravity effort");
+        assert_eq!(gravity.header.stamp, at(42));
+        assert_eq!(gravity.header.frame_id, "base");
+        assert_eq!(gravity.name, ["joint1"]);
+        assert_close(gravity.effort[0], pendulum_gravity(THETA));
+        // No command yet: the pendulum swings freely (the velocity adds no torque about a
+        // fixed axis).
+        let acceleration = out.acceleration.expect("acceleration");
+        assert_close(
+            acceleration.acceleration[0],
+            -pendulum_gravity(THETA) / pendulum_inertia(),
+        );
+        assert!(out.residual.is_none() && out.feedforward_effort.is_none());
+        assert_eq!(state.health.received_on("/joint_states"), 1);
+        assert_eq!(state.health.total_dropped(), 0);
+    }
+
+    #[test]
+    fn an_effort_command_enters_the_acceleration_and_a_bad_one_is_counted() {
+        let mut state = serving(pendulum());
+        let command = |effort: Vec<f64>| JointState {
+            name: vec!["joint1".into()],
+            effort,
+            ..Default::default()
+        };
+        state.effort_command(Ok(command(vec![1.5])));
+        let out = state.joint_states(Ok(pendulum_state(THETA, 0.0, at(1))), Some(0));
+        let a = out.acceleration.unwrap();
+        assert_close(a.effort[0], 1.5);
+        assert_close(
+            a.acceleration[0],
+            (1.5 - pendulum_gravity(THETA)) / pendulum_inertia(),
+        );
+        state.effort_command(Ok(command(vec![1.0, 2.0])));
+        state.effort_command(Err("unreadable message: x".into()));
+        state.commands(Ok(Float64MultiArray {
+            data: vec![f64::NAN],
+            ..Default::default()
+        }));
+        let names = state.names.clone();
+        assert_eq!(state.health.received_on(&names.effort_command), 3);
+        assert_eq!(state.health.total_dropped(), 3);
+        let unreadable = state
+            .health
+            .dropped_on(&names.effort_command, "unreadable message: x");
+        assert_eq!(unreadable, 1);
+        // The refused commands left the good one in force.
+        let out = state.joint_states(Ok(pendulum_state(THETA, 0.0, at(2))), Some(0));
+        assert_close(out.acceleration.unwrap().effort[0], 1.5);
+    }
+
+    #[test]
+    fn commands_in_command_joint_order_set_the_effort() {
+        let mut state = serving(Settings {
+            robot_description: PARTICLE_URDF.into(),
+            command_joints: vec!["z".into(), "x".into()],
+            ..Settings::default()
+        });
+        state.commands(Ok(Float64MultiArray {
+            data: vec![G, 2.0],
+            ..Default::default()
+        }));
+        let js = JointState {
+            name: vec!["x".into(), "z".into()],
+            position: vec![0.0, 0.0],
+            velocity: vec![0.0, 0.0],
+            ..Default::default()
+        };
+        // The particle (1 kg): ẍ = 2, and z̈ = 0 with its weight carried by the command.
+        let a = state.joint_states(Ok(js), Some(0)).acceleration.unwrap();
+        assert_close(a.acceleration[0], 2.0);
+        assert_close(a.acceleration[1], 0.0);
+    }
+
+    #[test]
+    fn a_bad_joint_state_is_dropped_counted_and_warned_about_once_a_second() {
+        let mut state = serving(pendulum());
+        let mut unknown = pendulum_state(THETA, 0.0, at(1));
+        unknown.name = vec!["elbow".into()];
+        for _ in 0..3 {
+            let out = state.joint_states(Ok(unknown.clone()), Some(0));
+            assert!(out.gravity.is_none() && out.acceleration.is_none());
+        }
+        assert_eq!(
+            state
+                .health
+                .dropped_on("/joint_states", "unknown joint 'x'"),
+            3
+        );
+        let warnings = logged(&state, Level::Warn);
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(
+            warnings[0].starts_with("dropped a message on /joint_states: unknown joint 'elbow'"),
+            "{}",
+            warnings[0]
+        );
+        std::thread::sleep(std::time::Duration::from_millis(1010));
+        state.joint_states(Err("unreadable message: truncated".into()), Some(0));
+        let warnings = logged(&state, Level::Warn);
+        assert_eq!(warnings.len(), 2, "{warnings:?}");
+        assert!(
+            warnings[1]
+                .ends_with("unreadable message: truncated (2 more dropped since the last warning)"),
+            "{}",
+            warnings[1]
+        );
+    }
+
+    #[test]
+    fn a_state_whose_dynamics_overflow_is_dropped_with_the_reason() {
+        // A rate of 1e200 rad/s is finite, but the velocity products in the forward dynamics
+        // (≈ 1e400) are not.
+        let mut state = serving(pendulum());
+        let out = state.joint_states(Ok(pendulum_state(THETA, 1e200, at(1))), Some(0));
+        assert!(out.gravity.is_none() && out.acceleration.is_none());
+        let status = state.health.report("test", "pendulum1", true);
+        let dropped: Vec<_> = status
+            .values
+            .iter()
+            .filter(|v| v.key.contains("dropped"))
+            .collect();
+        assert_eq!(dropped.len(), 1, "{dropped:?}");
+        assert!(
+            dropped[0].key.starts_with("/joint_states dropped: "),
+            "{dropped:?}"
+        );
+        assert_eq!(dropped[0].value, "1");
+    }
+
+    #[test]
+    fn stamps_outside_the_policy_are_dropped_and_simulated_time_waits_for_clock() {
+        let mut state = serving(Settings {
+            max_stamp_age: 1.0,
+            ..pendulum()
+        });
+        let now = 100_000_000_000; // 100 s
+        let fresh = state.joint_states(Ok(pendulum_state(THETA, 0.0, at(99))), Some(now));
+        assert!(fresh.gravity.is_some());
+        let stale = state.joint_states(Ok(pendulum_state(THETA, 0.0, at(98))), Some(now));
+        assert!(stale.gravity.is_none());
+        let dropped = state.health.dropped_on("/joint_states", "stale stamp (x)");
+        assert_eq!(dropped, 1);
+        state.follow_use_sim_time(true);
+        let reference = JointTrajectory {
+            joint_names: vec!["joint1".into()],
+            points: vec![JointTrajectoryPoint {
+                positions: vec![THETA],
+                ..Default::default()
+            }],
+            ..Default::default()
+        };
+        let out = state.reference(Ok(reference), None);
+        assert!(out.feedforward_effort.is_none());
+        let topic = "/spatial_dynamics/reference";
+        let waiting = state.health.dropped_on(topic, "waiting for /clock (x)");
+        assert_eq!(waiting, 1);
+    }
+
+    #[test]
+    fn a_reference_gives_the_inverse_dynamics_of_its_first_point() {
+        let mut state = serving(pendulum());
+        let (theta, rate, accel) = (-0.4, 2.0, 3.0);
+        let reference = JointTrajectory {
+            header: Header {
+                stamp: at(7),
+                frame_id: String::new(),
+            },
+            joint_names: vec!["joint1".into()],
+            points: vec![JointTrajectoryPoint {
+                positions: vec![theta],
+                velocities: vec![rate],
+                accelerations: vec![accel],
+                ..Default::default()
+            }],
+        };
+        let out = state.reference(Ok(reference), Some(0));
+        let expected = pendulum_inertia() * accel + pendulum_gravity(theta);
+        let effort = out.feedforward_effort.unwrap();
+        assert_eq!(effort.header.stamp, at(7));
+        assert_close(effort.effort[0], expected);
+        assert_close(out.feedforward_commands.unwrap().data[0], expected);
+        let empty = state.reference(Ok(JointTrajectory::default()), Some(0));
+        assert!(empty.feedforward_effort.is_none() && empty.feedforward_commands.is_none());
+        let reason = "the reference trajectory has no points";
+        let dropped = state
+            .health
+            .dropped_on("/spatial_dynamics/reference", reason);
+        assert_eq!(dropped, 1);
+    }
+
+    #[test]
+    fn a_base_state_for_a_fixed_base_is_dropped() {
+        let mut state = serving(pendulum());
+        state.base_state(Ok(Odometry::default()));
+        let reason = "the model has no floating base";
+        let dropped = state
+            .health
+            .dropped_on("/spatial_dynamics/base_state", reason);
+        assert_eq!(dropped, 1);
+    }
+
+    #[test]
+    fn robot_description_reloads_the_model_unless_a_parameter_wins() {
+        let mut state = serving(Settings::default());
+        let text = |s: &str| Ok(StringMsg { data: s.into() });
+        state.robot_description(text(PARTICLE_URDF)).unwrap();
+        assert_eq!(state.engine.model.name, "particle");
+        assert_eq!(state.engine.source, ModelSource::Topic);
+        // The particle's weight, m g on z.
+        let js = JointState {
+            name: vec!["x".into(), "z".into()],
+            position: vec![0.0, 0.0],
+            ..Default::default()
+        };
+        let gravity = state.joint_states(Ok(js), Some(0)).gravity.unwrap();
+        assert_close(gravity.effort[1], G);
+        state
+            .robot_description(text("<robot name='broken'>"))
+            .unwrap();
+        assert_eq!(state.engine.model.name, "particle");
+        let reason = "unusable robot description, keeping robot 'particle'";
+        assert_eq!(state.health.dropped_on("/robot_description", reason), 1);
+        // With the robot_description parameter set, the topic is ignored, said once.
+        let mut state = serving(pendulum());
+        state.robot_description(text(PARTICLE_URDF)).unwrap();
+        state.robot_description(text(PARTICLE_URDF)).unwrap();
+        assert_eq!(state.engine.model.name, "pendulum1");
+        let ignoring = "ignoring the robot description on /robot_description: the robot_description parameter is set";
+        let said = logged(&state, Level::Info);
+        assert_eq!(said.iter().filter(|l| l.starts_with(ignoring)).count(), 1);
+        // Kept for when the parameter is cleared.
+        let kept = state.topic_description().lock().unwrap().clone();
+        assert_eq!(kept.as_deref(), Some(PARTICLE_URDF));
+    }
+}

@@ -172,18 +172,96 @@ fn checked<M: Finite>(health: &mut Health, message: M, topic: &str) -> Option<M>
 
 #[cfg(test)]
 pub(crate) mod test_support {
-    //! A node state over a model, as the node builds it, for the handlers' tests.
+    //! Node states over small models with closed-form dynamics, for the handlers' tests.
 
     use super::*;
     use crate::node::logging::Level;
+    use spatial_dynamics_core::model::examples::pendulum_urdf;
+
+    /// Standard gravity (m/s²), the parameters' default.
+    pub const G: f64 = 9.81;
+    /// The test pendulum: one thin rod of this length (m) and mass (kg) hanging from the world
+    /// on `joint1`, about y. About its pivot, I = m L² / 3; the effort that holds it at angle θ
+    /// is m g (L/2) sin θ, so unheld it accelerates at θ̈ = −(3 g / 2L) sin θ.
+    pub const LENGTH: f64 = 0.8;
+    pub const MASS: f64 = 2.5;
+
+    /// The pendulum's inertia about its pivot, m L² / 3.
+    pub fn pendulum_inertia() -> f64 {
+        MASS * LENGTH * LENGTH / 3.0
+    }
+
+    /// The effort that holds the pendulum at angle `theta`, m g (L/2) sin θ.
+    pub fn pendulum_gravity(theta: f64) -> f64 {
+        MASS * G * LENGTH / 2.0 * theta.sin()
+    }
+
+    /// Settings that serve the test pendulum.
+    pub fn pendulum() -> Settings {
+        Settings {
+            robot_description: pendulum_urdf(1, LENGTH, MASS),
+            ..Settings::default()
+        }
+    }
 
     /// The state of a node named `spatial_dynamics` in `/` with these settings.
-    pub fn state(settings: Settings) -> NodeState {
+    pub fn serving(settings: Settings) -> NodeState {
         let engine = Engine::from_settings(&settings, None).expect("the settings give a model");
-        let names = Names::resolve(
-            &NameResolver::new("/", "spatial_dynamics", &[]),
-            "spatial_dynamics",
+        let resolver = NameResolver::new("/", "spatial_dynamics", &[]);
+        let names = Names::resolve(&resolver, "spatial_dynamics");
+        NodeState::new(engine, settings, names, Logger::new("test", Level::Debug))
+    }
+
+    /// The lines the node logged at `level`.
+    pub fn logged(state: &NodeState, level: Level) -> Vec<String> {
+        let lines = state.logger.kept_lines().into_iter();
+        lines.filter(|(l, _)| *l == level).map(|(_, m)| m).collect()
+    }
+
+    /// A stamp of `sec` s.
+    pub fn at(sec: i32) -> Time {
+        Time { sec, nanosec: 0 }
+    }
+
+    /// The pendulum's joint state at angle `theta`, rate `rate`, stamped `stamp`.
+    pub fn pendulum_state(theta: f64, rate: f64, stamp: Time) -> JointState {
+        JointState {
+            header: Header {
+                stamp,
+                frame_id: "base".into(),
+            },
+            name: vec!["joint1".into()],
+            position: vec![theta],
+            velocity: vec![rate],
+            effort: Vec::new(),
+        }
+    }
+
+    /// `|a − b| ≤ 1e-9 · max(1, |b|)`, with both in the message.
+    pub fn assert_close(a: f64, b: f64) {
+        assert!((a - b).abs() <= 1e-9 * b.abs().max(1.0), "{a} vs {b}");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::test_support::*;
+    use super::*;
+    use crate::node::logging::Level;
+
+    #[test]
+    fn a_non_finite_output_is_held_back_and_counted_on_its_topic() {
+        let mut health = Health::new(Logger::new("test", Level::Info));
+        let good = pendulum_state(0.1, 0.0, at(1));
+        assert_eq!(
+            checked(&mut health, good.clone(), "/out"),
+            Some(good.clone())
         );
-        NodeState::new(engine, settings, names, Logger::new("test", Level::Info))
+        let mut bad = good;
+        bad.effort = vec![f64::NAN];
+        assert_eq!(checked(&mut health, bad, "/out"), None);
+        let reason = "output held back: it contained a non-finite number";
+        assert_eq!(health.dropped_on("/out", reason), 1);
+        assert_eq!(health.total_dropped(), 1);
     }
 }

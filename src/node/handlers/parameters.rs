@@ -105,3 +105,129 @@ impl NodeState {
         );
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::test_support::*;
+    use super::*;
+    use crate::node::logging::Level;
+    use spatial_dynamics_core::model::examples::PARTICLE_URDF;
+
+    const THETA: f64 = 0.6;
+
+    fn gravity_effort(state: &mut NodeState) -> f64 {
+        let out = state.joint_states(Ok(pendulum_state(THETA, 0.0, at(1))), Some(0));
+        out.gravity.expect("gravity effort").effort[0]
+    }
+
+    #[test]
+    fn values_are_checked_against_the_model_they_would_build() {
+        let state = serving(pendulum());
+        let (settings, description) = (state.settings(), state.topic_description());
+        let check = |name: &str, value: ParameterValue| {
+            validate_parameter(&settings, &description, name, &value)
+        };
+        assert!(check("method", ParameterValue::String("crba".into())).is_ok());
+        assert!(check("method", ParameterValue::String("fast".into())).is_err());
+        let gravity = check("gravity", ParameterValue::DoubleArray(vec![0.0, 1.0]));
+        assert!(gravity.unwrap_err().contains("gravity"));
+        let urdf = check("robot_description", ParameterValue::String("<robot".into()));
+        assert!(urdf.is_err());
+        let joints = check(
+            "command_joints",
+            ParameterValue::StringArray(vec!["elbow".into()]),
+        );
+        assert!(joints.unwrap_err().contains("unknown joint 'elbow'"));
+        assert!(check(
+            "command_joints",
+            ParameterValue::StringArray(vec!["joint1".into()])
+        )
+        .is_ok());
+        // Not ours: left to the parameter store.
+        assert!(check("qos_overrides", ParameterValue::Boolean(true)).is_ok());
+        // Checking changes nothing.
+        assert_eq!(settings.lock().unwrap().method, None);
+    }
+
+    #[test]
+    fn a_stored_value_reports_whether_it_changed_anything() {
+        let state = serving(pendulum());
+        let settings = state.settings();
+        let crba = ParameterValue::String("crba".into());
+        assert_eq!(apply_parameter(&settings, "method", &crba), Ok(true));
+        assert_eq!(apply_parameter(&settings, "method", &crba), Ok(false));
+        assert_eq!(
+            settings.lock().unwrap().method,
+            Some(ForwardDynamicsMethod::Crba)
+        );
+        assert_eq!(apply_parameter(&settings, "not_ours", &crba), Ok(false));
+    }
+
+    #[test]
+    fn parameter_changes_take_effect() {
+        let mut state = serving(pendulum());
+        assert_close(gravity_effort(&mut state), pendulum_gravity(THETA));
+        let settings = state.settings();
+        // Gravity enters the gravity effort linearly: doubling it doubles the effort.
+        let doubled = ParameterValue::DoubleArray(vec![0.0, 0.0, -2.0 * G]);
+        assert!(apply_parameter(&settings, "gravity", &doubled).unwrap());
+        state.parameter_changed("gravity").unwrap();
+        assert_close(gravity_effort(&mut state), 2.0 * pendulum_gravity(THETA));
+
+        let crba = ParameterValue::String("crba".into());
+        apply_parameter(&settings, "method", &crba).unwrap();
+        state.parameter_changed("method").unwrap();
+        assert_eq!(state.engine.method, ForwardDynamicsMethod::Crba);
+
+        // The stamp policy: a stamp 2 s old passes, then fails once max_stamp_age is 1 s.
+        let now = Some(10_000_000_000);
+        let old = || Ok(pendulum_state(THETA, 0.0, at(8)));
+        assert!(state.joint_states(old(), now).gravity.is_some());
+        apply_parameter(&settings, "max_stamp_age", &ParameterValue::Double(1.0)).unwrap();
+        state.parameter_changed("max_stamp_age").unwrap();
+        assert!(state.joint_states(old(), now).gravity.is_none());
+
+        // A model parameter rebuilds the model: a new description replaces the pendulum.
+        let particle = ParameterValue::String(PARTICLE_URDF.into());
+        apply_parameter(&settings, "robot_description", &particle).unwrap();
+        state.parameter_changed("robot_description").unwrap();
+        assert_eq!(state.engine.model.name, "particle");
+        let infos = logged(&state, Level::Info);
+        assert!(infos.contains(&"parameter 'robot_description' now in effect".to_string()));
+    }
+
+    #[test]
+    fn a_model_that_cannot_be_rebuilt_is_logged_and_the_old_one_kept() {
+        let mut state = serving(pendulum());
+        // Stored without the validator (as a value valid alone, unusable with this model).
+        state.settings().lock().unwrap().root_link = "no_such_link".into();
+        state.parameter_changed("root_link").unwrap();
+        assert_eq!(state.engine.model.name, "pendulum1");
+        let errors = logged(&state, Level::Error);
+        assert_eq!(errors.len(), 1, "{errors:?}");
+        assert!(errors[0].starts_with("parameter 'root_link' was accepted but the model could not be rebuilt, keeping robot 'pendulum1'"));
+    }
+
+    #[test]
+    fn use_sim_time_switches_the_clock_once_and_says_so() {
+        let mut state = serving(pendulum());
+        state.follow_use_sim_time(false);
+        assert!(logged(&state, Level::Info).is_empty());
+        state.follow_use_sim_time(true);
+        state.follow_use_sim_time(true);
+        assert!(state.clock.use_sim_time());
+        assert!(state.settings().lock().unwrap().use_sim_time);
+        assert_eq!(
+            logged(&state, Level::Info),
+            ["parameter 'use_sim_time' now in effect: true; the node's clock is the /clock (use_sim_time)"]
+        );
+        // Simulated time: no /clock yet, then the first one.
+        let out = state.joint_states(Ok(pendulum_state(THETA, 0.0, at(1))), None);
+        assert!(out.gravity.is_none());
+        state.clock_received(&at(5));
+        let now = state.clock.now(std::time::SystemTime::now(), None);
+        assert_eq!(now, Some(5_000_000_000));
+        let out = state.joint_states(Ok(pendulum_state(THETA, 0.0, at(1))), now);
+        assert_eq!(out.gravity.unwrap().header.stamp, at(5));
+    }
+}
