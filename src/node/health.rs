@@ -100,6 +100,19 @@ impl Health {
         self.dropped.values().sum()
     }
 
+    /// How many inputs on `topic` were received (for tests).
+    #[cfg(test)]
+    pub fn received_on(&self, topic: &str) -> u64 {
+        self.received.get(topic).copied().unwrap_or(0)
+    }
+
+    /// How many inputs on `topic` were dropped for reasons of the kind of `reason` (for tests).
+    #[cfg(test)]
+    pub fn dropped_on(&self, topic: &str, reason: &str) -> u64 {
+        let key = (topic.to_string(), reason_kind(reason));
+        self.dropped.get(&key).copied().unwrap_or(0)
+    }
+
     /// The status for `/diagnostics` (its hardware id: the robot model's name), and a reset of
     /// the per-period figures.
     pub fn report(&mut self, name: &str, model: &str, model_ok: bool) -> DiagnosticStatus {

@@ -137,6 +137,28 @@ impl Logger {
         inner.rosout = Some(publisher);
     }
 
+    /// The lines kept for `/rosout` while no publisher is attached: (severity, message) (for
+    /// tests).
+    #[cfg(test)]
+    pub fn kept_lines(&self) -> Vec<(Level, String)> {
+        let levels = [
+            Level::Debug,
+            Level::Info,
+            Level::Warn,
+            Level::Error,
+            Level::Fatal,
+        ];
+        let inner = self.inner.lock().expect("logger lock");
+        inner
+            .backlog
+            .iter()
+            .map(|l| {
+                let level = levels.into_iter().find(|v| *v as u8 == l.level);
+                (level.unwrap_or(Level::Fatal), l.msg.clone())
+            })
+            .collect()
+    }
+
     /// Writes one line (use the [`log!`](crate::node::logging) macro, which fills in where).
     pub fn write(&self, level: Level, file: &str, function: &str, line: u32, msg: &str) {
         if !self.enabled(level) {

@@ -1,0 +1,226 @@
+//! The node's timers: the simulation's publish timer (simulate mode) and `/diagnostics` (1 Hz).
+
+use super::{checked, NodeState, Outputs};
+use crate::node::engine::clock::{self, NodeClock};
+use crate::node::engine::Engine;
+use crate::node::logging::log;
+use crate::ros::msgs::*;
+use std::time::Instant;
+
+/// The publish timer of simulate mode, one tick per `1 / publish_rate` s (none in serve mode).
+/// A late tick delays the ones after it rather than bunching them.
+pub fn simulation_timer(engine: &Engine) -> Option<tokio::time::Interval> {
+    engine.simulation_period().map(|period| {
+        let mut timer = tokio::time::interval(period);
+        timer.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        timer
+    })
+}
+
+impl NodeState {
+    /// A tick of the simulation's publish timer at wall time `at`: the simulation advances by
+    /// `real_time_factor / publish_rate` s (unless paused or stopped) and its state goes out.
+    pub fn simulation_tick(&mut self, at: Instant) -> Outputs {
+        let tick = self.engine.simulation_tick(at);
+        self.simulation_outputs(tick)
+    }
+
+    /// What a simulation step gives to publish: `joint_states`, a floating base's
+    /// `~/base_state`, and `/clock` when `publish_clock` is set; or, when the simulation
+    /// stopped (diverged), nothing, and the reason logged as an error.
+    pub(super) fn simulation_outputs(
+        &mut self,
+        step: Option<Result<(JointState, Time), String>>,
+    ) -> Outputs {
+        let mut out = Outputs::default();
+        match step {
+            None => {}
+            Some(Ok((js, stamp))) => {
+                let publish_clock = self
+                    .settings
+                    .lock()
+                    .map(|s| s.publish_clock)
+                    .unwrap_or(false);
+                if publish_clock {
+                    out.clock = Some(Clock { clock: stamp });
+                }
+                out.joint_states = checked(&mut self.health, js, &self.names.joint_states);
+                if let Some(odometry) = self.engine.simulated_base_state() {
+                    out.base_state = checked(&mut self.health, odometry, &self.names.base_state);
+                }
+            }
+            Some(Err(why)) => log!(self.logger, Error, "{why}"),
+        }
+        out
+    }
+
+    /// `/diagnostics` at the node's time `now` (ns; stamped 0 while unknown): the counters
+    /// ([`crate::node::health::Health::report`]), the clock in use and its time, and in simulate mode the
+    /// simulation's time, real-time factor and state (an error status once it diverged).
+    pub fn diagnostics(&mut self, now: Option<i64>) -> Outputs {
+        let simulating = self.engine.simulated_time().is_some();
+        let mut status = self
+            .health
+            .report(&self.names.status, &self.engine.model.name(), true);
+        let mut value = |key: &str, value: String| {
+            status.values.push(KeyValue {
+                key: key.into(),
+                value,
+            })
+        };
+        value(
+            "clock",
+            clock::source_name(self.clock.use_sim_time(), simulating).into(),
+        );
+        value(
+            "clock time (s)",
+            now.map_or_else(|| "none yet".into(), |n| format!("{:.9}", n as f64 * 1e-9)),
+        );
+        let mut diverged = None;
+        if let Some((t, rtf, paused, why, clamped)) = self.engine.simulation_status() {
+            value("simulated time (s)", format!("{t:.6}"));
+            value("real-time factor", format!("{rtf:.3}"));
+            value("paused", paused.to_string());
+            value("efforts clamped", clamped.to_string());
+            if let Some(depth) = self.engine.simulated_penetration() {
+                value("deepest ground penetration (m)", format!("{depth:.6}"));
+            }
+            diverged = why;
+        }
+        if let Some(why) = diverged {
+            status.level = 2;
+            status.message = why;
+        }
+        Outputs {
+            diagnostics: Some(DiagnosticArray {
+                header: Header {
+                    stamp: NodeClock::stamp(now),
+                    frame_id: String::new(),
+                },
+                status: vec![status],
+            }),
+            ..Default::default()
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::test_support::*;
+    use super::*;
+    use crate::node::params::Settings;
+    use spatial_dynamics_core::model::examples::PARTICLE_URDF;
+
+    /// The particle in simulate mode: 100 ticks a second of 1 ms steps in real time.
+    fn falling(publish_clock: bool) -> NodeState {
+        serving(Settings {
+            robot_description: PARTICLE_URDF.into(),
+            simulate: true,
+            sim_dt: 1e-3,
+            publish_rate: 100.0,
+            real_time_factor: 1.0,
+            publish_clock,
+            ..Settings::default()
+        })
+    }
+
+    /// The particle's fall after n semi-implicit Euler steps of dt from rest:
+    /// v_n = −g n dt, z_n = Σ v_k dt = −g dt² n (n + 1) / 2.
+    fn fall(n: f64, dt: f64) -> (f64, f64) {
+        (-G * dt * dt * n * (n + 1.0) / 2.0, -G * n * dt)
+    }
+
+    #[test]
+    fn simulate_mode_ticks_advance_the_state_and_publish_it() {
+        let mut state = falling(true);
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_time()
+            .build()
+            .unwrap();
+        let _in_runtime = runtime.enter();
+        let period = simulation_timer(&state.engine).expect("a timer").period();
+        assert_eq!(period, std::time::Duration::from_millis(10));
+        for tick in 1..=2 {
+            let out = state.simulation_tick(Instant::now());
+            let js = out.joint_states.expect("joint_states");
+            let (z, v) = fall(10.0 * tick as f64, 1e-3);
+            assert_close(js.position[1], z);
+            assert_close(js.velocity[1], v);
+            assert_close(js.position[0], 0.0);
+            let t = Time {
+                sec: 0,
+                nanosec: 10_000_000 * tick,
+            };
+            assert_eq!(js.header.stamp, t);
+            assert_eq!(out.clock.expect("publish_clock is on").clock, t);
+            assert!(out.base_state.is_none(), "a fixed base");
+        }
+        assert_close(state.engine.simulated_time().unwrap(), 0.02);
+        // Paused: no step, nothing published.
+        assert!(state.pause(&SetBoolRequest { data: true }).success);
+        let out = state.simulation_tick(Instant::now());
+        assert!(out.joint_states.is_none() && out.clock.is_none());
+        assert_close(state.engine.simulated_time().unwrap(), 0.02);
+        // Serve mode has no timer.
+        assert!(simulation_timer(&serving(pendulum()).engine).is_none());
+    }
+
+    #[test]
+    fn without_publish_clock_no_clock_goes_out() {
+        let mut state = falling(false);
+        let out = state.simulation_tick(Instant::now());
+        assert!(out.joint_states.is_some() && out.clock.is_none());
+    }
+
+    #[test]
+    fn diagnostics_report_counters_clock_and_simulation() {
+        let mut state = falling(false);
+        state.simulation_tick(Instant::now());
+        state.commands(Ok(Float64MultiArray::default()));
+        state.effort_command(Err("unreadable message: x".into()));
+        let now = 1_500_000_000;
+        let out = state.diagnostics(Some(now));
+        let array = out.diagnostics.expect("diagnostics");
+        assert_eq!(
+            array.header.stamp,
+            Time {
+                sec: 1,
+                nanosec: 500_000_000
+            }
+        );
+        let status = &array.status[0];
+        assert_eq!(status.name, "spatial_dynamics: dynamics");
+        assert_eq!(status.hardware_id, "particle");
+        assert_eq!(status.level, 1, "{}", status.message);
+        let value = |key: &str| {
+            let found = status.values.iter().find(|v| v.key == key);
+            found
+                .map(|v| v.value.as_str())
+                .unwrap_or_else(|| panic!("no {key}"))
+        };
+        assert_eq!(value("clock"), "wall clock");
+        assert_eq!(value("clock time (s)"), "1.500000000");
+        assert_eq!(value("simulated time (s)"), "0.010000");
+        assert_eq!(value("paused"), "false");
+        assert_eq!(
+            value("/spatial_dynamics/effort_command dropped: unreadable message: x"),
+            "1"
+        );
+        assert_eq!(value("/spatial_dynamics/commands received"), "1");
+        // Unknown time: stamped 0.
+        let array = state.diagnostics(None).diagnostics.unwrap();
+        assert_eq!(array.header.stamp, Time::default());
+        let status = &array.status[0];
+        let clock_time = status
+            .values
+            .iter()
+            .find(|v| v.key == "clock time (s)")
+            .unwrap();
+        assert_eq!(clock_time.value, "none yet");
+        // Serve mode: no simulation figures.
+        let mut serve = serving(pendulum());
+        let status = &serve.diagnostics(Some(0)).diagnostics.unwrap().status[0];
+        assert_eq!(status.level, 0);
+        assert!(!status.values.iter().any(|v| v.key == "simulated time (s)"));
+    }
+}
