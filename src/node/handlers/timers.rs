@@ -61,7 +61,7 @@ impl NodeState {
         let simulating = self.engine.simulated_time().is_some();
         let mut status = self
             .health
-            .report(&self.names.status, &self.engine.model.name(), true);
+            .report(&self.names.status, self.engine.model.name(), true);
         let mut value = |key: &str, value: String| {
             status.values.push(KeyValue {
                 key: key.into(),
