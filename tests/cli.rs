@@ -32,11 +32,59 @@ fn run(args: &[&str], stdin: &str) -> (bool, String, String) {
     )
 }
 
+/// Runs the program, which must succeed; its standard output.
+fn run_ok(args: &[&str], stdin: &str) -> String {
+    let (ok, out, err) = run(args, stdin);
+    assert!(ok, "{args:?}: {err}");
+    out
+}
+
+/// [`run_ok`] printing one JSON value: the value, and the text for messages.
+fn run_json(args: &[&str], stdin: &str) -> (Value, String) {
+    let out = run_ok(args, stdin);
+    let v = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}"));
+    (v, out)
+}
+
+/// Runs the program, which must fail with an error message containing `needle`.
+fn fails_with(args: &[&str], stdin: &str, needle: &str) {
+    let (ok, _, err) = run(args, stdin);
+    assert!(!ok && err.contains(needle), "{args:?}: {err}");
+}
+
+/// `eval` with `args`, one request a line: one JSON answer a request, and the text.
+fn eval_lines<S: AsRef<str>>(args: &[&str], requests: &[S]) -> (Vec<Value>, String) {
+    let lines: Vec<&str> = requests.iter().map(AsRef::as_ref).collect();
+    let out = run_ok(&[&["eval"], args].concat(), &(lines.join("\n") + "\n"));
+    let answers: Vec<Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(answers.len(), requests.len(), "{out}");
+    (answers, out)
+}
+
+/// Each `(line, text)`: the answer on that line is an error containing the text.
+fn assert_errors(answers: &[Value], expected: &[(usize, &str)]) {
+    for &(i, text) in expected {
+        let error = answers[i]["error"]
+            .as_str()
+            .unwrap_or_else(|| panic!("line {i}: {}", answers[i]));
+        assert!(error.contains(text), "line {i}: {error}");
+    }
+}
+
+/// `bench --json` with `args`, quick (`--min-time 0.001`): its report.
+fn bench_json(args: &[&str]) -> (Value, String) {
+    run_json(
+        &[&["bench", "--json", "--min-time", "0.001"], args].concat(),
+        "",
+    )
+}
+
 #[test]
 fn model_json_lists_coordinate_joints_in_order() {
-    let (ok, out, _) = run(&["model", "--urdf", TREE, "--json"], "");
-    assert!(ok);
-    let v: Value = serde_json::from_str(&out).unwrap();
+    let (v, _) = run_json(&["model", "--urdf", TREE, "--json"], "");
     assert_eq!(v["nq"], 8);
     assert_eq!(v["nv"], 8);
     let joints = v["joints"].as_array().unwrap();
@@ -57,9 +105,7 @@ fn model_json_lists_coordinate_joints_in_order() {
         serde_json::json!({"name": "base", "type": "planar", "q_index": 0, "nq": 3, "v_index": 0, "nv": 3})
     );
     assert_eq!(joints[3]["type"], "continuous");
-    let (ok, out, _) = run(&["model", "--urdf", TREE, "--json", "--floating-base"], "");
-    assert!(ok);
-    let v: Value = serde_json::from_str(&out).unwrap();
+    let (v, _) = run_json(&["model", "--urdf", TREE, "--json", "--floating-base"], "");
     assert_eq!(
         v["joints"][0],
         serde_json::json!({"name": "root_joint", "type": "floating", "q_index": 0, "nq": 7, "v_index": 0, "nv": 6})
@@ -79,27 +125,19 @@ fn eval_answers_every_line_in_order_and_survives_bad_ones() {
         r#"{"op":"mass_matrix","q":[0,0,0,0,0,0,0,0]}"#,
         r#"{"op":"forward_dynamics","q":[0,0,0,0,0,0,0,0],"v":[0,0,0,0,0,0,0,0],"tau":[0,0,0,0,0,0,0,0],"method":"crba"}"#,
     ];
-    let (ok, out, _) = run(&["eval", "--urdf", TREE], &(requests.join("\n") + "\n"));
-    assert!(ok);
-    let answers: Vec<Value> = out
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
-    assert_eq!(answers.len(), requests.len(), "{out}");
+    let (answers, _) = eval_lines(&["--urdf", TREE], &requests);
     assert_eq!(answers[0]["tau"].as_array().unwrap().len(), 8);
-    for (i, expected) in [
-        (1, "q has 2 values, the model needs 8"),
-        (2, "unknown variant `fly`"),
-        (3, "bad request"),
-        (4, "bad request"),
-        (5, "unknown forward-dynamics method 'magic'"),
-        (6, "bad request"),
-    ] {
-        let error = answers[i]["error"]
-            .as_str()
-            .unwrap_or_else(|| panic!("line {i}: {}", answers[i]));
-        assert!(error.contains(expected), "line {i}: {error}");
-    }
+    assert_errors(
+        &answers,
+        &[
+            (1, "q has 2 values, the model needs 8"),
+            (2, "unknown variant `fly`"),
+            (3, "bad request"),
+            (4, "bad request"),
+            (5, "unknown forward-dynamics method 'magic'"),
+            (6, "bad request"),
+        ],
+    );
     let m = answers[7]["M"].as_array().unwrap();
     assert_eq!(m.len(), 8);
     assert!(m.iter().all(|row| row.as_array().unwrap().len() == 8));
@@ -115,9 +153,7 @@ fn eval_floats_round_trip_exactly() {
     let (q, v, a) = (rng.vector(8, 1.0), rng.vector(8, 1.0), rng.vector(8, 1.0));
     let expected = rnea(&model, &mut ws, &q, &v, &a).unwrap().to_vec();
     let request = serde_json::json!({"op": "inverse_dynamics", "q": q, "v": v, "a": a}).to_string();
-    let (ok, out, _) = run(&["eval", "--urdf", TREE], &(request + "\n"));
-    assert!(ok);
-    let answer: Value = serde_json::from_str(out.trim()).unwrap();
+    let (answer, _) = run_json(&["eval", "--urdf", TREE], &(request + "\n"));
     let tau: Vec<f64> = answer["tau"]
         .as_array()
         .unwrap()
@@ -132,15 +168,16 @@ fn eval_floats_round_trip_exactly() {
 
 #[test]
 fn gravity_option_and_unusable_urdf() {
-    let (ok, out, _) = run(
+    let out = run_ok(
         &["eval", "--builtin", "pendulum:1", "--gravity", "0,0,0"],
         "{\"op\":\"gravity\",\"q\":[1.0]}\n",
     );
-    assert!(ok);
     assert_eq!(out.trim(), r#"{"tau":[0.0]}"#);
-    let (ok, _, err) = run(&["model", "--urdf", "/nonexistent.urdf", "--json"], "");
-    assert!(!ok);
-    assert!(err.contains("/nonexistent.urdf"), "{err}");
+    fails_with(
+        &["model", "--urdf", "/nonexistent.urdf", "--json"],
+        "",
+        "/nonexistent.urdf",
+    );
     let dir = std::env::temp_dir().join(format!("sd_cli_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let bad = dir.join("two_roots.urdf");
@@ -149,11 +186,12 @@ fn gravity_option_and_unusable_urdf() {
         r#"<robot name="x"><link name="a"/><link name="b"/></robot>"#,
     )
     .unwrap();
-    let (ok, _, err) = run(&["eval", "--urdf", bad.to_str().unwrap()], "");
-    assert!(!ok);
-    assert!(err.contains("several root links (a, b)"), "{err}");
-    let (ok, _, err) = run(&["model", "--gravity", "0,0", "--json"], "");
-    assert!(!ok && err.contains("--gravity"), "{err}");
+    fails_with(
+        &["eval", "--urdf", bad.to_str().unwrap()],
+        "",
+        "several root links (a, b)",
+    );
+    fails_with(&["model", "--gravity", "0,0", "--json"], "", "--gravity");
 }
 
 #[test]
@@ -161,9 +199,11 @@ fn simulate_writes_the_trajectory_and_reports_divergence() {
     let dir = std::env::temp_dir().join(format!("sd_sim_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let csv = dir.join("pendulum.csv");
-    let (ok, _, err) = run(
-        &[
-            "simulate",
+    let output = csv.to_str().unwrap();
+    // `simulate` with `args`, writing the trajectory to `output`.
+    let simulate = |args: &[&'static str]| [&["simulate"], args, &["--output", output]].concat();
+    run_ok(
+        &simulate(&[
             "--scene",
             "pendulum:2",
             "--integrator",
@@ -174,12 +214,9 @@ fn simulate_writes_the_trajectory_and_reports_divergence() {
             "0.5",
             "--initial",
             r#"{"joint1": 0.5}"#,
-            "--output",
-            csv.to_str().unwrap(),
-        ],
+        ]),
         "",
     );
-    assert!(ok, "{err}");
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     assert_eq!(
@@ -200,8 +237,7 @@ fn simulate_writes_the_trajectory_and_reports_divergence() {
     assert!(drift < 1e-6, "energy drift {drift}");
     // Semi-implicit Euler past ωh = 2 diverges, and says so.
     let (ok, _, err) = run(
-        &[
-            "simulate",
+        &simulate(&[
             "--scene",
             "pendulum:1",
             "--integrator",
@@ -212,9 +248,7 @@ fn simulate_writes_the_trajectory_and_reports_divergence() {
             "100",
             "--initial",
             r#"{"joint1": 0.05}"#,
-            "--output",
-            csv.to_str().unwrap(),
-        ],
+        ]),
         "",
     );
     assert!(!ok);
@@ -222,9 +256,8 @@ fn simulate_writes_the_trajectory_and_reports_divergence() {
         err.contains("diverged at t =") && err.contains("creating energy"),
         "{err}"
     );
-    let (ok, _, err) = run(
-        &[
-            "simulate",
+    fails_with(
+        &simulate(&[
             "--scene",
             "pendulum:1",
             "--integrator",
@@ -235,35 +268,27 @@ fn simulate_writes_the_trajectory_and_reports_divergence() {
             "1",
             "--initial",
             r#"{"elbow": 1}"#,
-            "--output",
-            csv.to_str().unwrap(),
-        ],
+        ]),
         "",
+        "unknown joint 'elbow'",
     );
-    assert!(!ok && err.contains("unknown joint 'elbow'"), "{err}");
-    let (ok, _, err) = run(
-        &[
-            "simulate",
+    fails_with(
+        &simulate(&[
             "--integrator",
             "leapfrog",
             "--dt",
             "0.01",
             "--duration",
             "1",
-            "--output",
-            csv.to_str().unwrap(),
-        ],
+        ]),
         "",
-    );
-    assert!(
-        !ok && err.contains("unknown integrator 'leapfrog'"),
-        "{err}"
+        "unknown integrator 'leapfrog'",
     );
 }
 
 #[test]
 fn lock_reduces_the_model() {
-    let (ok, out, err) = run(
+    let (v, _) = run_json(
         &[
             "model",
             "--lock",
@@ -274,70 +299,56 @@ fn lock_reduces_the_model() {
         ],
         "",
     );
-    assert!(ok, "{err}");
-    let v: Value = serde_json::from_str(&out).unwrap();
     assert_eq!(v["nv"], 5);
-    let (ok, out, _) = run(&["model", "--lock", "joint7=0.5"], "");
-    assert!(ok && out.contains("locked: 'joint7' at 0.5"), "{out}");
-    let (ok, _, err) = run(&["model", "--lock", "joint9=0.5"], "");
-    assert!(!ok && err.contains("cannot lock joint 'joint9'"), "{err}");
-    let (ok, _, err) = run(&["model", "--lock", "joint7"], "");
-    assert!(!ok && err.contains("--lock 'joint7'"), "{err}");
+    let out = run_ok(&["model", "--lock", "joint7=0.5"], "");
+    assert!(out.contains("locked: 'joint7' at 0.5"), "{out}");
+    fails_with(
+        &["model", "--lock", "joint9=0.5"],
+        "",
+        "cannot lock joint 'joint9'",
+    );
+    fails_with(&["model", "--lock", "joint7"], "", "--lock 'joint7'");
 }
 
 #[test]
 fn root_and_tip_reduce_the_model_and_say_so() {
-    let (ok, out, err) = run(
+    let (v, _) = run_json(
         &["model", "--root", "link2", "--tip", "link5", "--json"],
         "",
     );
-    assert!(ok, "{err}");
-    let v: Value = serde_json::from_str(&out).unwrap();
     assert_eq!(v["nv"], 3);
     let r = &v["reduction"];
     assert_eq!(r["root"], "link2");
     assert_eq!(r["frozen_joints"][0][0], "joint1");
     assert_eq!(r["payload_links"][0], "link6");
-    let (ok, out, _) = run(&["model", "--tip", "link3"], "");
+    let out = run_ok(&["model", "--tip", "link3"], "");
     assert!(
-        ok && out
-            .contains("reduced: frozen (outside the kept part): joint4, joint5, joint6, joint7"),
+        out.contains("reduced: frozen (outside the kept part): joint4, joint5, joint6, joint7"),
         "{out}"
     );
     // Every command takes the reduction: eval answers for the three joints kept.
-    let (ok, out, err) = run(
+    let (answer, out) = run_json(
         &["eval", "--tip", "link3"],
         "{\"op\": \"gravity\", \"q\": [0.1, 0.2, 0.3]}\n",
     );
-    assert!(ok, "{err}");
-    let answer: Value = serde_json::from_str(out.trim()).unwrap();
     assert_eq!(answer["tau"].as_array().map(Vec::len), Some(3), "{out}");
-    let (ok, _, err) = run(&["model", "--tip", "nowhere"], "");
-    assert!(
-        !ok && err.contains("tip: there is no link named 'nowhere'"),
-        "{err}"
+    fails_with(
+        &["model", "--tip", "nowhere"],
+        "",
+        "tip: there is no link named 'nowhere'",
     );
 }
 
 #[test]
 fn bench_prints_the_json_contract() {
-    let (ok, out, err) = run(
-        &[
-            "bench",
-            "--builtin",
-            "pendulum:3",
-            "--json",
-            "--states",
-            "1000",
-            "--repeats",
-            "3",
-            "--min-time",
-            "0.001",
-        ],
-        "",
-    );
-    assert!(ok, "{err}");
-    let v: Value = serde_json::from_str(out.trim()).unwrap();
+    let (v, out) = bench_json(&[
+        "--builtin",
+        "pendulum:3",
+        "--states",
+        "1000",
+        "--repeats",
+        "3",
+    ]);
     assert_eq!(v["nv"], 3);
     assert_eq!(v["frame"], "link3", "frame_jacobian times the deepest link");
     for kernel in [
@@ -356,43 +367,18 @@ fn bench_prints_the_json_contract() {
         assert!(ns > 0.0 && ns.is_finite(), "{kernel}: {ns}");
     }
     // Mimic joints: aba refuses, reported as null.
-    let (ok, out, err) = run(
-        &[
-            "bench",
-            "--builtin",
-            "mimic_gripper",
-            "--json",
-            "--states",
-            "1000",
-            "--repeats",
-            "1",
-            "--min-time",
-            "0.001",
-        ],
-        "",
-    );
-    assert!(ok, "{err}");
-    let v: Value = serde_json::from_str(out.trim()).unwrap();
+    let (v, out) = bench_json(&[
+        "--builtin",
+        "mimic_gripper",
+        "--states",
+        "1000",
+        "--repeats",
+        "1",
+    ]);
     assert!(v["ns_per_call"]["fd_aba"].is_null(), "{out}");
     assert_ne!(v["auto_method"], "aba", "{out}");
     // A reduction: the full model is timed beside it, with the speed-up.
-    let (ok, out, err) = run(
-        &[
-            "bench",
-            "--tip",
-            "link3",
-            "--json",
-            "--states",
-            "100",
-            "--repeats",
-            "1",
-            "--min-time",
-            "0.001",
-        ],
-        "",
-    );
-    assert!(ok, "{err}");
-    let v: Value = serde_json::from_str(out.trim()).unwrap();
+    let (v, out) = bench_json(&["--tip", "link3", "--states", "100", "--repeats", "1"]);
     assert_eq!(
         (v["nv"].as_u64(), v["full"]["nv"].as_u64()),
         (Some(3), Some(7)),
@@ -411,43 +397,41 @@ fn bench_prints_the_json_contract() {
         );
     }
     // `--kernels` times only those named; a name it does not know is an error naming it.
-    let only = |kernels: &str| {
-        let args = ["bench", "--json", "--kernels", kernels, "--states", "10"];
-        run(
-            &[&args[..], &["--repeats", "1", "--min-time", "0.001"]].concat(),
-            "",
-        )
-    };
-    let (ok, out, err) = only("rnea,center_of_mass");
-    assert!(ok, "{err}");
-    let v: Value = serde_json::from_str(out.trim()).unwrap();
+    let (v, out) = bench_json(&[
+        "--kernels",
+        "rnea,center_of_mass",
+        "--states",
+        "10",
+        "--repeats",
+        "1",
+    ]);
     let timed: Vec<&String> = v["ns_per_call"].as_object().unwrap().keys().collect();
     assert_eq!(timed, ["center_of_mass", "rnea"], "{out}");
-    let (ok, _, err) = only("rnea,nope");
-    assert!(!ok && err.contains("unknown kernel 'nope'"), "{err}");
+    fails_with(
+        &[
+            "bench",
+            "--json",
+            "--kernels",
+            "rnea,nope",
+            "--states",
+            "10",
+        ],
+        "",
+        "unknown kernel 'nope'",
+    );
     // A massless floating root: no forward dynamics, so no method for `auto`, but the
     // kinematics are timed all the same.
-    let args = [
-        "bench",
+    let (v, out) = bench_json(&[
         "--builtin",
         "pendulum:2",
         "--floating-base",
-        "--json",
-    ];
-    let settings = [
         "--kernels",
         "frame_jacobian",
         "--states",
         "10",
         "--repeats",
         "1",
-    ];
-    let (ok, out, err) = run(
-        &[&args[..], &settings, &["--min-time", "0.001"]].concat(),
-        "",
-    );
-    assert!(ok, "{err}");
-    let v: Value = serde_json::from_str(out.trim()).unwrap();
+    ]);
     assert!(
         v["ns_per_call"]["frame_jacobian"].as_f64().is_some(),
         "{out}"
@@ -477,16 +461,7 @@ fn eval_answers_frame_requests() {
         ),
         format!(r#"{{"op":"frame_jacobian","q":[{t}],"frame":"link1"}}"#),
     ];
-    let (ok, out, _) = run(
-        &["eval", "--builtin", "pendulum:1"],
-        &(requests.join("\n") + "\n"),
-    );
-    assert!(ok);
-    let answers: Vec<Value> = out
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
-    assert_eq!(answers.len(), requests.len(), "{out}");
+    let (answers, _) = eval_lines(&["--builtin", "pendulum:1"], &requests);
     let (s, c) = t.sin_cos();
     let rotation = serde_json::json!([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]);
     let close = |a: &Value, b: &Value| {
@@ -513,15 +488,13 @@ fn eval_answers_frame_requests() {
     assert_eq!(answers[2]["acceleration"].as_array().unwrap().len(), 6);
     assert_eq!(answers[3]["J"].as_array().unwrap().len(), 3);
     assert!(answers[3]["mass"].as_f64().unwrap() > 0.0);
-    for (i, expected) in [
-        (4, "no link named 'hand'; its links are: world, link1"),
-        (5, "unknown reference 'body'"),
-        (6, "'world'"),
-        (7, "missing field `reference`"),
-    ] {
-        let error = answers[i]["error"]
-            .as_str()
-            .unwrap_or_else(|| panic!("line {i}: {}", answers[i]));
-        assert!(error.contains(expected), "line {i}: {error}");
-    }
+    assert_errors(
+        &answers,
+        &[
+            (4, "no link named 'hand'; its links are: world, link1"),
+            (5, "unknown reference 'body'"),
+            (6, "'world'"),
+            (7, "missing field `reference`"),
+        ],
+    );
 }

@@ -93,6 +93,47 @@ pub fn lz4_into(src: &[u8], expected: u64, out: &mut Vec<u8>) -> Result<(), Stri
     Ok(())
 }
 
+/// The start of a chunk whose compressed bytes were cut short (a file cut inside it): a streaming
+/// decoder fed the bytes that exist, into `out` (cleared first), keeping everything it produced
+/// before its input ran out (or turned out damaged), at most `limit` bytes (the size the chunk
+/// declares, itself at most [`MAX_RECORD`]). Both decoders emit a compressed block once it is
+/// whole (zstd blocks hold at most 128 KiB, lz4 frame blocks 64 KiB by default), so what comes
+/// out is every block complete in `src`, and part of the next only when that one is stored
+/// uncompressed.
+pub fn prefix_into(
+    compression: &str,
+    src: &[u8],
+    limit: u64,
+    out: &mut Vec<u8>,
+) -> Result<(), String> {
+    out.clear();
+    if limit > MAX_RECORD {
+        return Err(format!(
+            "{compression} data of {limit} bytes: more than the limit of {MAX_RECORD} bytes"
+        ));
+    }
+    // The error that ends the stream is the cut itself: what was produced before it is kept
+    // (`read_to_end` appends every byte read before an error).
+    match compression {
+        "zstd" => {
+            if let Ok(decoder) = zstd::stream::read::Decoder::with_buffer(src) {
+                let _ = decoder.take(limit).read_to_end(out);
+            }
+        }
+        "lz4" => {
+            if let Ok(decoder) = lz4::Decoder::new(src) {
+                let _ = decoder.take(limit).read_to_end(out);
+            }
+        }
+        other => {
+            return Err(format!(
+                "chunk compression '{other}' is not supported (zstd, lz4 or none)"
+            ))
+        }
+    }
+    Ok(())
+}
+
 /// Reads `from` to its end into `out`, failing past [`MAX_RECORD`] bytes.
 fn bounded_read(from: impl Read, out: &mut Vec<u8>, what: &str) -> Result<(), String> {
     let n = from

@@ -8,7 +8,8 @@
 //!
 //! Messages are read linearly from the data section (the summary is not needed), so a file cut
 //! short by a killed recorder (no data end, summary, footer or closing magic) still gives every
-//! complete record before the cut: [`read`] then returns a note saying where it stopped. A file
+//! complete record before the cut, including those of a chunk the cut falls in (decoded as far as
+//! its bytes go): [`read`] then returns a note saying where it stopped. A file
 //! that does end with the magic is complete, and a record running past its end is an error.
 //! A `file`-mode compressed file (`.mcap.zstd`) is read the same way through a zstd stream.
 
@@ -154,7 +155,8 @@ impl<R: Read> Records<R> {
         let len = u64::from_le_bytes(head[1..].try_into().expect("8"));
         if let Some(size) = self.size {
             let left = size - self.pos;
-            if len > left {
+            // A cut chunk is still read, as far as it goes ([`Reader::partial_chunk`]).
+            if len > left && (self.complete || opcode != op::CHUNK) {
                 return if self.complete {
                     Err(format!(
                         "the record at byte {at} (opcode {opcode:#04x}) claims {len} bytes, {left} remain"
@@ -315,16 +317,84 @@ impl Reader<'_, '_> {
         if crc != 0 && crc32fast::hash(plain) != crc {
             return Err("the chunk's CRC does not match its records".into());
         }
-        let result = self.chunk_body(plain, chunk_at);
+        let result = self.chunk_body(plain, chunk_at, false);
         self.chunk = buf;
         result
     }
 
-    fn chunk_body(&mut self, plain: &[u8], chunk: u64) -> Result<Flow, String> {
+    /// A chunk the file ends inside (`body`: its bytes before the cut at byte `end`), read as
+    /// `mcap recover` does: its records decoded as far as the bytes present go (for zstd and
+    /// lz4, the blocks complete before the cut, see [`compression::prefix_into`]), then every
+    /// record whose header and body are complete. Its CRC covers the whole chunk, so it cannot
+    /// be checked. The flow, and the note saying what was recovered.
+    fn partial_chunk(
+        &mut self,
+        body: &[u8],
+        chunk_at: u64,
+        len: u64,
+        end: u64,
+    ) -> Result<(Flow, String), String> {
+        let cut = format!(
+            "the file ends at byte {end} inside the chunk at byte {chunk_at} ({len} bytes)"
+        );
+        let mut f = Fields { data: body, pos: 0 };
+        let header = (|| -> Result<_, String> {
+            f.take(8 + 8, "chunk times")?;
+            let size = f.u64("chunk uncompressed size")?;
+            f.u32("chunk uncompressed crc")?;
+            let compression = f.string("chunk compression")?;
+            f.u64("chunk records length")?;
+            Ok((size, compression))
+        })();
+        let Ok((size, compression)) = header else {
+            return Ok((Flow::Continue, format!("{cut}, before its first record")));
+        };
+        let records = f.rest();
+        let context = |e: String| format!("{}: {e}", At::File(chunk_at));
+        if size > MAX_RECORD {
+            return Err(context(format!(
+                "the chunk says {size} bytes uncompressed: more than the limit of {MAX_RECORD}"
+            )));
+        }
+        let mut buf = std::mem::take(&mut self.chunk);
+        let plain: &[u8] = if compression.is_empty() {
+            records
+        } else {
+            compression::prefix_into(compression, records, size, &mut buf).map_err(context)?;
+            &buf
+        };
+        let before = self.messages;
+        let flow = self.chunk_body(plain, chunk_at, true);
+        let decoded = if compression.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " ({compression}, {} of its {size} bytes decoded)",
+                plain.len()
+            )
+        };
+        self.chunk = buf;
+        let note = format!(
+            "{cut}: recovered {} messages from its records before the cut{decoded}, \
+             its CRC unchecked (it covers the whole chunk)",
+            self.messages - before
+        );
+        Ok((flow.map_err(context)?, note))
+    }
+
+    /// The records of a chunk, in order. `partial`: the chunk was cut, and its records end at
+    /// the first incomplete one instead of that being an error.
+    fn chunk_body(&mut self, plain: &[u8], chunk: u64, partial: bool) -> Result<Flow, String> {
         let mut offset = 0usize;
         while offset < plain.len() {
             let at = At::Chunk { chunk, offset };
             let left = plain.len() - offset;
+            let incomplete = left < 9
+                || u64::from_le_bytes(plain[offset + 1..offset + 9].try_into().expect("8"))
+                    > (left - 9) as u64;
+            if partial && incomplete {
+                break;
+            }
             if left < 9 {
                 return Err(format!("{at}: {left} bytes, less than a record header"));
             }
@@ -455,13 +525,18 @@ pub fn read(path: &Path, wanted: &[Wanted<'_>], visit: &mut Visitor<'_>) -> Resu
             records.skip(len)?
         };
         if !whole {
-            let note = format!(
-                "the file ends at byte {} inside the record at byte {at} (opcode {opcode:#04x}, {len} bytes)",
-                records.pos
-            );
+            let (flow, note) = if opcode == op::CHUNK {
+                reader.partial_chunk(&body, at, len, records.pos)?
+            } else {
+                let note = format!(
+                    "the file ends at byte {} inside the record at byte {at} (opcode {opcode:#04x}, {len} bytes)",
+                    records.pos
+                );
+                (Flow::Continue, note)
+            };
             return Ok(Ended {
-                flow: Flow::Continue,
-                cut: Some(reader.cut_note(note)),
+                flow,
+                cut: (flow == Flow::Continue).then(|| reader.cut_note(note)),
             });
         }
         if needed && reader.record(opcode, &body, At::File(at))? == Flow::Stop {
@@ -588,7 +663,10 @@ pub fn topics(path: &Path) -> Result<Option<Vec<TopicInfo>>, String> {
 mod tests {
     use super::*;
     use crate::bag::cdr;
-    use crate::bag::mcap_writer::{tests::write_file, Compression};
+    use crate::bag::mcap_writer::{
+        tests::{write_chunked, write_file},
+        Compression,
+    };
     use std::path::PathBuf;
 
     fn scratch(name: &str) -> PathBuf {
@@ -705,19 +783,199 @@ mod tests {
                 }
             }
         }
-        // Chunked: whole chunks before the cut.
+        // Chunked (several chunks): a prefix of the messages, growing with the cut (inside a
+        // chunk: `a_cut_chunk_gives_its_records_complete_before_the_cut`).
         let chunked = dir.join("chunked.mcap");
         let expected = write_file(&chunked, Compression::Zstd(1));
         let bytes = std::fs::read(&chunked).unwrap();
+        let mut before = 0;
         for cut in (9..bytes.len()).step_by(97) {
             std::fs::write(&cut_path, &bytes[..cut]).unwrap();
             let (got, _) = read_all(&cut_path).unwrap();
-            assert!(got.len() % 700 == 0 || got.len() == expected.len(), "{cut}");
+            assert!(got.len() >= before, "{cut}");
+            before = got.len();
             let want: Vec<_> = expected[..got.len()]
                 .iter()
                 .map(|e| (e.1, e.2.clone()))
                 .collect();
             assert_eq!(got, want);
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The uncompressed bytes each block of a compressed chunk's frame holds, with where the
+    /// block ends in the frame: `(end in the frame, uncompressed bytes)`, read from the frame
+    /// format (zstd RFC 8878, the lz4 frame format) rather than from a decoder. A compressed
+    /// block's own size is not in its header: every block but the last holds the frame's full
+    /// block size (asserted by the sizes adding up to the chunk's `total`).
+    fn frame_blocks(compression: Compression, frame: &[u8], total: usize) -> Vec<(usize, usize)> {
+        let mut blocks = Vec::new();
+        let u32_at = |at: usize| u32::from_le_bytes(frame[at..at + 4].try_into().unwrap());
+        let full;
+        match compression {
+            Compression::Lz4 => {
+                assert_eq!(u32_at(0), 0x184D_2204);
+                let (flg, bd) = (frame[4], frame[5]);
+                full = 1usize << (8 + 2 * ((bd >> 4) & 7));
+                let mut at = 6 + if flg & 0x08 != 0 { 8 } else { 0 } + usize::from(flg & 1) * 4 + 1;
+                loop {
+                    let word = u32_at(at);
+                    if word == 0 {
+                        break;
+                    }
+                    let size = (word & 0x7fff_ffff) as usize;
+                    at += 4 + size + if flg & 0x10 != 0 { 4 } else { 0 };
+                    let stored = word & 0x8000_0000 != 0;
+                    blocks.push((at, if stored { size } else { full }));
+                }
+            }
+            Compression::Zstd(_) => {
+                assert_eq!(frame[..4], compression::ZSTD_MAGIC);
+                let fhd = frame[4];
+                let single = fhd & 0x20 != 0;
+                let fcs = [usize::from(single), 2, 4, 8][usize::from(fhd >> 6)];
+                let dict = [0, 1, 2, 4][usize::from(fhd & 3)];
+                let mut at = 5 + usize::from(!single) + dict + fcs;
+                full = if single {
+                    total
+                } else {
+                    1usize << (10 + (frame[5] >> 3))
+                }
+                .min(128 << 10);
+                loop {
+                    let h = frame[at] as usize
+                        | (frame[at + 1] as usize) << 8
+                        | (frame[at + 2] as usize) << 16;
+                    let (last, kind, size) = (h & 1 == 1, (h >> 1) & 3, h >> 3);
+                    at += 3 + if kind == 1 { 1 } else { size };
+                    blocks.push((at, if kind == 2 { full } else { size }));
+                    if last {
+                        break;
+                    }
+                }
+            }
+            Compression::None => unreachable!("an uncompressed chunk has no blocks"),
+        }
+        // The last block holds the rest.
+        let before: usize = blocks[..blocks.len() - 1].iter().map(|b| b.1).sum();
+        let last = blocks.last_mut().unwrap();
+        assert!(
+            before < total && total - before <= full,
+            "{before} {total} {full}"
+        );
+        last.1 = total - before;
+        assert!(
+            blocks.len() > 2,
+            "{} blocks: too few to cut between",
+            blocks.len()
+        );
+        blocks
+    }
+
+    /// A file cut inside its one chunk (uncompressed, lz4, zstd) gives exactly the messages
+    /// whose records are complete in the bytes before the cut: for an uncompressed chunk, the
+    /// records ending by the cut; for a compressed one, the records ending within the blocks of
+    /// the frame complete before the cut (what a decoder can produce: a compressed block comes
+    /// out only whole, and these blocks are all compressed). The note names the cut's byte, the
+    /// messages recovered, the last log time and the unchecked CRC. The cuts: every byte of the
+    /// chunk's first 600 (header and first records), each byte around the end of a block or a
+    /// message record, and every 131st byte.
+    #[test]
+    fn a_cut_chunk_gives_its_records_complete_before_the_cut() {
+        let dir = scratch("cut_chunk");
+        let path = dir.join("whole.mcap");
+        let cut_path = dir.join("cut.mcap");
+        for compression in [Compression::None, Compression::Lz4, Compression::Zstd(1)] {
+            let expected = write_chunked(&path, compression, 7000, 7000);
+            let bytes = std::fs::read(&path).unwrap();
+            let (_, chunk, chunk_end) = *record_starts(&bytes)
+                .iter()
+                .find(|r| r.0 == op::CHUNK)
+                .unwrap();
+            // Chunk body: start, end, uncompressed size, crc, compression, records length.
+            let size = u64::from_le_bytes(bytes[chunk + 25..chunk + 33].try_into().unwrap());
+            let name =
+                u32::from_le_bytes(bytes[chunk + 37..chunk + 41].try_into().unwrap()) as usize;
+            let records_at = chunk + 41 + name + 8;
+            let frame = &bytes[records_at..chunk_end];
+            let plain = match compression {
+                Compression::None => frame.to_vec(),
+                _ => {
+                    let mut out = Vec::new();
+                    match compression {
+                        Compression::Lz4 => lz4::Decoder::new(frame)
+                            .unwrap()
+                            .read_to_end(&mut out)
+                            .unwrap(),
+                        _ => zstd::stream::read::Decoder::new(frame)
+                            .unwrap()
+                            .read_to_end(&mut out)
+                            .unwrap(),
+                    };
+                    out
+                }
+            };
+            assert_eq!(plain.len() as u64, size);
+            // Where each message record ends in the chunk's records (all are messages).
+            let mut ends = Vec::new();
+            let mut at = 0;
+            while at < plain.len() {
+                assert_eq!(plain[at], op::MESSAGE);
+                at += 9 + u64::from_le_bytes(plain[at + 1..at + 9].try_into().unwrap()) as usize;
+                ends.push(at);
+            }
+            assert_eq!(ends.len(), expected.len());
+            let blocks = match compression {
+                Compression::None => Vec::new(),
+                _ => frame_blocks(compression, frame, plain.len()),
+            };
+            // Plain bytes a cut at file byte `cut` leaves whole.
+            let whole = |cut: usize| -> usize {
+                let present = cut.saturating_sub(records_at);
+                match compression {
+                    Compression::None => present,
+                    _ => blocks.iter().filter(|b| b.0 <= present).map(|b| b.1).sum(),
+                }
+            };
+            let near = |e: usize| [e - 1, e, e + 1];
+            let mut cuts: Vec<usize> = (chunk + 9..chunk + 600)
+                .chain((chunk + 9..chunk_end).step_by(131))
+                .chain(blocks.iter().flat_map(|b| near(records_at + b.0)))
+                .collect();
+            if compression == Compression::None {
+                cuts.extend(ends.iter().step_by(97).flat_map(|&e| near(records_at + e)));
+            }
+            cuts.retain(|&c| c > chunk + 9 && c < chunk_end);
+            cuts.sort_unstable();
+            cuts.dedup();
+            let mut recovered_some = 0;
+            for cut in cuts {
+                std::fs::write(&cut_path, &bytes[..cut]).unwrap();
+                let (got, note) = read_all(&cut_path).unwrap();
+                let k = ends.iter().filter(|&&e| e <= whole(cut)).count();
+                let want: Vec<_> = expected[..k].iter().map(|e| (e.1, e.2.clone())).collect();
+                assert_eq!(got, want, "{compression:?} cut at {cut}");
+                let note = note.unwrap();
+                assert!(
+                    note.contains(&format!(
+                        "ends at byte {cut} inside the chunk at byte {chunk}"
+                    )),
+                    "{note}"
+                );
+                if cut >= records_at {
+                    assert!(note.contains(&format!("recovered {k} messages")), "{note}");
+                    assert!(note.contains("CRC unchecked"), "{note}");
+                }
+                match k {
+                    0 => assert!(note.contains("no complete message before it"), "{note}"),
+                    _ => {
+                        let t = expected[k - 1].1;
+                        recovered_some += 1;
+                        assert!(note.contains(&format!("log time 0.{t:09} s")), "{note}");
+                    }
+                }
+            }
+            assert!(recovered_some > 100, "{compression:?}: {recovered_some}");
         }
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -460,6 +460,18 @@ pub(super) mod tests {
         path: &Path,
         compression: Compression,
     ) -> Vec<(String, u64, String)> {
+        write_chunked(path, compression, 5000, 700)
+    }
+
+    /// Writes `n` string messages `message i` on two topics (`/b` every third) in chunks of
+    /// `per_chunk`, each message's log time `1000 + 7 i`; returns the expected
+    /// `(topic, log time, text)` in order.
+    pub(in crate::bag) fn write_chunked(
+        path: &Path,
+        compression: Compression,
+        n: u32,
+        per_chunk: u32,
+    ) -> Vec<(String, u64, String)> {
         let mut w = McapWriter::create(path, compression).unwrap();
         let a = w
             .add_topic("/a", "std_msgs/msg/String", "string data\n")
@@ -470,14 +482,14 @@ pub(super) mod tests {
         let mut builder = w.chunk_builder().unwrap();
         let mut chunk = FinishedChunk::default();
         let mut expected = Vec::new();
-        for i in 0..5000u32 {
+        for i in 0..n {
             let (channel, topic) = if i % 3 == 0 { (b, "/b") } else { (a, "/a") };
             let log_time = 1_000 + 7 * u64::from(i);
             let text = format!("message {i}");
             cdr::write_string_msg(builder.begin_message(channel, i, log_time), &text);
             builder.end_message();
             expected.push((topic.to_string(), log_time, text));
-            if i % 700 == 699 {
+            if i % per_chunk == per_chunk - 1 {
                 builder.finish(&mut chunk).unwrap();
                 w.write_chunk(&chunk).unwrap();
             }

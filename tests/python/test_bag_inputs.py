@@ -22,6 +22,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import io
+
+import lz4.frame
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 from ruamel.yaml import YAML
@@ -94,17 +96,44 @@ def test_zstd_compressed_bags(tmp_path, storage, mode):
     assert files_of(bag) == before
 
 
-def mcap_walk(data, cut):
-    """(topic, log time) of every message in the top-level records that end by byte `cut`, in
-    file order, up to the data end record; and whether the walk met the data end. A plain
-    reading of the MCAP record layout: opcode u8, length u64, body; chunks hold records."""
-    topics, out = {}, []
+def records(buf, at, end):
+    """(opcode, start, end, body) of the MCAP records from byte `at`, each whole before `end`:
+    opcode u8, length u64, body."""
+    while at + 9 <= end:
+        op, n = buf[at], int.from_bytes(buf[at + 1 : at + 9], "little")
+        if at + 9 + n > end:
+            return
+        yield op, at, at + 9 + n, buf[at + 9 : at + 9 + n]
+        at += 9 + n
 
-    def records(buf, at, end):
-        while at + 9 <= end:
-            op, n = buf[at], int.from_bytes(buf[at + 1 : at + 9], "little")
-            yield op, at, at + 9 + n, buf[at + 9 : at + 9 + n]
-            at += 9 + n
+
+CHUNK_HEAD = 40  # start, end, uncompressed size, crc, compression length; then the name
+
+
+def chunk_fields(body):
+    """(compression, offset of the records, their length) of a chunk record's body."""
+    cl = int.from_bytes(body[28:32], "little")
+    rl = int.from_bytes(body[32 + cl : 40 + cl], "little")
+    return body[32 : 32 + cl].decode(), CHUNK_HEAD + cl, rl
+
+
+def decode(comp, data, whole=True):
+    """A chunk's records; not `whole`: a streaming decoder fed the bytes that exist, which gives
+    the blocks complete in them (Python's zstd and lz4 bindings)."""
+    if comp == "zstd":
+        return zstd.decompress(data) if whole else zstd.ZstdDecompressor().decompress(data)
+    if comp == "lz4":
+        return lz4.frame.decompress(data) if whole else lz4.frame.LZ4FrameDecompressor().decompress(data)
+    assert comp == "", comp
+    return data
+
+
+def mcap_walk(data, cut):
+    """(topic, log time) of every message in file order that is whole before byte `cut`, up to
+    the data end record, and whether the walk met the data end. A plain reading of the MCAP
+    record layout: top-level records that end by the cut; in a chunk the cut falls in (as `mcap
+    recover` reads it), the records whole in what its bytes before the cut decode to."""
+    topics, out = {}, []
 
     def handle(op, body):
         if op == 0x04:  # channel: id, schema id, topic
@@ -113,21 +142,22 @@ def mcap_walk(data, cut):
         elif op == 0x05:  # message: channel, sequence, log time
             out.append((topics[int.from_bytes(body[0:2], "little")], int.from_bytes(body[6:14], "little")))
 
-    for op, _, end, body in records(data, 8, len(data)):
+    def chunk(body, whole):
+        comp, at, n = chunk_fields(body)
+        inner = decode(comp, body[at : at + n], whole)
+        for iop, _, _, ibody in records(inner, 0, len(inner)):
+            handle(iop, ibody)
+
+    for op, start, end, body in records(data, 8, len(data)):
         if end > cut:
+            present = body[: max(cut - start - 9, 0)]
+            if op == 0x06 and len(present) >= CHUNK_HEAD and len(present) >= chunk_fields(body)[1]:
+                chunk(present, whole=False)
             return out, False
         if op == 0x0F:
             return out, True
         if op == 0x06:
-            cl = int.from_bytes(body[28:32], "little")
-            comp = body[32 : 32 + cl].decode()
-            rl = int.from_bytes(body[32 + cl : 40 + cl], "little")
-            inner = body[40 + cl : 40 + cl + rl]
-            if comp == "zstd":
-                inner = zstd.decompress(inner)
-            assert comp in ("", "zstd"), comp
-            for iop, _, _, ibody in records(inner, 0, len(inner)):
-                handle(iop, ibody)
+            chunk(body, whole=True)
         else:
             handle(op, body)
     return out, False
@@ -178,6 +208,50 @@ def test_cut_mcap_replays_every_complete_message(tmp_path):
         last = complete[-1][1]
         assert "warning" in stderr and str(f) in stderr and f"ends at byte {cut}" in stderr, stderr
         assert f"log time {last // 10**9}.{last % 10**9:09d} s" in stderr, stderr
+
+
+def recompress_chunk(data, comp):
+    """The file `data` up to the end of its first chunk, that chunk's records compressed with
+    `comp` (zstd, lz4 frames of 64 KiB blocks, or none): (the bytes, where the chunk starts,
+    where its records start)."""
+    (start, body) = next((at, body) for op, at, _, body in records(data, 8, len(data)) if op == 0x06)
+    old, at, n = chunk_fields(body)
+    assert old == ""
+    plain = body[at : at + n]
+    packed = {"": plain, "zstd": zstd.compress(plain), "lz4": lz4.frame.compress(plain)}[comp]
+    name = comp.encode()
+    new = body[:28] + len(name).to_bytes(4, "little") + name + len(packed).to_bytes(8, "little") + packed
+    record = b"\x06" + len(new).to_bytes(8, "little") + new
+    return data[:start] + record, start, start + 9 + CHUNK_HEAD + len(name)
+
+
+@pytest.mark.parametrize("comp", ["", "zstd", "lz4"], ids=["none", "zstd", "lz4"])
+def test_cut_inside_the_one_chunk_replays_its_complete_records(tmp_path, comp):
+    """A short recording is one chunk (rosbags closes a chunk past 1 MiB), so a cut falls inside
+    it: the messages whole in what its bytes before the cut decode to (for
+    zstd and lz4, the compressed blocks complete before the cut) are replayed, with a warning
+    naming the byte, the messages recovered from the chunk and the last log time."""
+    records_, exp = make_inputs(n=2500, commands=False)
+    bag = tmp_path / "bag"
+    write(bag, "mcap", records_)
+    data, chunk, first = recompress_chunk(storage_file(bag).read_bytes(), comp)
+    assert len(chunk_starts(data)) == 1
+    cut = first + int((len(data) - first) * 0.6)
+    f = tmp_path / "cut.mcap"
+    f.write_bytes(data[:cut])
+    complete, ended = mcap_walk(data, cut)
+    assert not ended
+    logs = {t for topic, t in complete if topic == "/joint_states"}
+    states = [s for s in exp["states"] if s["log"] in logs]
+    assert 0 < len(states) < len(exp["states"])
+    out = tmp_path / "out.mcap"
+    summary, stderr = replay(f, out, "--builtin", "default_arm")
+    assert summary["read"]["/joint_states"] == len(logs), stderr
+    check_gravity(out, states)
+    last = complete[-1][1]
+    assert f"ends at byte {cut} inside the chunk at byte {chunk}" in stderr, stderr
+    assert f"recovered {len(complete)} messages" in stderr and "CRC unchecked" in stderr, stderr
+    assert f"log time {last // 10**9}.{last % 10**9:09d} s" in stderr, stderr
 
 
 @pytest.mark.parametrize("given", ["joint_states", "/joint_states"])

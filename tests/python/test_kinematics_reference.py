@@ -35,8 +35,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import subprocess
 import sys
 import xml.etree.ElementTree as ET
 import zlib
@@ -47,7 +45,7 @@ import numpy as np
 import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_pinocchio_reference import (  # noqa: E402  (the sibling reference test's tools)
+from pinocchio_cases import (  # noqa: E402  (shared with the other reference tests)
     _BAXTER,
     _PANDA,
     _SOLO12,
@@ -59,6 +57,10 @@ from test_pinocchio_reference import (  # noqa: E402  (the sibling reference tes
     NativeRef,
     binary_path,
     build_pin_model,
+    cached,
+    require_binary,
+    run_command,
+    run_eval,
     sample_state,
     urdf_path,
 )
@@ -71,7 +73,6 @@ except ImportError:  # pragma: no cover
 REL_TOL = 1e-12
 N_STATES = 4
 SEED = 20250121
-EVAL_TIMEOUT_S = 600
 
 REFERENCES = {
     "world": pin.ReferenceFrame.WORLD,
@@ -185,10 +186,6 @@ class CaseResult:
     bad_answers: dict = field(default_factory=dict)  # quantity -> [message]
 
 
-def _run(cmd, stdin=""):
-    return subprocess.run(cmd, input=stdin, capture_output=True, text=True, timeout=EVAL_TIMEOUT_S)
-
-
 def compute_case(case: KinCase, command: list) -> CaseResult:
     res = CaseResult()
     res.path = urdf_path(Case(case.name, case.urdf))
@@ -196,7 +193,7 @@ def compute_case(case: KinCase, command: list) -> CaseResult:
     ref = NativeRef(model, "pinocchio")
     data = ref.data
     flags = ["--urdf", str(res.path), *case.our_flags()]
-    out = _run([*command, "model", *flags, "--json"])
+    out = run_command([*command, "model", *flags, "--json"])
     if out.returncode != 0:
         res.error = f"model --json exited {out.returncode}: {out.stderr.strip()[:2000]}"
         return res
@@ -243,13 +240,8 @@ def compute_case(case: KinCase, command: list) -> CaseResult:
         lines.append({"op": "center_of_mass", "q": qo})
         expected.append(("com_all", f"state {i}", (float(data.mass[0]), com, jcom), None))
 
-    out = _run([*command, "eval", *flags], "".join(json.dumps(r) + "\n" for r in lines))
-    answers = out.stdout.splitlines()
-    if out.returncode != 0 or len(answers) != len(lines):
-        res.error = (
-            f"eval exited {out.returncode} with {len(answers)} answers to {len(lines)} requests; "
-            f"stderr: {out.stderr.strip()[:2000]}"
-        )
+    answers, res.error = run_eval(command, flags, lines)
+    if res.error:
         return res
 
     def record(quantity, what, got, want):
@@ -300,11 +292,7 @@ _RESULTS: dict = {}
 
 
 def case_result(case: KinCase, command=None) -> CaseResult:
-    command = command or [str(binary_path())]
-    key = (case, tuple(command))
-    if key not in _RESULTS:
-        _RESULTS[key] = compute_case(case, command)
-    return _RESULTS[key]
+    return cached(_RESULTS, compute_case, case, command)
 
 
 def check(case: KinCase, quantity: str, res: CaseResult):
@@ -334,19 +322,10 @@ def check(case: KinCase, quantity: str, res: CaseResult):
 
 if pytest is not None:
 
-    def _require_binary():
-        path = binary_path()
-        if not (path.is_file() and os.access(path, os.X_OK)):
-            pytest.fail(
-                f"spatial_dynamics binary missing at {path}: this reference test is required "
-                "(cargo build --release, or set SPATIAL_DYNAMICS_BIN)",
-                pytrace=False,
-            )
-
     @pytest.mark.parametrize("quantity", QUANTITIES)
     @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
     def test_kinematics_against_pinocchio(case, quantity):
-        _require_binary()
+        require_binary()
         ok, msg = check(case, quantity, case_result(case))
         if not ok:
             pytest.fail(msg, pytrace=False)
@@ -354,7 +333,7 @@ if pytest is not None:
     @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
     def test_every_link_is_compared(case):
         """Every URDF link Pinocchio knows as a frame is compared, fused ones included."""
-        _require_binary()
+        require_binary()
         res = case_result(case)
         links, fused = urdf_links(res.path)
         assert res.frames == links, f"links Pinocchio has no frame for: {sorted(set(links) - set(res.frames))}"
