@@ -7,6 +7,7 @@
 //! | [`gravity`](mod@gravity) | `g(q)`: the gravity part of `C` |
 //! | [`crba`](mod@crba) | `H(q)` (composite rigid-body algorithm) |
 //! | [`aba`](mod@aba) | forward dynamics in O(n) (articulated-body algorithm) |
+//! | [`derivatives`] | `∂τ/∂q`, `∂τ/∂q̇` of inverse dynamics and `∂q̈/∂q`, `∂q̈/∂q̇`, `H⁻¹` of forward dynamics |
 //! | [`rnea_columns`] | forward dynamics from n+1 inverse-dynamics calls (the handout's method) |
 //! | [`forward_dynamics`](mod@forward_dynamics) | forward dynamics by a chosen [`ForwardDynamicsMethod`] |
 //! | [`method_choice`] | the fastest forward-dynamics method accurate enough for a model, measured |
@@ -27,6 +28,7 @@ pub mod bias;
 pub mod center_of_mass;
 pub mod cholesky;
 pub mod crba;
+pub mod derivatives;
 pub mod energy;
 pub mod flop_table;
 pub mod flops;
@@ -47,6 +49,9 @@ pub use aba::aba;
 pub use bias::bias;
 pub use center_of_mass::{center_of_mass, center_of_mass_jacobian, CenterOfMass};
 pub use crba::crba;
+pub use derivatives::{
+    aba_derivatives, rnea_derivatives, rnea_derivatives_with, AbaDerivatives, RneaDerivatives,
+};
 pub use energy::energy;
 pub use forward_dynamics::{forward_dynamics, ForwardDynamicsMethod};
 pub use frame_acceleration::frame_classical_acceleration;
