@@ -45,9 +45,10 @@ use crate::algorithms::validate::{check_externals, check_q, check_result, check_
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model};
-use crate::spatial::{skew, Force, Inertia, Matrix6, Motion, Translation, Vector3};
+use crate::spatial::{Force, Inertia, Matrix6, Motion, Translation, Vector3};
 use crate::Workspace;
 use nalgebra::DMatrix;
+use nalgebra::Vector6;
 
 /// The derivatives of inverse dynamics at one state, held in the workspace: `nv × nv`, full,
 /// row `i` the derivative of `τ_i`, columns in `v` order, on the tangent of
@@ -177,24 +178,20 @@ fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64], ext: &E
     }
 }
 
-/// `B` with `B ψ = I (ψ × v) + v ×* I ψ + ψ ×* I v`: `B = crf(v) I − I crm(v) − h̄(I v)`,
-/// where `ψ ×* h = −h̄(h) ψ`, `h̄([n; f]) = [n× f×; f× 0]`.
+/// `B` with `B ψ = I (ψ × v) + v ×* I ψ + ψ ×* I v`, column by column (`ψ = e_c`): the unit
+/// motions make the cross products a few components each, where the dense form
+/// `crf(v) I − I crm(v) − h̄(I v)` would take two 6×6 products.
 fn velocity_product_matrix(inertia: &Inertia, v: &Motion) -> Matrix6 {
-    let i6 = inertia.to_matrix();
-    let mut crm = Matrix6::zeros();
-    let w = skew(&v.ang);
-    crm.fixed_view_mut::<3, 3>(0, 0).copy_from(&w);
-    crm.fixed_view_mut::<3, 3>(3, 3).copy_from(&w);
-    crm.fixed_view_mut::<3, 3>(3, 0).copy_from(&skew(&v.lin));
     let momentum = inertia.apply(v);
-    let mut h_bar = Matrix6::zeros();
-    h_bar
-        .fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&skew(&momentum.ang));
-    let f = skew(&momentum.lin);
-    h_bar.fixed_view_mut::<3, 3>(0, 3).copy_from(&f);
-    h_bar.fixed_view_mut::<3, 3>(3, 0).copy_from(&f);
-    -crm.transpose() * i6 - i6 * crm - h_bar
+    let mut b = Matrix6::zeros();
+    for c in 0..6 {
+        let e = Motion::from_vector(&Vector6::ith(c, 1.0));
+        let column = inertia.apply(&e.cross_motion(v))
+            + v.cross_force(&inertia.column(c))
+            + e.cross_force(&momentum);
+        b.set_column(c, &column.to_vector());
+    }
+    b
 }
 
 /// Backward pass: sums `I^C`, `B^C`, `F` over each subtree and fills `τ`, `∂τ/∂q`, `∂τ/∂q̇` and
