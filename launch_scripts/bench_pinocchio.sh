@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Times our algorithms against Pinocchio (C++) on the same URDFs in the same run (dynamics, and
-# frame_jacobian / center_of_mass against computeFrameJacobian / jacobianCenterOfMass), and prints a
+# Times our algorithms against Pinocchio (C++) on the same URDFs in the same run (dynamics,
+# frame_jacobian / center_of_mass against computeFrameJacobian / jacobianCenterOfMass, and
+# rnea_derivatives / aba_derivatives against computeRNEADerivatives / computeABADerivatives), and prints a
 # markdown table: per robot and algorithm, our ns per call, Pinocchio's, and Pinocchio / ours
 # (> 1: we are faster).
 #
@@ -161,7 +162,7 @@ import json, statistics, sys
 
 runs = [json.loads(line) for line in open(sys.argv[1])]
 kernels = ["rnea", "crba", "fd_aba", "fd_crba", "fd_rnea_columns", "gravity", "frame_jacobian",
-           "center_of_mass"]
+           "center_of_mass", "rnea_derivatives", "aba_derivatives"]
 
 # One row per robot: per kernel the median time of each library over the rounds and the median
 # of the rounds' ratios (each round times ours and Pinocchio back to back).

@@ -498,3 +498,52 @@ fn eval_answers_frame_requests() {
         ],
     );
 }
+
+/// The derivative requests on a one-rod pendulum (1 kg, 1 m, about y, hanging along −z), whose
+/// dynamics is `τ = (m l²/3) q̈ + m g (l/2) sin q`: `∂τ/∂q = m g (l/2) cos q`, `∂τ/∂q̇ = 0`,
+/// `M = m l²/3`, and `q̈ = (τ − m g (l/2) sin q) / M` gives `∂q̈/∂q = −m g (l/2) cos q / M`,
+/// `∂q̈/∂q̇ = 0`, `M⁻¹`; a bad request's error names the vector.
+#[test]
+fn eval_answers_derivative_requests() {
+    let (q, g, inertia) = (0.4f64, 9.81, 1.0 / 3.0);
+    let requests = [
+        format!(r#"{{"op":"inverse_dynamics_derivatives","q":[{q}],"v":[0.7],"a":[-1.3]}}"#),
+        format!(r#"{{"op":"forward_dynamics_derivatives","q":[{q}],"v":[0.7],"tau":[2.1]}}"#),
+        format!(r#"{{"op":"forward_dynamics_derivatives","q":[{q}],"v":[0.7],"tau":[2.1, 1]}}"#),
+        format!(r#"{{"op":"inverse_dynamics_derivatives","q":[{q}],"v":[0.7]}}"#),
+    ];
+    let (ok, out, _) = run(
+        &["eval", "--builtin", "pendulum:1"],
+        &(requests.join("\n") + "\n"),
+    );
+    assert!(ok);
+    let answers: Vec<Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(answers.len(), requests.len(), "{out}");
+    let gravity_slope = g * 0.5 * q.cos();
+    for (answer, key, expected) in [
+        (&answers[0], "dtau_dq", gravity_slope),
+        (&answers[0], "dtau_dv", 0.0),
+        (&answers[0], "M", inertia),
+        (&answers[1], "ddq_dq", -gravity_slope / inertia),
+        (&answers[1], "ddq_dv", 0.0),
+        (&answers[1], "Minv", 1.0 / inertia),
+    ] {
+        let m = answer[key]
+            .as_array()
+            .unwrap_or_else(|| panic!("{key}: {answer}"));
+        assert_eq!(m.len(), 1, "{key}: one row");
+        let got = m[0].as_array().unwrap();
+        assert_eq!(got.len(), 1, "{key}: one column");
+        let got = got[0].as_f64().unwrap();
+        assert!(
+            (got - expected).abs() < 1e-12,
+            "{key}: {got} against {expected}"
+        );
+    }
+    let error = |i: usize| answers[i]["error"].as_str().unwrap_or_default().to_string();
+    assert!(error(2).contains("tau"), "{}", answers[2]);
+    assert!(error(3).contains("missing field `a`"), "{}", answers[3]);
+}

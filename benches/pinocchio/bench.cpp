@@ -16,6 +16,8 @@
 //                   names its link as "frame"); null without --frame
 //   center_of_mass  jacobianCenterOfMass(q): the centre of mass (subtree ones too) and its
 //                   3 × nv Jacobian
+//   rnea_derivatives computeRNEADerivatives(q, v, a): ∂τ/∂q, ∂τ/∂v and M (upper triangle)
+//   aba_derivatives  computeABADerivatives(q, v, tau): ∂q̈/∂q, ∂q̈/∂v and M⁻¹ (upper triangle)
 // crba, aba (and so fd_crba) take a Convention (LOCAL, the default, or WORLD); both are timed,
 // the faster is reported under the main key and both under "detail".
 //
@@ -25,12 +27,14 @@
 // kernel is warmed up, then timed over several repeats of whole passes through the states with
 // one clock read around many calls; the median repeat is reported.
 
+#include <pinocchio/algorithm/aba-derivatives.hpp>
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/center-of-mass.hpp>
 #include <pinocchio/algorithm/cholesky.hpp>
 #include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/joint-configuration.hpp>
+#include <pinocchio/algorithm/rnea-derivatives.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 #include <pinocchio/parsers/urdf.hpp>
@@ -223,6 +227,19 @@ int main(int argc, char **argv) {
     escape(data.Jcom.data());
   });
 
+  double rnea_derivatives_ns = measure(states, settings, [&](const State &s) {
+    pinocchio::computeRNEADerivatives(model, data, s.q, s.v, s.a_or_tau);
+    escape(data.dtau_dq.data());
+    escape(data.dtau_dv.data());
+    escape(data.M.data());
+  });
+  double aba_derivatives_ns = measure(states, settings, [&](const State &s) {
+    pinocchio::computeABADerivatives(model, data, s.q, s.v, s.a_or_tau);
+    escape(data.ddq_dq.data());
+    escape(data.ddq_dv.data());
+    escape(data.Minv.data());
+  });
+
   auto best = [](const double (&x)[2]) { return std::min(x[0], x[1]); };
   std::printf("{\"nv\": %d, \"ns_per_call\": {\"rnea\": %.1f, \"crba\": %.1f, \"fd_aba\": %.1f, "
               "\"fd_crba\": %.1f, \"fd_rnea_columns\": %.1f, \"gravity\": %.1f, ",
@@ -233,7 +250,8 @@ int main(int argc, char **argv) {
   } else {
     std::printf("\"frame_jacobian\": %.1f, ", frame_jacobian_ns);
   }
-  std::printf("\"center_of_mass\": %.1f}, ", center_of_mass_ns);
+  std::printf("\"center_of_mass\": %.1f, \"rnea_derivatives\": %.1f, \"aba_derivatives\": %.1f}, ",
+              center_of_mass_ns, rnea_derivatives_ns, aba_derivatives_ns);
   std::printf("\"detail\": {\"pinocchio\": \"%s\", \"nq\": %d", PINOCCHIO_VERSION, model.nq);
   for (int c = 0; c < 2; ++c) {
     std::printf(", \"crba_%s\": %.1f, \"aba_%s\": %.1f, \"fd_crba_%s\": %.1f", convention_names[c],

@@ -7,15 +7,17 @@
 //!
 //! Besides the dynamics [`KERNELS`], the [`KINEMATICS_KERNELS`]: `frame_jacobian` (the
 //! `world` Jacobian of one link, the one carried by the body deepest in the tree, named in the
-//! JSON as `"frame"`) and `center_of_mass` (the centre of mass with its Jacobian).
+//! JSON as `"frame"`) and `center_of_mass` (the centre of mass with its Jacobian); then the
+//! [`DERIVATIVE_KERNELS`]: `rnea_derivatives` (`∂τ/∂q`, `∂τ/∂q̇`, `H` at `(q, q̇, q̈)`) and
+//! `aba_derivatives` (`∂q̈/∂q`, `∂q̈/∂q̇`, `H⁻¹` at `(q, q̇, τ)`).
 
 use super::ModelArgs;
 use clap::Args;
 use serde_json::{json, Map, Value};
 use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics_core::algorithms::{
-    center_of_mass_jacobian, choose_method, crba, find_frame, forward_dynamics, frame_jacobian,
-    gravity, rnea, ReferenceFrame,
+    aba_derivatives, center_of_mass_jacobian, choose_method, crba, find_frame, forward_dynamics,
+    frame_jacobian, gravity, rnea, rnea_derivatives, ReferenceFrame,
 };
 use spatial_dynamics_core::flop_table;
 use spatial_dynamics_core::sampling::{random_q, Rng};
@@ -71,6 +73,9 @@ pub const KERNELS: [&str; 6] = [
 /// The kinematics kernels, reported after [`KERNELS`] (see the module documentation).
 pub const KINEMATICS_KERNELS: [&str; 2] = ["frame_jacobian", "center_of_mass"];
 
+/// The derivative kernels, reported last (see the module documentation).
+pub const DERIVATIVE_KERNELS: [&str; 2] = ["rnea_derivatives", "aba_derivatives"];
+
 /// The link `frame_jacobian` is timed on: the one of the body with the most bodies above it
 /// (the first such in model order), or the root link when nothing moves.
 pub fn deepest_link(model: &Model) -> &str {
@@ -98,6 +103,7 @@ pub fn run(
     let all: Vec<&str> = KERNELS
         .iter()
         .chain(&KINEMATICS_KERNELS)
+        .chain(&DERIVATIVE_KERNELS)
         .copied()
         .filter(|k| only.is_empty() || only.iter().any(|o| o == k))
         .collect();
@@ -249,7 +255,8 @@ pub fn time_kernels(
     kernels
         .iter()
         .map(|&name| {
-            if !KERNELS.contains(&name) && !KINEMATICS_KERNELS.contains(&name) {
+            let known = [&KERNELS[..], &KINEMATICS_KERNELS, &DERIVATIVE_KERNELS];
+            if !known.iter().any(|kernels| kernels.contains(&name)) {
                 return Err(format!("bench: unknown kernel '{name}'"));
             }
             let ns = time_kernel(model, &states, name, settings)
@@ -301,6 +308,12 @@ fn time_kernel(
         }
         "center_of_mass" => measure(states, settings, |s| {
             center_of_mass_jacobian(model, ws, &s.q).map(sink)
+        }),
+        "rnea_derivatives" => measure(states, settings, |s| {
+            rnea_derivatives(model, ws, &s.q, &s.v, &s.a_or_tau).map(sink)
+        }),
+        "aba_derivatives" => measure(states, settings, |s| {
+            aba_derivatives(model, ws, &s.q, &s.v, &s.a_or_tau, &Externals::none()).map(sink)
         }),
         _ => unreachable!("unknown kernel {name}"),
     }

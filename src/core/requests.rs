@@ -12,6 +12,10 @@
 //! {"op":"frame_acceleration","q":[..],"v":[..],"a":[..],"frame":"LINK","reference":"local"}
 //!     → {"acceleration":[6]}
 //! {"op":"center_of_mass","q":[..]}                → {"mass":m,"com":[x,y,z],"J":[[..nv..] × 3]}
+//! {"op":"inverse_dynamics_derivatives","q":[..],"v":[..],"a":[..]}
+//!     → {"dtau_dq":[[..nv..] × nv],"dtau_dv":[[..nv..] × nv],"M":[[..nv..] × nv]}
+//! {"op":"forward_dynamics_derivatives","q":[..],"v":[..],"tau":[..]}
+//!     → {"ddq_dq":[[..nv..] × nv],"ddq_dv":[[..nv..] × nv],"Minv":[[..nv..] × nv]}
 //! ```
 //! `q`, `v`, `a` and `tau` follow [`Model::coordinate_joints`]; `method` is `aba`, `crba` or
 //! `rnea_columns` (default `aba`). A bad request answers `{"error": "..."}` naming the problem.
@@ -20,10 +24,14 @@
 //! world ones and the translation is the link origin in the world; Jacobian rows and
 //! accelerations are `[linear; angular]`; `reference` is `world`, `local` or
 //! `local_world_aligned` ([`ReferenceFrame`]; the classical acceleration takes the last two).
+//!
+//! Derivative matrices are given by rows (row `i` the derivative of `τ_i` or `q̈_i`), columns in
+//! `v` order, with respect to `q` along the tangent `q ⊕ ε e_k` ([`derivatives`](crate::algorithms::derivatives)).
 
 use crate::algorithms::{
-    center_of_mass_jacobian, crba, find_frame, forward_dynamics, frame_classical_acceleration,
-    frame_jacobian, frame_placement, gravity, rnea, ReferenceFrame,
+    aba_derivatives, center_of_mass_jacobian, crba, find_frame, forward_dynamics,
+    frame_classical_acceleration, frame_jacobian, frame_placement, gravity, rnea, rnea_derivatives,
+    ReferenceFrame,
 };
 use crate::{Externals, ForwardDynamicsMethod, Model, Workspace};
 use nalgebra::DMatrix;
@@ -68,6 +76,16 @@ enum Request {
     },
     CenterOfMass {
         q: Vec<f64>,
+    },
+    InverseDynamicsDerivatives {
+        q: Vec<f64>,
+        v: Vec<f64>,
+        a: Vec<f64>,
+    },
+    ForwardDynamicsDerivatives {
+        q: Vec<f64>,
+        v: Vec<f64>,
+        tau: Vec<f64>,
     },
 }
 
@@ -129,6 +147,14 @@ fn answer(model: &Model, ws: &mut Workspace, request: Request) -> Result<Value, 
         Request::CenterOfMass { q } => {
             let (com, j) = center_of_mass_jacobian(model, ws, &q).map_err(text)?;
             json!({ "mass": com.mass, "com": com.position.as_slice(), "J": rows(j) })
+        }
+        Request::InverseDynamicsDerivatives { q, v, a } => {
+            let d = rnea_derivatives(model, ws, &q, &v, &a).map_err(text)?;
+            json!({ "dtau_dq": rows(d.dtau_dq), "dtau_dv": rows(d.dtau_dv), "M": rows(d.mass_matrix) })
+        }
+        Request::ForwardDynamicsDerivatives { q, v, tau } => {
+            let d = aba_derivatives(model, ws, &q, &v, &tau, &Externals::none()).map_err(text)?;
+            json!({ "ddq_dq": rows(d.ddq_dq), "ddq_dv": rows(d.ddq_dv), "Minv": rows(d.minv) })
         }
     })
 }

@@ -1,6 +1,7 @@
 //! Scratch buffers for the algorithms (Pinocchio's `Data`): sized once from a model, reused by
 //! every call so that no call allocates.
 
+use crate::algorithms::derivatives::DerivativeScratch;
 use crate::algorithms::frames::FrameScratch;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model, MotionSubspace};
@@ -91,6 +92,8 @@ pub struct Workspace {
     pub(crate) unit: DVector<f64>,
     /// Scratch of the frame algorithms (placements, Jacobians, centre of mass).
     pub(crate) frame_scratch: FrameScratch,
+    /// Scratch and results of the derivative algorithms.
+    pub(crate) derivatives: DerivativeScratch,
 }
 
 impl Workspace {
@@ -148,6 +151,7 @@ impl Workspace {
             bias: DVector::zeros(nv),
             unit: DVector::zeros(nv),
             frame_scratch: FrameScratch::new(model),
+            derivatives: DerivativeScratch::new(model),
         }
     }
 

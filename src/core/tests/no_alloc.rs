@@ -3,9 +3,9 @@
 //! in the process while it counts).
 
 use spatial_dynamics_core::algorithms::{
-    aba, bias, center_of_mass_jacobian, crba, find_frame, forward_dynamics,
+    aba, aba_derivatives, bias, center_of_mass_jacobian, crba, find_frame, forward_dynamics,
     frame_classical_acceleration, frame_jacobian, frame_placement, gravity, joint_jacobians, rnea,
-    rnea_with, ReferenceFrame,
+    rnea_derivatives, rnea_derivatives_with, rnea_with, ReferenceFrame,
 };
 use spatial_dynamics_core::spatial::Force;
 use spatial_dynamics_core::{urdf, Externals, ForwardDynamicsMethod, ModelOptions, Workspace};
@@ -56,6 +56,9 @@ fn algorithms_do_not_allocate() {
             gravity(&model, ws, &q).unwrap();
             crba(&model, ws, &q).unwrap();
             aba(&model, ws, &q, &v, &a, &ext).unwrap();
+            rnea_derivatives(&model, ws, &q, &v, &a).unwrap();
+            rnea_derivatives_with(&model, ws, &q, &v, &a, &ext).unwrap();
+            aba_derivatives(&model, ws, &q, &v, &a, &ext).unwrap();
             for method in ForwardDynamicsMethod::ALL {
                 forward_dynamics(&model, ws, &q, &v, &a, method, &ext).unwrap();
             }

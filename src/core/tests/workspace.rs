@@ -5,9 +5,10 @@
 use spatial_dynamics_core::algorithms::kinematics::{body_motion, body_placements};
 use spatial_dynamics_core::algorithms::rnea_columns::rnea_columns;
 use spatial_dynamics_core::algorithms::{
-    aba, bias, center_of_mass, center_of_mass_jacobian, crba, energy, find_frame, forward_dynamics,
-    frame_classical_acceleration, frame_jacobian, frame_placement, gravity, joint_jacobians,
-    joint_state_outputs, rnea, rnea_with, JointStateInputs, JointStateOutputs, ReferenceFrame,
+    aba, aba_derivatives, bias, center_of_mass, center_of_mass_jacobian, crba, energy, find_frame,
+    forward_dynamics, frame_classical_acceleration, frame_jacobian, frame_placement, gravity,
+    joint_jacobians, joint_state_outputs, rnea, rnea_derivatives, rnea_with, JointStateInputs,
+    JointStateOutputs, ReferenceFrame,
 };
 use spatial_dynamics_core::model::examples::pendulum_urdf;
 use spatial_dynamics_core::requests::answer_line;
@@ -46,6 +47,14 @@ fn every_algorithm(model: &Model, ws: &mut Workspace) -> Vec<(String, Result<(),
         (
             "rnea_columns".into(),
             rnea_columns(model, ws, &q, &v, &tau, &ext).map(drop),
+        ),
+        (
+            "rnea_derivatives".into(),
+            rnea_derivatives(model, ws, &q, &v, &a).map(drop),
+        ),
+        (
+            "aba_derivatives".into(),
+            aba_derivatives(model, ws, &q, &v, &tau, &ext).map(drop),
         ),
         ("energy".into(), energy(model, ws, &q, &v).map(drop)),
         (

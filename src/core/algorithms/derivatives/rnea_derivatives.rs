@@ -1,0 +1,280 @@
+//! `∂τ/∂q`, `∂τ/∂q̇` and `H = ∂τ/∂q̈` of `τ = RNEA(q, q̇, q̈)` (Carpentier & Mansard, RSS 2018,
+//! Algorithm 1), in the aligned frame of each tree (world axes, origin at the root body's
+//! origin: `kinematics::update_aligned_placements` with [`Anchors::Roots`]). Every quantity
+//! below is in that frame; `S_i` is body `i`'s motion subspace there, each column scaled by the
+//! joint's mimic multiplier.
+//!
+//! Forward pass, root outward (`a_0 = a_base − g`):
+//! ```text
+//! v_i = v_λ + S_i q̇_i,    a_i = a_λ + Σ_k (S_ik q̈_ik + v_λ × S_ik q̇_ik)
+//! f_i = I_i a_i + v_i ×* I_i v_i − f^x_i
+//! ψ_ik = v_λ × S_ik,   α_ik = a_λ × S_ik + v_λ × ψ_ik,   β_ik = ψ_ik + v_i × S_ik
+//! B_i ψ = I_i (ψ × v_i) + v_i ×* I_i ψ + ψ ×* I_i v_i
+//! ```
+//! Turning column `k` of joint `j` by `ε` carries every body of the subtree of `j` rigidly by
+//! `ε S_jk` (a motion `m` becomes `m + ε S_jk × m`, a force `f + ε S_jk ×* f`) and, on top of
+//! that, adds `ε ψ_jk` to its velocities and `ε (ψ_jk × v_k + α_jk)` to its accelerations (the
+//! parent's motion `v_λ`, `a_λ` does not turn). A rate `q̇_jk` adds `S_jk` to the velocities
+//! and `S_jk × v_k + β_jk` to the accelerations. The body forces change by
+//! `I_k α + B_k ψ` (and `I_k β + B_k S_jk` for a rate) beyond their rigid motion, which leaves
+//! `τ_i = S_iᵀ F_i` unchanged for `i` inside the subtree.
+//!
+//! Backward pass, leaves inward, summing over each subtree `I^C_i = Σ I_k`, `B^C_i = Σ B_k`,
+//! `F_i = Σ f_k`: with `j` an ancestor of `i` or `i` itself,
+//! ```text
+//! τ_i = S_iᵀ F_i
+//! ∂τ_i/∂q_j = S_iᵀ (I^C_i α_j + B^C_i ψ_j)                 ∂τ_j/∂q_i = S_jᵀ (S_i ×* F_i + I^C_i α_i + B^C_i ψ_i)
+//! ∂τ_i/∂q̇_j = S_iᵀ (I^C_i β_j + B^C_i S_j)                 ∂τ_j/∂q̇_i = S_jᵀ (I^C_i β_i + B^C_i S_i)
+//! ∂τ_i/∂q̈_j = S_iᵀ I^C_i S_j                              ∂τ_j/∂q̈_i = S_jᵀ I^C_i S_i
+//! ```
+//! (left: the row's body is inside the subtree that moves; right: above it, `j ≠ i`). The left
+//! column is read as `(I^C_i S_i)ᵀ α_j + (B^C_iᵀ S_i)ᵀ ψ_j`, so that both walk the ancestors of
+//! `i` once per column.
+//!
+//! A floating joint's columns all move with its body (its `S` is constant there), so turning
+//! one column carries the others: its own block is on the left. A planar joint's translation
+//! columns stay with the parent while `θ` turns, as though `x`, `y`, `θ` were three joints in
+//! series ([`in_series`]): each column is then the child of the columns before it, with
+//! `v_λ`, `a_λ` the motion after them and `v_i` in `β` the motion after the column itself.
+
+use super::DerivativeScratch;
+use crate::algorithms::kinematics::{
+    update_aligned_placements, update_joints, update_world_axes, Anchors,
+};
+use crate::algorithms::validate::{check_externals, check_q, check_result, check_v};
+use crate::algorithms::Externals;
+use crate::error::DynamicsError;
+use crate::model::{JointKind, Model};
+use crate::spatial::{Force, Inertia, Matrix6, Motion, Translation, Vector3};
+use crate::Workspace;
+use nalgebra::DMatrix;
+use nalgebra::Vector6;
+
+/// The derivatives of inverse dynamics at one state, held in the workspace: `nv × nv`, full,
+/// row `i` the derivative of `τ_i`, columns in `v` order, on the tangent of
+/// [the module](super) (`q ⊕ ε e_k`).
+#[derive(Clone, Copy, Debug)]
+pub struct RneaDerivatives<'w> {
+    /// `∂τ/∂q`.
+    pub dtau_dq: &'w DMatrix<f64>,
+    /// `∂τ/∂q̇`.
+    pub dtau_dv: &'w DMatrix<f64>,
+    /// `H = ∂τ/∂q̈`, the joint-space inertia matrix (also `ws.mass_matrix()`).
+    pub mass_matrix: &'w DMatrix<f64>,
+}
+
+/// The derivatives of `τ = RNEA(q, q̇, q̈)` with gravity, no external wrenches, base at rest.
+/// `τ` itself is left in `ws.tau()`.
+pub fn rnea_derivatives<'w>(
+    model: &Model,
+    ws: &'w mut Workspace,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+) -> Result<RneaDerivatives<'w>, DynamicsError> {
+    rnea_derivatives_with(model, ws, q, v, a, &Externals::none())
+}
+
+/// The derivatives of `τ = RNEA(q, q̇, q̈)` with external wrenches (fixed to their bodies) and
+/// base motion (fixed in the world). `τ` itself is left in `ws.tau()`.
+pub fn rnea_derivatives_with<'w>(
+    model: &Model,
+    ws: &'w mut Workspace,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    ext: &Externals<'_>,
+) -> Result<RneaDerivatives<'w>, DynamicsError> {
+    check_q(model, ws, q)?;
+    check_v(model, "v", v)?;
+    check_v(model, "a", a)?;
+    check_externals(model, ext)?;
+    update_joints(model, ws, q);
+    derivative_passes(model, ws, v, a, ext);
+    check_result(model, "tau", ws.tau.as_slice())?;
+    let d = &ws.derivatives;
+    check_matrix(model, "dtau_dq", &d.dtau_dq)?;
+    check_matrix(model, "dtau_dv", &d.dtau_dv)?;
+    check_matrix(model, "mass matrix", &ws.mass_matrix)?;
+    Ok(RneaDerivatives {
+        dtau_dq: &ws.derivatives.dtau_dq,
+        dtau_dv: &ws.derivatives.dtau_dv,
+        mass_matrix: &ws.mass_matrix,
+    })
+}
+
+/// Both passes, on joints already updated for `q` (inputs already checked): `ws.tau`,
+/// `ws.mass_matrix` and the derivatives of `ws.derivatives`.
+pub(crate) fn derivative_passes(
+    model: &Model,
+    ws: &mut Workspace,
+    v: &[f64],
+    a: &[f64],
+    ext: &Externals<'_>,
+) {
+    forward_pass(model, ws, v, a, ext);
+    backward_pass(model, ws);
+}
+
+/// A planar joint's columns act in series (translations fixed to the parent, the turn to the
+/// child); every other joint's columns all move with its child body.
+fn in_series(kind: &JointKind) -> bool {
+    matches!(kind, JointKind::Planar { .. })
+}
+
+/// Forward pass: `S_i` (scaled) into `ws.s_world`, `v_i`, `a_i` into `ws.v_world`,
+/// `ws.a_world`, `I_i` into `ws.ic`, `f_i` into `ws.f`, `ψ`, `α`, `β` and `B_i` into
+/// `ws.derivatives`.
+fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64], ext: &Externals<'_>) {
+    update_aligned_placements(model, ws, Anchors::Roots);
+    let a_root = ext.root_acceleration - Motion::new(Vector3::zeros(), model.gravity);
+    for (i, body) in model.bodies.iter().enumerate() {
+        let c = body.joint.coords;
+        update_world_axes(ws, i, &[], 1.0);
+        let s = &mut ws.s_world[i];
+        let nv = s.nv;
+        for col in &mut s.cols[..nv] {
+            *col = *col * c.scale;
+        }
+        let (v_parent, a_parent) = match body.parent {
+            Some(p) => (ws.v_world[p], ws.a_world[p]),
+            None => {
+                let x = Translation(ws.anchor_shift[i]);
+                (x.apply_motion(&ext.root_velocity), x.apply_motion(&a_root))
+            }
+        };
+        let (rates, accelerations) = (&v[c.v_index..c.v_index + nv], &a[c.v_index..c.v_index + nv]);
+        let s = &ws.s_world[i];
+        let v_i = v_parent + s.apply(rates, 1.0);
+        let series = in_series(&body.joint.kind);
+        let d = &mut ws.derivatives;
+        // The motion of what column k moves from: the parent, or in series the columns before.
+        let (mut v_above, mut a_above) = (v_parent, a_parent);
+        let mut a_i = a_parent;
+        for k in 0..nv {
+            let s_k = s.cols[k];
+            let psi = v_above.cross_motion(&s_k);
+            let v_k = v_above + s_k * rates[k];
+            a_i += s_k * accelerations[k] + psi * rates[k];
+            let v_after = if series { v_k } else { v_i };
+            d.psi[i][k] = psi;
+            d.alpha[i][k] = a_above.cross_motion(&s_k) + v_above.cross_motion(&psi);
+            d.beta[i][k] = psi + v_after.cross_motion(&s_k);
+            if series {
+                (v_above, a_above) = (v_k, a_i);
+            }
+        }
+        let x = &ws.x_aligned[i];
+        let inertia = x.transpose_apply_inertia(&body.inertia);
+        let mut f_i = inertia.apply(&a_i) + v_i.cross_force(&inertia.apply(&v_i));
+        if let Some(w) = ext.wrenches {
+            f_i -= x.transpose_apply_force(&w[i]);
+        }
+        d.b[i] = velocity_product_matrix(&inertia, &v_i);
+        ws.ic[i] = inertia;
+        ws.f[i] = f_i;
+        ws.v_world[i] = v_i;
+        ws.a_world[i] = a_i;
+    }
+}
+
+/// `B` with `B ψ = I (ψ × v) + v ×* I ψ + ψ ×* I v`, column by column (`ψ = e_c`): the unit
+/// motions make the cross products a few components each, where the dense form
+/// `crf(v) I − I crm(v) − h̄(I v)` would take two 6×6 products.
+fn velocity_product_matrix(inertia: &Inertia, v: &Motion) -> Matrix6 {
+    let momentum = inertia.apply(v);
+    let mut b = Matrix6::zeros();
+    for c in 0..6 {
+        let e = Motion::from_vector(&Vector6::ith(c, 1.0));
+        let column = inertia.apply(&e.cross_motion(v))
+            + v.cross_force(&inertia.column(c))
+            + e.cross_force(&momentum);
+        b.set_column(c, &column.to_vector());
+    }
+    b
+}
+
+/// Backward pass: sums `I^C`, `B^C`, `F` over each subtree and fills `τ`, `∂τ/∂q`, `∂τ/∂q̇` and
+/// `H`, each entry from the row's and the column's bodies (one an ancestor of the other).
+fn backward_pass(model: &Model, ws: &mut Workspace) {
+    let Workspace {
+        s_world,
+        ic,
+        f,
+        tau,
+        mass_matrix,
+        derivatives,
+        ..
+    } = ws;
+    let DerivativeScratch {
+        psi,
+        alpha,
+        beta,
+        b,
+        dtau_dq,
+        dtau_dv,
+        ..
+    } = derivatives;
+    dtau_dq.fill(0.0);
+    dtau_dv.fill(0.0);
+    mass_matrix.fill(0.0);
+    tau.fill(0.0);
+    let above =
+        |i: usize| std::iter::successors(model.bodies[i].parent, |&j| model.bodies[j].parent);
+    for (i, body) in model.bodies.iter().enumerate().rev() {
+        let ci = body.joint.coords.v_index;
+        let series = in_series(&body.joint.kind);
+        let s_i = &s_world[i];
+        for n in 0..s_i.nv {
+            let (s, row) = (s_i.cols[n], ci + n);
+            tau[row] += s.dot(&f[i]);
+            // Row (i, n) against the columns of i and its ancestors: I^C_i S and B^C_iᵀ S.
+            let ic_s = ic[i].apply(&s);
+            let bt_s = b[i].tr_mul(&s.to_vector());
+            for j in std::iter::once(i).chain(above(i)) {
+                let cj = model.bodies[j].joint.coords.v_index;
+                let columns = if j == i && series {
+                    n + 1
+                } else {
+                    s_world[j].nv
+                };
+                for m in 0..columns {
+                    let (col, s_j) = (cj + m, s_world[j].cols[m]);
+                    dtau_dq[(row, col)] +=
+                        alpha[j][m].dot(&ic_s) + bt_s.dot(&psi[j][m].to_vector());
+                    dtau_dv[(row, col)] += beta[j][m].dot(&ic_s) + bt_s.dot(&s_j.to_vector());
+                    mass_matrix[(row, col)] += s_j.dot(&ic_s);
+                }
+            }
+            // Column (i, n) against the rows above it: the forces its motion adds to F_i.
+            let w_q = s.cross_force(&f[i])
+                + ic[i].apply(&alpha[i][n])
+                + Force::from_vector(&(b[i] * psi[i][n].to_vector()));
+            let w_v = ic[i].apply(&beta[i][n]) + Force::from_vector(&(b[i] * s.to_vector()));
+            let earlier_columns = (0..if series { n } else { 0 }).map(|m| (i, m));
+            let ancestor_columns = above(i).flat_map(|j| (0..s_world[j].nv).map(move |m| (j, m)));
+            for (j, m) in earlier_columns.chain(ancestor_columns) {
+                let (r, s_j) = (model.bodies[j].joint.coords.v_index + m, s_world[j].cols[m]);
+                dtau_dq[(r, row)] += s_j.dot(&w_q);
+                dtau_dv[(r, row)] += s_j.dot(&w_v);
+                mass_matrix[(r, row)] += s_j.dot(&ic_s);
+            }
+        }
+        if let Some(p) = body.parent {
+            let (ic_i, b_i, f_i) = (ic[i], b[i], f[i]);
+            ic[p] += ic_i;
+            b[p] += b_i;
+            f[p] += f_i;
+        }
+    }
+}
+
+/// Every entry of `m` is finite; names the coordinate of the first row that is not.
+pub(crate) fn check_matrix(
+    model: &Model,
+    quantity: &'static str,
+    m: &DMatrix<f64>,
+) -> Result<(), DynamicsError> {
+    m.column_iter()
+        .try_for_each(|col| check_result(model, quantity, col.as_slice()))
+}
