@@ -83,6 +83,14 @@ pub enum DynamicsError {
         model: String,
         model_id: u64,
     },
+    /// A [`Frame`](crate::algorithms::Frame) found in another model than the one given: its link
+    /// index and the identities of both models.
+    ForeignFrame {
+        link: usize,
+        frame_model_id: u64,
+        model: String,
+        model_id: u64,
+    },
 }
 
 impl fmt::Display for DynamicsError {
@@ -136,8 +144,29 @@ impl fmt::Display for DynamicsError {
                 f,
                 "the workspace was made for model '{workspace_model}' (#{workspace_model_id}), not for the model given, '{model}' (#{model_id}): make one with Workspace::new for each model"
             ),
+            DynamicsError::ForeignFrame { link, frame_model_id, model, model_id } => write!(
+                f,
+                "the frame (link #{link}) was found in model #{frame_model_id}, not in the model given, '{model}' (#{model_id}): find it in this model with find_frame"
+            ),
         }
     }
 }
 
 impl std::error::Error for DynamicsError {}
+
+/// `Ok` when a vector has the `expected` length, else the `Length` error naming it.
+pub(crate) fn check_len(
+    vector: &'static str,
+    expected: usize,
+    got: usize,
+) -> Result<(), DynamicsError> {
+    if expected == got {
+        Ok(())
+    } else {
+        Err(DynamicsError::Length {
+            vector,
+            expected,
+            got,
+        })
+    }
+}

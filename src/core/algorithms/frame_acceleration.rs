@@ -38,6 +38,7 @@ pub fn frame_classical_acceleration(
     frame: &Frame,
     reference: ReferenceFrame,
 ) -> Result<Motion, DynamicsError> {
+    frame.check(model)?;
     check_v(model, "v", v)?;
     check_v(model, "a", a)?;
     if reference == ReferenceFrame::World {

@@ -23,7 +23,8 @@
 use super::kinematics::{
     read_joint, update_joints, update_placements, update_up, with_up_transform,
 };
-use super::validate::{all_finite, check_len, check_q_of};
+use super::validate::{all_finite, check_q_of};
+use crate::error::check_len;
 use crate::error::DynamicsError;
 use crate::model::{
     floating_up, turn_up, turn_up_unrotated, Body, JointKind, Model, MotionSubspace, UpShape,
@@ -42,6 +43,8 @@ pub struct Frame {
     pub(crate) body: Option<usize>,
     /// `ᴸX_B`: the carrying body's frame (the world for `body = None`) → the link frame.
     pub(crate) x_body_link: Transform,
+    /// The identity of the model the frame was found in (see [`Workspace::check`]).
+    pub(crate) model_id: u64,
 }
 
 impl Frame {
@@ -59,6 +62,21 @@ impl Frame {
     pub fn x_body_link(&self) -> Transform {
         self.x_body_link
     }
+
+    /// `Ok` when the frame was found in `model` (or a clone of it), else
+    /// [`DynamicsError::ForeignFrame`]: its link and body indices mean nothing in another model.
+    pub fn check(&self, model: &Model) -> Result<(), DynamicsError> {
+        if self.model_id == model.id {
+            Ok(())
+        } else {
+            Err(DynamicsError::ForeignFrame {
+                link: self.link,
+                frame_model_id: self.model_id,
+                model: model.name.clone(),
+                model_id: model.id,
+            })
+        }
+    }
 }
 
 /// The frame of link `name`, or an error naming it and listing the model's links.
@@ -70,6 +88,7 @@ pub fn find_frame(model: &Model, name: &str) -> Result<Frame, DynamicsError> {
                 link,
                 body: l.body,
                 x_body_link: l.x_body_link,
+                model_id: model.id,
             })
         }
         None => Err(DynamicsError::UnknownLink {
@@ -90,6 +109,7 @@ pub fn frame_placement(
     q: &[f64],
     frame: &Frame,
 ) -> Result<Transform, DynamicsError> {
+    frame.check(model)?;
     place_support(model, ws, q, frame.body, Placing::Placements)?;
     let x = placement_of(&ws.x_world, frame);
     let mut values = [0.0; 12];

@@ -77,6 +77,7 @@ pub fn frame_jacobian<'w>(
     reference: ReferenceFrame,
 ) -> Result<&'w DMatrix<f64>, DynamicsError> {
     ws.check(model)?;
+    frame.check(model)?;
     let turns_and_slides = frame.body.filter(|&b| ws.plan.supports.turns_and_slides(b));
     // One loop per reference, each compiled with its own map. The world columns read of the
     // frame's body only its joint axis and origin (`Placing::UpToLastTurn`).
@@ -280,9 +281,11 @@ pub struct JointJacobians<'w> {
 }
 
 impl JointJacobians<'_> {
-    /// `ᴸX_0` of `frame` (see [`frame_placement`](super::frames::frame_placement)).
-    pub fn placement(&self, frame: &Frame) -> Transform {
-        placement_of(self.placements, frame)
+    /// `ᴸX_0` of `frame` (see [`frame_placement`](super::frames::frame_placement)); a frame of
+    /// another model is refused.
+    pub fn placement(&self, frame: &Frame) -> Result<Transform, DynamicsError> {
+        frame.check(self.model)?;
+        Ok(placement_of(self.placements, frame))
     }
 
     /// The Jacobian of `frame` in `reference`, as [`frame_jacobian`] gives it.
@@ -291,6 +294,7 @@ impl JointJacobians<'_> {
         frame: &Frame,
         reference: ReferenceFrame,
     ) -> Result<&DMatrix<f64>, DynamicsError> {
+        frame.check(self.model)?;
         let to_frame = ColumnMap::new(reference, &placement_of(self.placements, frame));
         let FrameScratch {
             axes,

@@ -2,7 +2,7 @@
 //! Each error names the coordinate (joint) and the value.
 
 use super::Externals;
-use crate::error::DynamicsError;
+use crate::error::{check_len, DynamicsError};
 use crate::model::{JointKind, Model};
 use crate::Workspace;
 
@@ -155,22 +155,6 @@ pub(crate) fn check_result(
             coordinate: model.v_name(index),
         }),
         None => Ok(()),
-    }
-}
-
-pub(crate) fn check_len(
-    vector: &'static str,
-    expected: usize,
-    got: usize,
-) -> Result<(), DynamicsError> {
-    if expected == got {
-        Ok(())
-    } else {
-        Err(DynamicsError::Length {
-            vector,
-            expected,
-            got,
-        })
     }
 }
 

@@ -23,7 +23,7 @@ pub use joint::{
 };
 pub use spec::{joint_position, BodySpec, JointSpec, ModelOptions};
 
-use crate::algorithms::validate::check_len;
+use crate::error::check_len;
 use crate::error::{DynamicsError, ModelError};
 use crate::spatial::{Inertia, Transform, Vector3};
 use std::sync::atomic::{AtomicU64, Ordering};

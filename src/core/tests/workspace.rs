@@ -247,3 +247,67 @@ fn the_simulator_and_requests_refuse_another_model() {
         );
     }
 }
+
+/// A `Frame` found in one model and used with another (each with its own workspace) is refused
+/// by every function taking a frame, even when its link index is beyond the other model's links
+/// (an index that would otherwise be read out of bounds), and a frame of a clone is accepted.
+#[test]
+fn a_frame_of_another_model_is_refused() {
+    let long = load(&pendulum_urdf(6, 0.5, 1.0));
+    let short = load(&pendulum_urdf(2, 0.5, 1.0));
+    let last = long.links().last().unwrap().name.clone();
+    let frame = find_frame(&long, &last).unwrap();
+    assert!(
+        frame.link() >= short.links().len(),
+        "the frame's index is out of the short model"
+    );
+    let mut ws = Workspace::new(&short);
+    let q = short.neutral();
+    let v = vec![0.1; short.nv()];
+    let mut outcomes: Vec<(&str, Result<(), DynamicsError>)> = vec![
+        (
+            "frame_placement",
+            frame_placement(&short, &mut ws, &q, &frame).map(drop),
+        ),
+        (
+            "frame_classical_acceleration",
+            frame_classical_acceleration(
+                &short,
+                &mut ws,
+                &q,
+                &v,
+                &v,
+                &frame,
+                ReferenceFrame::Local,
+            )
+            .map(drop),
+        ),
+    ];
+    for reference in [
+        ReferenceFrame::World,
+        ReferenceFrame::Local,
+        ReferenceFrame::LocalWorldAligned,
+    ] {
+        outcomes.push((
+            "frame_jacobian",
+            frame_jacobian(&short, &mut ws, &q, &frame, reference).map(drop),
+        ));
+    }
+    let mut all = joint_jacobians(&short, &mut ws, &q).unwrap();
+    outcomes.push(("JointJacobians::placement", all.placement(&frame).map(drop)));
+    outcomes.push((
+        "JointJacobians::frame_jacobian",
+        all.frame_jacobian(&frame, ReferenceFrame::World).map(drop),
+    ));
+    for (what, outcome) in outcomes {
+        match outcome {
+            Err(e @ DynamicsError::ForeignFrame { .. }) => {
+                assert!(e.to_string().contains("find_frame"), "{what}: {e}")
+            }
+            other => panic!("{what}: a foreign frame gave {other:?}"),
+        }
+    }
+    let clone = long.clone();
+    let mut ws = Workspace::new(&clone);
+    assert!(frame_placement(&clone, &mut ws, &clone.neutral(), &frame).is_ok());
+}

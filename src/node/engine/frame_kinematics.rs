@@ -116,7 +116,10 @@ impl Engine {
             joint_jacobians(&self.model, &mut self.ws, &self.q).map_err(|e| e.to_string())?;
         let (mut poses, mut jacobians) = (Vec::with_capacity(frames.len()), Vec::new());
         for (frame, link) in frames.iter().zip(&req.links) {
-            poses.push(pose(&all.placement(frame)));
+            let placement = all
+                .placement(frame)
+                .map_err(|e| format!("link '{link}': {e}"))?;
+            poses.push(pose(&placement));
             let j = all
                 .frame_jacobian(frame, reference)
                 .map_err(|e| format!("link '{link}': {e}"))?;
