@@ -32,18 +32,18 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from test_pinocchio_reference import (
+from pinocchio_cases import (
     _TALOS,
-    CASES,
     Case,
     Mapping,
-    _run,
     _sym,
     binary_path,
     build_reference,
+    run_command,
     sample_state,
     urdf_path,
 )
+from test_pinocchio_reference import CASES
 
 REL_TOL = 1e-10
 N_STATES = 8
@@ -81,7 +81,7 @@ def case_records(case: Case):
     ref = build_reference(case, path)
     flags = ["--urdf", str(path), *case.our_flags()]
     command = [str(binary_path())]
-    out = _run([*command, "model", *flags, "--json"])
+    out = run_command([*command, "model", *flags, "--json"])
     assert out.returncode == 0, out.stderr
     mapping = Mapping.build(json.loads(out.stdout), ref)
     rng = np.random.default_rng(SEED ^ zlib.crc32(case.name.encode()))
@@ -94,7 +94,7 @@ def case_records(case: Case):
         qo, vo, ao, to = q_ours.tolist(), *(mapping.v_to_ours(x).tolist() for x in (v, a, tau))
         lines.append({"op": "inverse_dynamics_derivatives", "q": qo, "v": vo, "a": ao})
         lines.append({"op": "forward_dynamics_derivatives", "q": qo, "v": vo, "tau": to})
-    out = _run([*command, "eval", *flags], "".join(json.dumps(r) + "\n" for r in lines))
+    out = run_command([*command, "eval", *flags], "".join(json.dumps(r) + "\n" for r in lines))
     answers = out.stdout.splitlines()
     assert out.returncode == 0 and len(answers) == len(lines), out.stderr[:2000]
     records = {}
