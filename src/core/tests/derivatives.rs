@@ -17,11 +17,11 @@
 
 mod common;
 
-use common::{random_q, Rng};
+use common::{pendulum_on_a_rail, random_q, Rng};
 use spatial_dynamics_core::algorithms::{
     aba_derivatives, crba, forward_dynamics, rnea, rnea_derivatives, rnea_derivatives_with,
 };
-use spatial_dynamics_core::model::examples::{pendulum_urdf, DEFAULT_ARM_URDF, MIMIC_GRIPPER_URDF};
+use spatial_dynamics_core::model::examples::{DEFAULT_ARM_URDF, MIMIC_GRIPPER_URDF};
 use spatial_dynamics_core::spatial::{Force, Motion, Vector3};
 use spatial_dynamics_core::{
     urdf, DynamicsError, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace,
@@ -300,34 +300,9 @@ fn the_mass_matrix_is_crba_s_and_minv_inverts_it() {
     }
 }
 
-/// An 8-link pendulum hanging from a carriage on a rail (prismatic along x, ±2 km), the rail
-/// on a sled (prismatic along y, the root): the carriage is not a root, only its joint's travel
-/// takes it far. Translations above the pendulum leave its dynamics where they are.
-fn pendulum_on_a_rail() -> Model {
-    let rail = r#"<link name="world"/>
-  <joint name="sled" type="prismatic"><parent link="world"/><child link="sled"/>
-    <axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
-  <link name="sled"><inertial><mass value="2"/>
-    <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.3"/></inertial></link>
-  <joint name="rail" type="prismatic"><parent link="sled"/><child link="carriage"/>
-    <origin xyz="0.2 0 0"/><axis xyz="1 0 0"/>
-    <limit lower="-2000" upper="2000" effort="1" velocity="1"/></joint>
-  <link name="carriage"><inertial><mass value="3"/>
-    <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.3"/></inertial></link>
-"#;
-    let text = pendulum_urdf(8, 0.5, 0.7)
-        .replacen(
-            r#"<parent link="world"/>"#,
-            r#"<parent link="carriage"/>"#,
-            1,
-        )
-        .replacen("<link name=\"world\"/>\n", rail, 1);
-    load(&text, ModelOptions::default())
-}
-
 #[test]
 fn derivatives_do_not_depend_on_how_far_a_rail_carries_the_robot() {
-    let model = pendulum_on_a_rail();
+    let model = load(&pendulum_on_a_rail(8), ModelOptions::default());
     let s = state(&model, 4);
     let mut far = s.q.clone();
     far[1] += 1500.0;

@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{max_diff, norm, random_q, Rng};
+use common::{max_diff, norm, pendulum_on_a_rail, random_q, Rng};
 use spatial_dynamics_core::algorithms::{
     crba, forward_dynamics, gravity, joint_state_outputs, rnea, rnea_with, JointStateInputs,
     JointStateOutputs,
@@ -69,32 +69,6 @@ fn moved_floating_base(q: &[f64]) -> Vec<f64> {
         *x += d;
     }
     q
-}
-
-/// An `n`-link pendulum hanging from a carriage on a 4 km rail (prismatic, ±2 km), the rail
-/// from a short slide: the carriage is not a root, so only its joint's travel takes it far.
-fn pendulum_on_a_rail(n: usize) -> String {
-    pendulum_urdf(n, 0.5, 0.7)
-        .replacen(
-            r#"<parent link="world"/>"#,
-            r#"<parent link="carriage"/>"#,
-            1,
-        )
-        .replacen(
-            "<link name=\"world\"/>\n",
-            r#"<link name="world"/>
-  <joint name="slide" type="prismatic"><parent link="world"/><child link="sled"/>
-    <axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
-  <link name="sled"><inertial><mass value="2"/>
-    <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.3"/></inertial></link>
-  <joint name="rail" type="prismatic"><parent link="sled"/><child link="carriage"/>
-    <origin xyz="0.2 0 0"/><axis xyz="1 0 0"/>
-    <limit lower="-2000" upper="2000" effort="1" velocity="1"/></joint>
-  <link name="carriage"><inertial><mass value="3"/>
-    <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.3"/></inertial></link>
-"#,
-            1,
-        )
 }
 
 /// The rail coordinate (`q[1]`, after the slide's) moved 1.5 km.

@@ -48,3 +48,29 @@ pub fn allocations_during(f: impl FnOnce()) -> usize {
     f();
     ALLOCATIONS.with(std::cell::Cell::get) - before
 }
+
+/// An `n`-link pendulum hanging from a carriage on a 4 km rail (prismatic, ±2 km), the rail
+/// from a short slide: the carriage is not a root, so only its joint's travel takes it far.
+pub fn pendulum_on_a_rail(n: usize) -> String {
+    spatial_dynamics_core::model::examples::pendulum_urdf(n, 0.5, 0.7)
+        .replacen(
+            r#"<parent link="world"/>"#,
+            r#"<parent link="carriage"/>"#,
+            1,
+        )
+        .replacen(
+            "<link name=\"world\"/>\n",
+            r#"<link name="world"/>
+  <joint name="slide" type="prismatic"><parent link="world"/><child link="sled"/>
+    <axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <link name="sled"><inertial><mass value="2"/>
+    <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.3"/></inertial></link>
+  <joint name="rail" type="prismatic"><parent link="sled"/><child link="carriage"/>
+    <origin xyz="0.2 0 0"/><axis xyz="1 0 0"/>
+    <limit lower="-2000" upper="2000" effort="1" velocity="1"/></joint>
+  <link name="carriage"><inertial><mass value="3"/>
+    <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.3"/></inertial></link>
+"#,
+            1,
+        )
+}
