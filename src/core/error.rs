@@ -91,6 +91,8 @@ pub enum DynamicsError {
         model: String,
         model_id: u64,
     },
+    /// A time step that is negative or not finite (a linearisation's `dt`).
+    BadStep { dt: f64 },
 }
 
 impl fmt::Display for DynamicsError {
@@ -148,6 +150,9 @@ impl fmt::Display for DynamicsError {
                 f,
                 "the frame (link #{link}) was found in model #{frame_model_id}, not in the model given, '{model}' (#{model_id}): find it in this model with find_frame"
             ),
+            DynamicsError::BadStep { dt } => {
+                write!(f, "dt is {dt}: a time step must be finite and at least zero (0: continuous time)")
+            }
         }
     }
 }

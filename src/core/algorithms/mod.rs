@@ -8,7 +8,7 @@
 //! | [`gravity`](mod@gravity) | `g(q)`: the gravity part of `C` |
 //! | [`crba`](mod@crba) | `H(q)` (composite rigid-body algorithm) |
 //! | [`aba`](mod@aba) | forward dynamics in O(n) (articulated-body algorithm) |
-//! | [`derivatives`] | `∂τ/∂q`, `∂τ/∂q̇` of inverse dynamics and `∂q̈/∂q`, `∂q̈/∂q̇`, `H⁻¹` of forward dynamics |
+//! | [`derivatives`] | `∂τ/∂q`, `∂τ/∂q̇` of inverse dynamics and `∂q̈/∂q`, `∂q̈/∂q̇`, `H⁻¹` of forward dynamics; the linearised `A`, `B` |
 //! | [`rnea_columns`] | forward dynamics from n+1 inverse-dynamics calls (the handout's §2) |
 //! | [`forward_dynamics`](mod@forward_dynamics) | forward dynamics by a chosen [`ForwardDynamicsMethod`] |
 //! | [`method_choice`] | `method: auto`: of the methods whose `q̈` agrees with `aba`'s on sampled states, the one with the fewest FLOPs per call on this model (a count, not a timing) |
@@ -49,7 +49,8 @@ pub use bias::bias;
 pub use center_of_mass::{center_of_mass, center_of_mass_jacobian, CenterOfMass};
 pub use crba::crba;
 pub use derivatives::{
-    aba_derivatives, rnea_derivatives, rnea_derivatives_with, AbaDerivatives, RneaDerivatives,
+    aba_derivatives, integrate_jacobians, linearize, rnea_derivatives, rnea_derivatives_with,
+    AbaDerivatives, Linearization, RneaDerivatives,
 };
 pub use energy::energy;
 pub use forward_dynamics::{forward_dynamics, ForwardDynamicsMethod};

@@ -1,7 +1,9 @@
 //! Analytical derivatives of the dynamics (Carpentier & Mansard, "Analytical derivatives of
 //! rigid body dynamics algorithms", RSS 2018): [`rnea_derivatives`] gives `∂τ/∂q`, `∂τ/∂q̇` and
 //! `H = ∂τ/∂q̈` of inverse dynamics, [`aba_derivatives`] gives `∂q̈/∂q`, `∂q̈/∂q̇` and
-//! `H⁻¹ = ∂q̈/∂τ` of forward dynamics.
+//! `H⁻¹ = ∂q̈/∂τ` of forward dynamics; [`linearize`] assembles them into the state-space `A`, `B`
+//! of `x = [q; q̇]`, `u = τ`, in continuous time or over one simulator step, with the Jacobians
+//! of `⊕` ([`integrate_jacobians`]) for a floating base.
 //!
 //! # Tangent convention
 //!
@@ -16,9 +18,13 @@
 //! in `v` order.
 
 mod aba_derivatives;
+mod integrate_jacobians;
+mod linearize;
 mod rnea_derivatives;
 
 pub use aba_derivatives::{aba_derivatives, AbaDerivatives};
+pub use integrate_jacobians::integrate_jacobians;
+pub use linearize::{linearize, Linearization};
 pub use rnea_derivatives::{rnea_derivatives, rnea_derivatives_with, RneaDerivatives};
 
 use crate::model::Model;
