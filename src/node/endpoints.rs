@@ -158,6 +158,7 @@ pub struct Endpoints {
     pub mass_matrix: Server<MassMatrixRequest, MassMatrixResponse>,
     pub describe_model: Server<DescribeModelRequest, DescribeModelResponse>,
     pub frame_kinematics: Server<FrameKinematicsRequest, FrameKinematicsResponse>,
+    pub linearize: Server<LinearizeRequest, LinearizeResponse>,
     pub reset: Server<ResetRequest, ResetResponse>,
     pub pause: Server<SetBoolRequest, SetBoolResponse>,
     pub step: Server<TriggerRequest, TriggerResponse>,
@@ -232,6 +233,7 @@ impl Endpoints {
         let mass_matrix = server(node, &names.mass_matrix, dynamics("MassMatrix"))?;
         let describe_model = server(node, &names.describe_model, dynamics("DescribeModel"))?;
         let frame_kinematics = server(node, &names.frame_kinematics, dynamics("FrameKinematics"))?;
+        let linearize = server(node, &names.linearize, dynamics("Linearize"))?;
         let clock_topic = topic(
             node,
             &names.clock,
@@ -266,6 +268,7 @@ impl Endpoints {
             mass_matrix,
             describe_model,
             frame_kinematics,
+            linearize,
             reset: server(node, &names.reset, dynamics("Reset"))?,
             pause: server(node, &names.pause, ("std_srvs", "SetBool"))?,
             step: server(node, &names.step, ("std_srvs", "Trigger"))?,

@@ -52,4 +52,6 @@ messages!(
     DescribeModelResponse,
     FrameKinematicsRequest,
     FrameKinematicsResponse,
+    LinearizeRequest,
+    LinearizeResponse,
 );

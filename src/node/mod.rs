@@ -4,7 +4,7 @@
 //! `robot_description` (latched). Outputs: `~/gravity_effort`, `~/acceleration`,
 //! `~/effort_residual` (one joint state late), `~/feedforward_effort`, `~/feedforward_commands`, `/diagnostics`, `/rosout`. Services:
 //! `~/inverse_dynamics`, `~/forward_dynamics`, `~/mass_matrix`, `~/describe_model`,
-//! `~/frame_kinematics`, and the standard parameter services. In simulate mode (`mode: simulate`)
+//! `~/frame_kinematics`, `~/linearize`, and the standard parameter services. In simulate mode (`mode: simulate`)
 //! the node also publishes
 //! `joint_states`, a floating base's `~/base_state` (and `/clock` if `publish_clock`) from its
 //! own integrated state, with ground contact at `ground_contacts` if given, and serves
@@ -183,6 +183,7 @@ async fn serve(
     let mm_stream = ends.mass_matrix.receive_request_stream();
     let dm_stream = ends.describe_model.receive_request_stream();
     let fk_stream = ends.frame_kinematics.receive_request_stream();
+    let lin_stream = ends.linearize.receive_request_stream();
     let reset_stream = ends.reset.receive_request_stream();
     let pause_stream = ends.pause.receive_request_stream();
     let step_stream = ends.step.receive_request_stream();
@@ -198,6 +199,7 @@ async fn serve(
         mm_stream,
         dm_stream,
         fk_stream,
+        lin_stream,
         reset_stream,
         pause_stream,
         step_stream
@@ -232,6 +234,7 @@ async fn serve(
             Some(item) = fd_stream.next() => respond(&ends.forward_dynamics, item, &mut state, |n| &n.forward_dynamics, |s, r| s.forward_dynamics(&r)),
             Some(item) = mm_stream.next() => respond(&ends.mass_matrix, item, &mut state, |n| &n.mass_matrix, |s, r| s.mass_matrix(&r)),
             Some(item) = fk_stream.next() => respond(&ends.frame_kinematics, item, &mut state, |n| &n.frame_kinematics, |s, r| s.frame_kinematics(&r)),
+            Some(item) = lin_stream.next() => respond(&ends.linearize, item, &mut state, |n| &n.linearize, |s, r| s.linearize(&r)),
             Some(item) = dm_stream.next() => respond(&ends.describe_model, item, &mut state, |n| &n.describe_model, |s, _| s.describe_model()),
             _ = async { sim_timer.as_mut().expect("guarded").tick().await }, if sim_timer.is_some() => {
                 let out = state.simulation_tick(Instant::now());

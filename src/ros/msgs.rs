@@ -112,6 +112,17 @@ ros_message! {
         jacobians: Vec<f64>, accelerations: Vec<Accel>, mass: f64, center_of_mass: Point,
         center_of_mass_jacobian: Vec<f64>
     }
+    /// spatial_dynamics_msgs/Linearize request
+    LinearizeRequest {
+        name: Vec<String>, position: Vec<f64>, velocity: Vec<f64>, effort: Vec<f64>, dt: f64,
+        base_pose: Pose, base_twist: Twist, base_wrench: Wrench
+    }
+    /// spatial_dynamics_msgs/Linearize response
+    LinearizeResponse {
+        success: bool, message: String, columns: Vec<String>, dt: f64, effort: Vec<f64>,
+        acceleration: Vec<f64>, a: Vec<f64>, b: Vec<f64>, ddq_dq: Vec<f64>, ddq_dv: Vec<f64>,
+        minv: Vec<f64>
+    }
 }
 
 /// geometry_msgs/Quaternion; its default is the identity (`w = 1`), as the .msg declares.

@@ -19,16 +19,6 @@ use spatial_dynamics_core::algorithms::{
 use spatial_dynamics_core::spatial::Transform;
 use spatial_dynamics_core::Model;
 
-/// The names of a floating base's six velocity coordinates, after its joint's name.
-const BASE_COLUMNS: [&str; 6] = [
-    "linear_x",
-    "linear_y",
-    "linear_z",
-    "angular_x",
-    "angular_y",
-    "angular_z",
-];
-
 impl Engine {
     /// `~/frame_kinematics`.
     pub fn frame_kinematics(&mut self, req: &FrameKinematicsRequest) -> FrameKinematicsResponse {
@@ -71,21 +61,7 @@ impl Engine {
             .map(|(i, link)| frame_named(&self.model, link).map_err(|e| format!("links[{i}]: {e}")))
             .collect::<Result<Vec<Frame>, String>>()?;
         // The velocity coordinates in answer order: the base's six, then the joints as named.
-        let base = self.map.base().map(|(_, v)| v..v + 6).into_iter().flatten();
-        let index: Vec<usize> = base
-            .chain(self.map.answer_order().map(|s| self.map.slot(s).1))
-            .collect();
-        let mut columns: Vec<String> = match self.map.base() {
-            Some(_) => {
-                let joint = &self.model.bodies()[0].joint.name;
-                BASE_COLUMNS
-                    .iter()
-                    .map(|c| format!("{joint}/{c}"))
-                    .collect()
-            }
-            None => Vec::new(),
-        };
-        columns.extend(self.map.answer_names());
+        let (index, columns) = self.velocity_columns();
 
         let (com, jc) = center_of_mass_jacobian(&self.model, &mut self.ws, &self.q)
             .map_err(|e| e.to_string())?;

@@ -4,6 +4,7 @@
 
 pub mod clock;
 mod frame_kinematics;
+mod linearize;
 mod simulation;
 
 use super::params::Settings;
@@ -16,7 +17,7 @@ use simulation::Simulation;
 use spatial_dynamics_core::algorithms::kinematics::body_placements;
 use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics_core::algorithms::{
-    choose_method, crba, forward_dynamics, rnea_with, JointStateInputs,
+    choose_method, crba, forward_dynamics, rnea_with, JointStateInputs, Linearization,
 };
 use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
 use spatial_dynamics_core::spatial::{Force, Transform};
@@ -88,6 +89,8 @@ pub struct Engine {
     /// Latest floating-base pose `[x y z qx qy qz qw]` and twist from `~/base_state`.
     base_q: [f64; 7],
     base_v: [f64; 6],
+    /// `~/linearize`'s matrices and scratch.
+    linearization: Linearization,
 }
 
 impl Engine {
@@ -137,6 +140,7 @@ impl Engine {
             simulation: None,
             base_q: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
             base_v: [0.0; 6],
+            linearization: Linearization::new(&model),
             method: ForwardDynamicsMethod::Aba,
             method_choice: None,
             model,
@@ -234,15 +238,7 @@ impl Engine {
                 } else {
                     req.method.parse()?
                 };
-                scatter_rates(
-                    &self.map,
-                    ("effort", &req.effort),
-                    (
-                        "base_wrench",
-                        [&req.base_wrench.force, &req.base_wrench.torque],
-                    ),
-                    &mut self.tau,
-                )?;
+                self.read_efforts(&req.effort, &req.base_wrench)?;
                 let n = self.external_wrenches(&req.external_wrenches)?;
                 let ext = Externals {
                     wrenches: (n > 0).then_some(self.wrenches.as_slice()),
@@ -294,6 +290,8 @@ impl Engine {
                 ..Default::default()
             };
         }
+        // Rows and columns: the base's six coordinates, then the joints in the request's order.
+        let (index, _) = self.velocity_columns();
         let h = match crba(&self.model, &mut self.ws, &self.q) {
             Ok(h) => h,
             Err(e) => {
@@ -303,15 +301,7 @@ impl Engine {
                 }
             }
         };
-        // Rows and columns: the base's six coordinates, then the joints in the request's order.
-        let base = self.map.base().map(|(_, v)| v..v + 6).into_iter().flatten();
-        let index: Vec<usize> = base
-            .chain(self.map.answer_order().map(|s| self.map.slot(s).1))
-            .collect();
-        let matrix = index
-            .iter()
-            .flat_map(|&r| index.iter().map(move |&c| h[(r, c)]))
-            .collect();
+        let matrix = linearize::permuted(h, &index, &index);
         MassMatrixResponse {
             success: true,
             message: String::new(),
@@ -592,6 +582,17 @@ impl Engine {
             ("acceleration", acceleration),
             ("base_accel", [&base_accel.linear, &base_accel.angular]),
             &mut self.a,
+        )
+    }
+
+    /// A request's `effort` (by its names, as [`Self::read_state`] matched them) and
+    /// `base_wrench` into `self.tau`.
+    fn read_efforts(&mut self, effort: &[f64], base_wrench: &Wrench) -> Result<(), String> {
+        scatter_rates(
+            &self.map,
+            ("effort", effort),
+            ("base_wrench", [&base_wrench.force, &base_wrench.torque]),
+            &mut self.tau,
         )
     }
 

@@ -61,6 +61,11 @@ impl NodeState {
         self.engine.frame_kinematics(request)
     }
 
+    /// `~/linearize`: `A`, `B` of `x = [q; v]`, `u = τ`, continuous or over one step.
+    pub fn linearize(&mut self, request: &LinearizeRequest) -> LinearizeResponse {
+        self.engine.linearize(request)
+    }
+
     /// `~/describe_model`.
     pub fn describe_model(&self) -> DescribeModelResponse {
         self.engine.describe()

@@ -271,7 +271,7 @@ fn run(u: &mut Unstructured) -> Result<()> {
     };
     let vocabulary = Vocabulary::new(&engine);
     for _ in 0..u.int_in_range(1u8..=12)? {
-        match u.int_in_range(0u8..=13)? {
+        match u.int_in_range(0u8..=14)? {
             0 => {
                 let names = vocabulary.names(u)?;
                 let js = JointState {
@@ -499,6 +499,39 @@ fn run(u: &mut Unstructured) -> Result<()> {
                     assert_eq!(r.jacobians.len(), r.links.len() * 6 * n);
                     assert_eq!(r.center_of_mass_jacobian.len(), 3 * n);
                     assert_eq!((r.poses.len(), r.accelerations.len()), (r.links.len(), r.links.len()));
+                }
+            }
+            13 => {
+                let names = vocabulary.names(u)?;
+                let req = LinearizeRequest {
+                    position: numbers(u, names.len())?,
+                    velocity: numbers(u, names.len())?,
+                    effort: numbers(u, names.len())?,
+                    name: names,
+                    dt: if u.arbitrary()? {
+                        number(u)?
+                    } else {
+                        *u.choose(&[0.0, 1e-3, 0.05])?
+                    },
+                    base_pose: pose(u)?,
+                    base_twist: twist(u)?,
+                    base_wrench: Wrench {
+                        force: vector(u)?,
+                        torque: vector(u)?,
+                    },
+                };
+                let r = engine.linearize(&req);
+                service(
+                    "linearize",
+                    r.success,
+                    &r.message,
+                    &[&r.a, &r.b, &r.ddq_dq, &r.ddq_dv, &r.minv, &r.effort, &r.acceleration],
+                    &r.columns,
+                );
+                if r.success {
+                    let n = r.columns.len();
+                    assert_eq!((r.a.len(), r.b.len(), r.minv.len()), (4 * n * n, 2 * n * n, n * n));
+                    assert_eq!((r.effort.len(), r.acceleration.len()), (n, n));
                 }
             }
             _ => {
