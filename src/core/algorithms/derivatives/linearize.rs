@@ -92,7 +92,11 @@ pub fn linearize<'w>(
         return Err(DynamicsError::BadStep { dt });
     }
     let nv = model.nv();
-    check_len("linearization (v_next)", nv, out.v_next.len())?;
+    check_len(
+        "the Linearization (made for a model of another size)",
+        nv,
+        out.v_next.len(),
+    )?;
     aba_derivatives(model, ws, q, v, tau, &Externals::none())?;
     let d = &ws.derivatives;
     let (a, b) = (&mut out.a, &mut out.b);
