@@ -180,13 +180,14 @@ def test_floating_base_against_pinocchio(module_nodes, ros):
         (request(ARM_JOINTS, np.zeros(7), v=np.zeros(8)), ["velocity", "8"]),
         (request(ARM_JOINTS, np.zeros(7), effort=np.zeros(3)), ["effort", "3"]),
         (request(ARM_JOINTS, np.zeros(7), effort=[0, 0, 0, float("inf"), 0, 0, 0]), ["effort", "joint4"]),
+        (request(ARM_JOINTS, np.zeros(7), v=[1e300] * 7), ["finite"]),
     ],
     ids=["unknown joint", "NaN position", "negative dt", "NaN dt", "short position", "long velocity",
-         "short effort", "infinite effort"],
+         "short effort", "infinite effort", "overflowing state"],
 )
 def test_bad_requests_are_refused(ros, sim, req, words):
     r = ros.call(Linearize, LIN, req)
-    assert not r.success
+    assert not r.success and r.message
     for w in words:
         assert w in r.message, r.message
     assert not (r.columns or r.a or r.b or r.ddq_dq or r.ddq_dv or r.minv or r.effort or r.acceleration)
