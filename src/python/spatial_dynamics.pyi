@@ -14,8 +14,8 @@ from typing import Literal, Optional, Sequence, Tuple, Union
 import numpy as np
 import numpy.typing as npt
 
-ArrayLike = Union[npt.NDArray[np.float64], Sequence[float], Sequence[Sequence[float]]]
-Array = npt.NDArray[np.float64]
+_ArrayLike = Union[npt.NDArray[np.float64], Sequence[float], Sequence[Sequence[float]]]
+_Array = npt.NDArray[np.float64]
 
 class DynamicsError(ValueError):
     """Bad input (a NaN naming its coordinate, an unknown frame, a wrong shape naming the
@@ -48,34 +48,34 @@ class Model:
     @property
     def forward_dynamics_method(self) -> str:
         """The method ``forward_dynamics(method=None)`` uses: "aba", "crba" or "rnea_columns"."""
-    def rnea(self, q: ArrayLike, v: ArrayLike, a: ArrayLike) -> Array:
+    def rnea(self, q: _ArrayLike, v: _ArrayLike, a: _ArrayLike) -> _Array:
         """Inverse dynamics ``tau = M(q) a + C(q, v) + g(q)``: ``(nv,)`` or ``(N, nv)``."""
-    def gravity(self, q: ArrayLike) -> Array:
+    def gravity(self, q: _ArrayLike) -> _Array:
         """Generalized gravity ``g(q)``: ``(nv,)`` or ``(N, nv)``."""
     def forward_dynamics(
         self,
-        q: ArrayLike,
-        v: ArrayLike,
-        tau: ArrayLike,
+        q: _ArrayLike,
+        v: _ArrayLike,
+        tau: _ArrayLike,
         method: Optional[Literal["aba", "crba", "rnea_columns"]] = None,
-    ) -> Array:
+    ) -> _Array:
         """Forward dynamics ``qdd = M(q)^-1 (tau - C(q, v) - g(q))``: ``(nv,)`` or ``(N, nv)``."""
-    def mass_matrix(self, q: ArrayLike) -> Array:
+    def mass_matrix(self, q: _ArrayLike) -> _Array:
         """The mass matrix ``M(q)``: ``(nv, nv)`` or ``(N, nv, nv)``."""
-    def frame_placement(self, q: ArrayLike, frame: str) -> Tuple[Array, Array]:
+    def frame_placement(self, q: _ArrayLike, frame: str) -> Tuple[_Array, _Array]:
         """``(translation, rotation)`` of a link in the world (Pinocchio's ``oMf``):
         ``(3,)``, ``(3, 3)`` or ``(N, 3)``, ``(N, 3, 3)``."""
     def frame_jacobian(
         self,
-        q: ArrayLike,
+        q: _ArrayLike,
         frame: str,
         reference: Literal["world", "local", "local_world_aligned"] = "world",
-    ) -> Array:
+    ) -> _Array:
         """A link's Jacobian, rows ``[linear; angular]``: ``(6, nv)`` or ``(N, 6, nv)``."""
-    def center_of_mass(self, q: ArrayLike) -> Tuple[Union[float, Array], Array, Array]:
+    def center_of_mass(self, q: _ArrayLike) -> Tuple[Union[float, _Array], _Array, _Array]:
         """``(mass, com, J)``: a float, ``(3,)``, ``(3, nv)``; or ``(N,)``, ``(N, 3)``,
         ``(N, 3, nv)``."""
-    def rnea_derivatives(self, q: ArrayLike, v: ArrayLike, a: ArrayLike) -> Tuple[Array, Array, Array]:
+    def rnea_derivatives(self, q: _ArrayLike, v: _ArrayLike, a: _ArrayLike) -> Tuple[_Array, _Array, _Array]:
         """``(dtau_dq, dtau_dv, M)``, each ``(nv, nv)`` or ``(N, nv, nv)``."""
-    def aba_derivatives(self, q: ArrayLike, v: ArrayLike, tau: ArrayLike) -> Tuple[Array, Array, Array]:
+    def aba_derivatives(self, q: _ArrayLike, v: _ArrayLike, tau: _ArrayLike) -> Tuple[_Array, _Array, _Array]:
         """``(ddq_dq, ddq_dv, Minv)``, each ``(nv, nv)`` or ``(N, nv, nv)``."""
