@@ -2,7 +2,9 @@
 # Sets up the repo's Python environment `.venv/` (at the repo root) for tests and tools:
 #   - ROS 2 from PyPI wheels (rclpy, Fast DDS, the common interface packages),
 #   - pytest, numpy, Pinocchio (`pin`), example-robot-data (reference URDFs), rosbags, colcon,
-#   - our own interface package msg/ (spatial_dynamics_msgs), built and installed into the venv.
+#   - our own interface package msg/ (spatial_dynamics_msgs), built and installed into the venv,
+#   - our Python package src/python (`import spatial_dynamics`), built by maturin in the
+#     workspace's target/ and installed into the venv (not into .venv-jazzy).
 # With --jazzy it sets up `.venv-jazzy/` instead: the genuine ROS 2 Jazzy wheels (`ros-jazzy-*`:
 # rclpy 7.1, rmw_fastrtps_cpp on Fast DDS 2.14), msg/ built against them, and only what the DDS
 # tests need besides (pytest, numpy, pin, example-robot-data); run_tests.sh runs a subset of the
@@ -11,7 +13,8 @@
 # Usage: launch_scripts/setup_python_env.sh [--jazzy] [--force]
 #   Idempotent: a second run only compares two stamp files and exits in well under a second.
 #   The Python packages are (re)installed when the package list below changes, and msg/ is
-#   rebuilt when any file under msg/ changes. --force (or SETUP_FORCE=1) redoes both.
+#   rebuilt when any file under msg/ changes, src/python when src/core, src/python or Cargo.lock
+#   changes. --force (or SETUP_FORCE=1) redoes all three.
 #   Environment: PYTHON=/path/to/python3.11 picks the interpreter (default: python3.11, python3).
 #   Works without a terminal (CI=true, no stdin); missing Debian packages are installed with apt-get.
 set -euo pipefail
@@ -32,6 +35,7 @@ if [[ "$jazzy" == 1 ]]; then venv="$repo/.venv-jazzy"; else venv="$repo/.venv"; 
 msg_dir="$repo/msg"
 build_dir="$venv/build/spatial_dynamics_msgs"   # inside the venv: never tracked by git
 pip_stamp="$venv/.setup_pip.stamp"
+package_stamp="$venv/.setup_package.stamp"
 msg_stamp="$venv/.setup_msgs.stamp"
 
 # Started from a venv's Python, we inherit its ROS wheels bootstrapper's guard and LD_LIBRARY_PATH
@@ -231,6 +235,34 @@ EOF
     echo "$want_msg" >"$msg_stamp"
 else
     log "spatial_dynamics_msgs up to date (stamp $msg_stamp)"
+fi
+
+# --- 5. Our Python package src/python (skipped when what it is built from has not changed) -------
+# maturin builds the wheel in the workspace's target/ (release; only the binding crate and PyO3
+# compile when target/ is warm), then pip installs it.
+package_hash() {
+    {
+        (cd "$repo" && find src/core src/python Cargo.lock -type f ! -path '*/tests/*' -print0 \
+            | LC_ALL=C sort -z | xargs -0 sha256sum)
+        "$vpy" -VV 2>&1
+    } | sha256sum | cut -d' ' -f1
+}
+if [[ "$jazzy" == 0 ]]; then
+    want_package="$(package_hash)"
+    if [[ "$force" == 1 || ! -f "$package_stamp" || "$(cat "$package_stamp")" != "$want_package" ]] \
+        || ! "$vpy" -c 'import spatial_dynamics' 2>/dev/null; then
+        log "building the Python package src/python (spatial_dynamics) into $venv"
+        "$vpy" -c 'import maturin' 2>/dev/null || "$vpy" -m pip install -q 'maturin>=1.9,<2' </dev/null
+        wheels="$venv/build/wheels"
+        rm -rf "$wheels"
+        "$venv/bin/maturin" build --release --quiet -m "$repo/src/python/Cargo.toml" \
+            --interpreter "$vpy" --out "$wheels" </dev/null
+        "$vpy" -m pip install -q --force-reinstall --no-deps "$wheels"/spatial_dynamics-*.whl </dev/null
+        "$vpy" -c 'import spatial_dynamics' || die "spatial_dynamics was installed but does not import"
+        echo "$want_package" >"$package_stamp"
+    else
+        log "the Python package spatial_dynamics is up to date (stamp $package_stamp)"
+    fi
 fi
 
 echo

@@ -5,7 +5,10 @@ header spatial_dynamics.hpp) against include/spatial_dynamics.h, each once linke
 shared library and once with the static one (``-lpthread -ldl -lm``), both found beside the
 binary ``SPATIAL_DYNAMICS_BIN`` points at (target/release/; ``cargo build --release`` makes
 them). Each program reads a random state and prints τ = RNEA(q, q̇, q̈), g(q), q̈ = FD(q, q̇, τ),
-M(q) and an end-effector link's Jacobian in the three reference frames; on UR5 and Panda (the
+M(q), an end-effector link's Jacobian in the three reference frames and the derivatives
+(sd_rnea_derivatives: ∂τ/∂q, ∂τ/∂q̇, M; sd_aba_derivatives: ∂q̈/∂q, ∂q̈/∂q̇, M⁻¹, against
+computeRNEADerivatives / computeABADerivatives, whose M and M⁻¹ may hold only their upper
+triangle and are symmetrised); on UR5 and Panda (the
 example-robot-data URDFs of test_pinocchio_reference.py, mimic tags ignored as Pinocchio's
 model does) every one must match Pinocchio's to 1e-9 relative to the quantity's largest entry
 (coordinates matched by name). Bad input from C and C++ (a NaN in q, an unknown frame, a
@@ -121,6 +124,29 @@ def close(ours, ref, what):
     assert err <= TOLERANCE, f"{what}: relative difference {err:.3e} > {TOLERANCE:g}\nours {ours}\nref  {ref}"
 
 
+def symmetric(upper: np.ndarray) -> np.ndarray:
+    """The symmetric matrix whose upper triangle is ``upper``'s."""
+    return np.triu(upper) + np.triu(upper, 1).T
+
+
+def check_derivatives(ours, model, data, q, v, a, tau, pin_index, label):
+    """The probe's six derivative matrices (row-major, our coordinate order) against Pinocchio's."""
+    nv = model.nv
+    order = np.ix_(pin_index, pin_index)
+    dtau_dq, dtau_dv, mass = (np.array(m, copy=True) for m in pin.computeRNEADerivatives(model, data, q, v, a))
+    ddq_dq, ddq_dv, minv = (np.array(m, copy=True) for m in pin.computeABADerivatives(model, data, q, v, tau))
+    expected = {
+        "dtau_dq": dtau_dq,
+        "dtau_dv": dtau_dv,
+        "M_rnea": symmetric(mass),
+        "ddq_dq": ddq_dq,
+        "ddq_dv": ddq_dv,
+        "Minv": symmetric(minv),
+    }
+    for key, ref in expected.items():
+        close(np.array(ours[key], dtype=float).reshape(nv, nv), ref[order], f"{label} {key}")
+
+
 @pytest.mark.parametrize("robot,relative,frame", ROBOTS, ids=[r[0] for r in ROBOTS])
 @pytest.mark.parametrize("language", LANGUAGES)
 @pytest.mark.parametrize("link", LINKS)
@@ -153,6 +179,7 @@ def test_matches_pinocchio(probes, robot, relative, frame, language, link):
     for key, reference in REFERENCES.items():
         ref = pin.computeFrameJacobian(model, data, q, frame_id, reference)[:, pin_index]
         close(values[key].reshape(6, nv), ref, f"{label} {key}")
+    check_derivatives(ours, model, data, q, v, a, tau, pin_index, label)
     # Bad input: the status code (1: SD_ERROR_INPUT, 2: SD_ERROR_USAGE) and the message.
     last = names[-1]
     status, message = ours["error nan"]

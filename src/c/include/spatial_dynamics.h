@@ -93,6 +93,37 @@ extern "C" {
 #endif // __cplusplus
 
 /**
+ * The derivatives of inverse dynamics `tau = RNEA(q, v, a)` (gravity, no external forces,
+ * base at rest): `dtau_dq = ∂tau/∂q`, `dtau_dv = ∂tau/∂v` and `m = ∂tau/∂a = M(q)`, the mass
+ * matrix (full, symmetric). `q`: `nq` values; `v`, `a`: `nv`; each output `nv·nv`,
+ * row-major. Returns 0, or non-zero with `sd_last_error` naming the coordinate at fault.
+ */
+int sd_rnea_derivatives(const struct sd_model *model,
+                        struct sd_workspace *workspace,
+                        const double *q,
+                        const double *v,
+                        const double *a,
+                        double *dtau_dq,
+                        double *dtau_dv,
+                        double *m);
+
+/**
+ * The derivatives of forward dynamics `qdd = FD(q, v, tau)` (gravity, no external forces,
+ * base at rest): `ddq_dq = ∂qdd/∂q`, `ddq_dv = ∂qdd/∂v` and `minv = ∂qdd/∂tau = M(q)⁻¹`
+ * (full, symmetric). `q`: `nq` values; `v`, `tau`: `nv`; each output `nv·nv`, row-major.
+ * Returns 0, or non-zero with `sd_last_error` naming the coordinate or joint at fault (a NaN,
+ * a singular mass matrix).
+ */
+int sd_aba_derivatives(const struct sd_model *model,
+                       struct sd_workspace *workspace,
+                       const double *q,
+                       const double *v,
+                       const double *tau,
+                       double *ddq_dq,
+                       double *ddq_dv,
+                       double *minv);
+
+/**
  * Inverse dynamics (recursive Newton–Euler): `tau = M(q) a + C(q, v) + g(q)`, the efforts that
  * give the robot acceleration `a` at position `q` and velocity `v` under gravity (base at
  * rest in an inertial frame, no external forces). `q`: `nq` values; `v`, `a`, `tau`: `nv`.

@@ -151,6 +151,16 @@ inline void forward_dynamics(const Model& model, Workspace& ws, const double* q,
 inline void mass_matrix(const Model& model, Workspace& ws, const double* q, double* m) {
   detail::check(sd_mass_matrix(model.get(), ws.get(), q, m));
 }
+// The derivatives of inverse dynamics: dtau_dq, dtau_dv and m = M(q), each nv × nv, row-major.
+inline void rnea_derivatives(const Model& model, Workspace& ws, const double* q, const double* v,
+                             const double* a, double* dtau_dq, double* dtau_dv, double* m) {
+  detail::check(sd_rnea_derivatives(model.get(), ws.get(), q, v, a, dtau_dq, dtau_dv, m));
+}
+// The derivatives of forward dynamics: ddq_dq, ddq_dv and minv = M(q)⁻¹, each nv × nv, row-major.
+inline void aba_derivatives(const Model& model, Workspace& ws, const double* q, const double* v,
+                            const double* tau, double* ddq_dq, double* ddq_dv, double* minv) {
+  detail::check(sd_aba_derivatives(model.get(), ws.get(), q, v, tau, ddq_dq, ddq_dv, minv));
+}
 // The Jacobian of URDF link `frame`, 6 × nv, row-major, rows [linear; angular].
 inline void frame_jacobian(const Model& model, Workspace& ws, const double* q, const char* frame,
                            Reference reference, double* j) {
@@ -203,6 +213,34 @@ inline void mass_matrix(const Model& model, Workspace& ws, std::span<const doubl
   detail::check_length("sd::mass_matrix", "q", q.size(), model.nq());
   detail::check_length("sd::mass_matrix", "m", m.size(), model.nv() * model.nv());
   mass_matrix(model, ws, q.data(), m.data());
+}
+inline void rnea_derivatives(const Model& model, Workspace& ws, std::span<const double> q,
+                             std::span<const double> v, std::span<const double> a,
+                             std::span<double> dtau_dq, std::span<double> dtau_dv,
+                             std::span<double> m) {
+  const std::size_t nq = model.nq(), nv = model.nv();
+  detail::check_length("sd::rnea_derivatives", "q", q.size(), nq);
+  detail::check_length("sd::rnea_derivatives", "v", v.size(), nv);
+  detail::check_length("sd::rnea_derivatives", "a", a.size(), nv);
+  detail::check_length("sd::rnea_derivatives", "dtau_dq", dtau_dq.size(), nv * nv);
+  detail::check_length("sd::rnea_derivatives", "dtau_dv", dtau_dv.size(), nv * nv);
+  detail::check_length("sd::rnea_derivatives", "m", m.size(), nv * nv);
+  rnea_derivatives(model, ws, q.data(), v.data(), a.data(), dtau_dq.data(), dtau_dv.data(),
+                   m.data());
+}
+inline void aba_derivatives(const Model& model, Workspace& ws, std::span<const double> q,
+                            std::span<const double> v, std::span<const double> tau,
+                            std::span<double> ddq_dq, std::span<double> ddq_dv,
+                            std::span<double> minv) {
+  const std::size_t nq = model.nq(), nv = model.nv();
+  detail::check_length("sd::aba_derivatives", "q", q.size(), nq);
+  detail::check_length("sd::aba_derivatives", "v", v.size(), nv);
+  detail::check_length("sd::aba_derivatives", "tau", tau.size(), nv);
+  detail::check_length("sd::aba_derivatives", "ddq_dq", ddq_dq.size(), nv * nv);
+  detail::check_length("sd::aba_derivatives", "ddq_dv", ddq_dv.size(), nv * nv);
+  detail::check_length("sd::aba_derivatives", "minv", minv.size(), nv * nv);
+  aba_derivatives(model, ws, q.data(), v.data(), tau.data(), ddq_dq.data(), ddq_dv.data(),
+                  minv.data());
 }
 inline void frame_jacobian(const Model& model, Workspace& ws, std::span<const double> q,
                            const char* frame, Reference reference, std::span<double> j) {

@@ -9,6 +9,7 @@
 //! | [`model`] | `sd_model`: a URDF model, its coordinate names and its forward-dynamics method |
 //! | [`workspace`] | `sd_workspace`: the scratch of one model's calls |
 //! | [`dynamics`] | inverse dynamics, gravity, forward dynamics, the mass matrix |
+//! | [`derivatives`] | the derivatives of inverse and forward dynamics |
 //! | [`frames`] | frame Jacobians |
 //!
 //! The conventions are the library's: SI units; `q` and `v` in the order of
@@ -32,6 +33,7 @@
 // The contract is the crate's `# Safety` section above, the same for every function.
 #![allow(clippy::missing_safety_doc)]
 
+pub mod derivatives;
 pub mod dynamics;
 pub mod frames;
 pub mod model;

@@ -7,16 +7,12 @@ use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics_core::{urdf, ForwardDynamicsMethod, Model, ModelOptions};
 use std::ffi::{c_char, c_int, CStr, CString};
 use std::ptr;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 /// A robot model (immutable once made): opaque to C. Made by `sd_model_from_urdf_file` or
 /// `sd_model_from_urdf_string`, freed by `sd_model_free`.
 pub struct sd_model {
     pub(crate) model: Model,
-    /// Unique for the process, so that a workspace knows the model it was made for even when
-    /// another model is later made at the same address.
-    pub(crate) id: u64,
     /// The method `method: auto` picks for this model ([`choose_method`]).
     pub(crate) method: ForwardDynamicsMethod,
     /// `model.v_name(i)` for each velocity coordinate.
@@ -36,8 +32,6 @@ pub struct sd_model_options {
     pub ignore_mimic: c_int,
 }
 
-static NEXT_ID: AtomicU64 = AtomicU64::new(1);
-
 impl sd_model {
     fn new(model: Model) -> Self {
         // Errors only when no method runs on the model (a singular mass matrix, say): then
@@ -48,7 +42,6 @@ impl sd_model {
             .map(|i| CString::new(model.v_name(i).replace('\0', "\\0")).unwrap_or_default())
             .collect();
         sd_model {
-            id: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             model,
             method,
             v_names,

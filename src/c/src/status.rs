@@ -76,6 +76,10 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
 pub(crate) fn guard(function: &str, body: impl FnOnce() -> Result<(), Failure>) -> c_int {
     let status = match catch_unwind(AssertUnwindSafe(body)) {
         Ok(Ok(())) => return sd_status::SD_OK as c_int,
+        // A workspace made for another model is a misuse of the interface, not bad input.
+        Ok(Err(Failure::Dynamics(e @ DynamicsError::ForeignWorkspace { .. }))) => {
+            (sd_status::SD_ERROR_USAGE, e.to_string())
+        }
         Ok(Err(Failure::Dynamics(e))) => (sd_status::SD_ERROR_INPUT, e.to_string()),
         Ok(Err(Failure::Model(e))) => (sd_status::SD_ERROR_INPUT, e.to_string()),
         Ok(Err(Failure::Usage(m))) => (sd_status::SD_ERROR_USAGE, m),

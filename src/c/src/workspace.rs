@@ -1,5 +1,6 @@
-//! `sd_workspace`: the library's [`Workspace`] for one model, and which model that is, checked
-//! at every call so that a workspace used with another model is an error, never a wrong answer.
+//! `sd_workspace`: the library's [`Workspace`] for one model. The library's algorithms refuse
+//! a workspace made for another model (`DynamicsError::ForeignWorkspace`, a usage error here),
+//! so a mismatch is an error, never a wrong answer.
 
 use crate::model::sd_model;
 use crate::status::{guard_value, non_null, non_null_mut, Failure};
@@ -10,12 +11,10 @@ use std::ptr;
 /// `sd_workspace_free`. A workspace serves one thread at a time; give each thread its own.
 pub struct sd_workspace {
     workspace: Workspace,
-    /// [`sd_model::id`] of the model it was made for.
-    model_id: u64,
 }
 
-/// The model and workspace of a call, checked: neither NULL, and the workspace made for this
-/// model.
+/// The model and workspace of a call, checked not NULL (the library checks that the workspace
+/// was made for this model).
 ///
 /// # Safety
 /// Non-NULL pointers must point to live objects made by this library; the workspace must not
@@ -26,12 +25,6 @@ pub(crate) unsafe fn checked<'a>(
 ) -> Result<(&'a Model, &'a mut Workspace, &'a sd_model), Failure> {
     let model = non_null(model, "model")?;
     let workspace = non_null_mut(workspace, "workspace")?;
-    if workspace.model_id != model.id {
-        return Err(Failure::Usage(format!(
-            "the workspace was made for another model, not '{}': make one with sd_workspace_new(model)",
-            model.model.name()
-        )));
-    }
     Ok((&model.model, &mut workspace.workspace, model))
 }
 
@@ -44,7 +37,6 @@ pub unsafe extern "C" fn sd_workspace_new(model: *const sd_model) -> *mut sd_wor
         let model = non_null(model, "model")?;
         Ok(Box::into_raw(Box::new(sd_workspace {
             workspace: Workspace::new(&model.model),
-            model_id: model.id,
         })))
     })
 }

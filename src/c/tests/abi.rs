@@ -2,6 +2,7 @@
 //! their errors are non-zero codes with the library's message; NULL pointers, foreign
 //! workspaces and bad arguments are refused, never answered.
 
+use spatial_dynamics_c::derivatives::*;
 use spatial_dynamics_c::dynamics::*;
 use spatial_dynamics_c::frames::sd_reference_frame::*;
 use spatial_dynamics_c::frames::*;
@@ -10,8 +11,8 @@ use spatial_dynamics_c::status::*;
 use spatial_dynamics_c::workspace::*;
 use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics_core::algorithms::{
-    choose_method, crba, find_frame, forward_dynamics, frame_jacobian, gravity, rnea,
-    ReferenceFrame,
+    aba_derivatives, choose_method, crba, find_frame, forward_dynamics, frame_jacobian, gravity,
+    rnea, rnea_derivatives, ReferenceFrame,
 };
 use spatial_dynamics_core::model::examples::{DEFAULT_ARM_URDF, MIMIC_GRIPPER_URDF};
 use spatial_dynamics_core::{urdf, Externals, Model, ModelOptions, Workspace};
@@ -549,6 +550,32 @@ fn a_workspace_of_another_model_is_refused() {
                 sd_mass_matrix(twin.model, arm.ws, q.as_ptr(), o),
             ),
             (
+                "sd_rnea_derivatives",
+                sd_rnea_derivatives(
+                    twin.model,
+                    arm.ws,
+                    q.as_ptr(),
+                    v.as_ptr(),
+                    a.as_ptr(),
+                    o,
+                    o,
+                    o,
+                ),
+            ),
+            (
+                "sd_aba_derivatives",
+                sd_aba_derivatives(
+                    twin.model,
+                    arm.ws,
+                    q.as_ptr(),
+                    v.as_ptr(),
+                    a.as_ptr(),
+                    o,
+                    o,
+                    o,
+                ),
+            ),
+            (
                 "sd_frame_jacobian",
                 sd_frame_jacobian(twin.model, arm.ws, q.as_ptr(), frame.as_ptr(), 0, o),
             ),
@@ -557,7 +584,7 @@ fn a_workspace_of_another_model_is_refused() {
             assert_eq!(status, USAGE, "{function}");
         }
         assert!(
-            last_error().starts_with("sd_frame_jacobian: the workspace was made for another model"),
+            last_error().starts_with("sd_frame_jacobian: the workspace was made for model"),
             "{}",
             last_error()
         );
@@ -591,4 +618,96 @@ fn a_model_without_coordinates_answers_with_empty_arrays() {
         sd_workspace_free(ws);
         sd_model_free(model);
     }
+}
+
+/// `matrix` row by row.
+fn row_major(matrix: &nalgebra::DMatrix<f64>) -> Vec<f64> {
+    matrix.transpose().as_slice().to_vec()
+}
+
+#[test]
+fn derivatives_are_the_library_s_row_major() {
+    for h in models() {
+        let m = &h.library;
+        let nv = m.nv();
+        let mut ws = Workspace::new(m);
+        let (q, v, a) = h.state();
+        let mut outs = [
+            vec![f64::NAN; nv * nv],
+            vec![f64::NAN; nv * nv],
+            vec![f64::NAN; nv * nv],
+        ];
+        let [d0, d1, d2] = &mut outs;
+        let status = unsafe {
+            sd_rnea_derivatives(
+                h.model,
+                h.ws,
+                q.as_ptr(),
+                v.as_ptr(),
+                a.as_ptr(),
+                d0.as_mut_ptr(),
+                d1.as_mut_ptr(),
+                d2.as_mut_ptr(),
+            )
+        };
+        assert_eq!(status, OK, "{}", m.name());
+        let d = rnea_derivatives(m, &mut ws, &q, &v, &a).unwrap();
+        let expected = [
+            row_major(d.dtau_dq),
+            row_major(d.dtau_dv),
+            row_major(d.mass_matrix),
+        ];
+        assert_eq!(outs, expected, "{}", m.name());
+        // The effort that the acceleration `a` needs, so that forward dynamics is well away from
+        // anything singular.
+        let tau = rnea(m, &mut ws, &q, &v, &a).unwrap().to_vec();
+        let [d0, d1, d2] = &mut outs;
+        let status = unsafe {
+            sd_aba_derivatives(
+                h.model,
+                h.ws,
+                q.as_ptr(),
+                v.as_ptr(),
+                tau.as_ptr(),
+                d0.as_mut_ptr(),
+                d1.as_mut_ptr(),
+                d2.as_mut_ptr(),
+            )
+        };
+        assert_eq!(status, OK, "{}", m.name());
+        let d = aba_derivatives(m, &mut ws, &q, &v, &tau, &Externals::none()).unwrap();
+        let expected = [row_major(d.ddq_dq), row_major(d.ddq_dv), row_major(d.minv)];
+        assert_eq!(outs, expected, "{}", m.name());
+    }
+}
+
+#[test]
+fn derivatives_refuse_bad_input_and_null_outputs_untouched() {
+    let h = Handles::new(DEFAULT_ARM_URDF, false);
+    let nv = h.library.nv();
+    let (mut q, v, a) = h.state();
+    q[2] = f64::NAN;
+    let mut out = vec![7.0; nv * nv];
+    let o = out.as_mut_ptr();
+    let (q, v, a) = (q.as_ptr(), v.as_ptr(), a.as_ptr());
+    unsafe {
+        assert_eq!(sd_rnea_derivatives(h.model, h.ws, q, v, a, o, o, o), INPUT);
+        let message = last_error();
+        assert!(
+            message.starts_with("sd_rnea_derivatives: ") && message.contains("q[2]"),
+            "{message}"
+        );
+        assert_eq!(sd_aba_derivatives(h.model, h.ws, q, v, a, o, o, o), INPUT);
+        let message = last_error();
+        assert!(
+            message.starts_with("sd_aba_derivatives: ") && message.contains("q[2]"),
+            "{message}"
+        );
+        let n = ptr::null_mut();
+        assert_eq!(sd_rnea_derivatives(h.model, h.ws, q, v, a, o, n, o), USAGE);
+        assert_eq!(last_error(), "sd_rnea_derivatives: dtau_dv is NULL");
+        assert_eq!(sd_aba_derivatives(h.model, h.ws, q, v, a, o, o, n), USAGE);
+        assert_eq!(last_error(), "sd_aba_derivatives: minv is NULL");
+    }
+    assert!(out.iter().all(|&x| x == 7.0));
 }

@@ -6,6 +6,7 @@
 mod common;
 use common::allocations_during;
 
+use spatial_dynamics_c::derivatives::*;
 use spatial_dynamics_c::dynamics::*;
 use spatial_dynamics_c::frames::sd_reference_frame::*;
 use spatial_dynamics_c::frames::*;
@@ -52,6 +53,7 @@ fn calls_do_not_allocate() {
         }
         let (v, a) = (vec![0.2; nv], vec![-0.3; nv]);
         let out = vec![0.0; 6 * nv.max(1) + nv * nv];
+        let (o1, o2) = (vec![0.0; nv * nv], vec![0.0; nv * nv]);
         let frame = CString::new(link).unwrap();
         let run_all = || unsafe {
             let o = out.as_ptr() as *mut f64;
@@ -60,6 +62,9 @@ fn calls_do_not_allocate() {
             status |= sd_gravity(model, ws, q.as_ptr(), o);
             status |= sd_forward_dynamics(model, ws, q.as_ptr(), v.as_ptr(), a.as_ptr(), o);
             status |= sd_mass_matrix(model, ws, q.as_ptr(), o);
+            let (p1, p2) = (o1.as_ptr() as *mut f64, o2.as_ptr() as *mut f64);
+            status |= sd_rnea_derivatives(model, ws, q.as_ptr(), v.as_ptr(), a.as_ptr(), o, p1, p2);
+            status |= sd_aba_derivatives(model, ws, q.as_ptr(), v.as_ptr(), a.as_ptr(), o, p1, p2);
             for reference in [SD_WORLD, SD_LOCAL, SD_LOCAL_WORLD_ALIGNED] {
                 status |=
                     sd_frame_jacobian(model, ws, q.as_ptr(), frame.as_ptr(), reference as c_int, o);

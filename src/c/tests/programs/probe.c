@@ -42,6 +42,7 @@ int main(int argc, char **argv) {
   double *q = malloc(nq * sizeof *q), *v = malloc(nv * sizeof *v), *a = malloc(nv * sizeof *a);
   double *tau_in = malloc(nv * sizeof *tau_in), *out = malloc(nv * nv * sizeof *out);
   double *j = malloc(6 * nv * sizeof *j);
+  double *d1 = malloc(nv * nv * sizeof *d1), *d2 = malloc(nv * nv * sizeof *d2);
   if (!read_values(q, nq) || !read_values(v, nv) || !read_values(a, nv) || !read_values(tau_in, nv))
     return 2;
   printf("names");
@@ -55,6 +56,14 @@ int main(int argc, char **argv) {
   print_values("qdd", out, nv);
   status |= sd_mass_matrix(model, ws, q, out);
   print_values("M", out, nv * nv);
+  status |= sd_rnea_derivatives(model, ws, q, v, a, d1, d2, out);
+  print_values("dtau_dq", d1, nv * nv);
+  print_values("dtau_dv", d2, nv * nv);
+  print_values("M_rnea", out, nv * nv);
+  status |= sd_aba_derivatives(model, ws, q, v, tau_in, d1, d2, out);
+  print_values("ddq_dq", d1, nv * nv);
+  print_values("ddq_dv", d2, nv * nv);
+  print_values("Minv", out, nv * nv);
   const int references[3] = {SD_WORLD, SD_LOCAL, SD_LOCAL_WORLD_ALIGNED};
   const char *names[3] = {"J_world", "J_local", "J_aligned"};
   for (int r = 0; r < 3; ++r) {

@@ -58,6 +58,15 @@ int main(int argc, char** argv) {
     print_values("qdd", out);
     sd::mass_matrix(model, ws, q, m);
     print_values("M", m);
+    std::vector<double> d1(nv * nv), d2(nv * nv);
+    sd::rnea_derivatives(model, ws, q, v, a, d1, d2, m);
+    print_values("dtau_dq", d1);
+    print_values("dtau_dv", d2);
+    print_values("M_rnea", m);
+    sd::aba_derivatives(model, ws, q, v, tau, d1, d2, m);
+    print_values("ddq_dq", d1);
+    print_values("ddq_dv", d2);
+    print_values("Minv", m);
     const sd::Reference references[3] = {sd::Reference::World, sd::Reference::Local,
                                          sd::Reference::LocalWorldAligned};
     const char* names[3] = {"J_world", "J_local", "J_aligned"};

@@ -1,0 +1,81 @@
+"""Rigid-body dynamics from URDF: inverse and forward dynamics, the mass matrix, frames, the
+centre of mass and the derivatives of dynamics, over the Rust library spatial_dynamics_core.
+
+Arguments are numpy float64 arrays (lists and other dtypes are converted): 1-D for one state,
+2-D with one state a row for N states, computed on every core with the GIL released and
+returned stacked (a leading axis of N). SI units; ``q`` and ``v`` in the order of
+``Model.v_names``; a floating base's ``q = [x y z qx qy qz qw]`` and ``v = [linear; angular]``
+in the base frame; matrices row-major.
+"""
+
+from os import PathLike
+from typing import Literal, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+_ArrayLike = Union[npt.NDArray[np.float64], Sequence[float], Sequence[Sequence[float]]]
+_Array = npt.NDArray[np.float64]
+
+class DynamicsError(ValueError):
+    """Bad input (a NaN naming its coordinate, an unknown frame, a wrong shape naming the
+    argument) or a URDF the library cannot build; the message is the library's."""
+
+class Model:
+    """A robot model built from URDF (immutable). Safe to share between threads."""
+
+    @staticmethod
+    def from_urdf(
+        path: Union[str, PathLike[str]], floating_base: bool = False, ignore_mimic: bool = False
+    ) -> Model:
+        """The model of a URDF file. ``floating_base``: a free joint between the world and the
+        root link; ``ignore_mimic``: mimic joints get coordinates of their own."""
+    @staticmethod
+    def from_urdf_string(xml: str, floating_base: bool = False, ignore_mimic: bool = False) -> Model:
+        """The model of URDF text."""
+    @property
+    def nq(self) -> int:
+        """Position coordinates."""
+    @property
+    def nv(self) -> int:
+        """Velocity coordinates."""
+    @property
+    def v_names(self) -> list[str]:
+        """The name of each velocity coordinate, in ``v`` order."""
+    @property
+    def link_names(self) -> list[str]:
+        """The URDF links: the frames of ``frame_placement`` and ``frame_jacobian``."""
+    @property
+    def forward_dynamics_method(self) -> str:
+        """The method ``forward_dynamics(method=None)`` uses: "aba", "crba" or "rnea_columns"."""
+    def rnea(self, q: _ArrayLike, v: _ArrayLike, a: _ArrayLike) -> _Array:
+        """Inverse dynamics ``tau = M(q) a + C(q, v) + g(q)``: ``(nv,)`` or ``(N, nv)``."""
+    def gravity(self, q: _ArrayLike) -> _Array:
+        """Generalized gravity ``g(q)``: ``(nv,)`` or ``(N, nv)``."""
+    def forward_dynamics(
+        self,
+        q: _ArrayLike,
+        v: _ArrayLike,
+        tau: _ArrayLike,
+        method: Optional[Literal["aba", "crba", "rnea_columns"]] = None,
+    ) -> _Array:
+        """Forward dynamics ``qdd = M(q)^-1 (tau - C(q, v) - g(q))``: ``(nv,)`` or ``(N, nv)``."""
+    def mass_matrix(self, q: _ArrayLike) -> _Array:
+        """The mass matrix ``M(q)``: ``(nv, nv)`` or ``(N, nv, nv)``."""
+    def frame_placement(self, q: _ArrayLike, frame: str) -> Tuple[_Array, _Array]:
+        """``(translation, rotation)`` of a link in the world (Pinocchio's ``oMf``):
+        ``(3,)``, ``(3, 3)`` or ``(N, 3)``, ``(N, 3, 3)``."""
+    def frame_jacobian(
+        self,
+        q: _ArrayLike,
+        frame: str,
+        reference: Literal["world", "local", "local_world_aligned"] = "world",
+    ) -> _Array:
+        """A link's Jacobian, rows ``[linear; angular]``: ``(6, nv)`` or ``(N, 6, nv)``."""
+    def center_of_mass(self, q: _ArrayLike) -> Tuple[Union[float, _Array], _Array, _Array]:
+        """``(mass, com, J)``: a float, ``(3,)``, ``(3, nv)``; or ``(N,)``, ``(N, 3)``,
+        ``(N, 3, nv)``."""
+    def rnea_derivatives(self, q: _ArrayLike, v: _ArrayLike, a: _ArrayLike) -> Tuple[_Array, _Array, _Array]:
+        """``(dtau_dq, dtau_dv, M)``, each ``(nv, nv)`` or ``(N, nv, nv)``."""
+    def aba_derivatives(self, q: _ArrayLike, v: _ArrayLike, tau: _ArrayLike) -> Tuple[_Array, _Array, _Array]:
+        """``(ddq_dq, ddq_dv, Minv)``, each ``(nv, nv)`` or ``(N, nv, nv)``."""

@@ -1,0 +1,391 @@
+//! `Model`: a robot model built from URDF (immutable), its coordinates' names, and the library's
+//! algorithms as methods. Each method takes numpy float64 arrays (lists are converted): 1-D for
+//! one state, 2-D for N states (a row each, results stacked). Conventions are the library's: SI
+//! units, `q` and `v` in the order of `v_names`, a floating base's `q = [x y z qx qy qz qw]`
+//! and `v = [linear; angular]` in the base frame; matrices row-major (numpy's C order).
+
+use crate::batch::run;
+use crate::errors::{error, from_library};
+use nalgebra::DMatrix;
+use numpy::{PyArrayDyn, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
+use spatial_dynamics_core::algorithms::{
+    aba_derivatives, center_of_mass_jacobian, choose_method, crba, find_frame, forward_dynamics,
+    frame_jacobian, frame_placement, gravity, rnea, rnea_derivatives, ForwardDynamicsMethod,
+    ReferenceFrame,
+};
+use spatial_dynamics_core::{urdf, Externals, ModelOptions, Workspace};
+use std::path::PathBuf;
+use std::sync::Mutex;
+use std::time::Duration;
+
+type Array<'py> = Bound<'py, PyArrayDyn<f64>>;
+
+/// A robot model built from URDF, with the scratch of its single-state calls.
+#[pyclass(frozen, module = "spatial_dynamics")]
+pub struct Model {
+    model: spatial_dynamics_core::Model,
+    /// The workspace of single-state calls (N-state calls make one per thread).
+    workspace: Mutex<Workspace>,
+    /// The method `method=None` uses: the library's `auto` choice for this model.
+    method: ForwardDynamicsMethod,
+}
+
+impl Model {
+    fn new(model: spatial_dynamics_core::Model) -> Self {
+        // `aba` when no method runs on the model (a singular mass matrix): forward dynamics
+        // then says why.
+        let method = choose_method(&model, AUTO_TOLERANCE, Duration::ZERO)
+            .map_or(ForwardDynamicsMethod::Aba, |choice| choice.method);
+        Model {
+            workspace: Mutex::new(Workspace::new(&model)),
+            model,
+            method,
+        }
+    }
+
+    fn options(floating_base: bool, ignore_mimic: bool) -> ModelOptions {
+        ModelOptions {
+            floating_base,
+            ignore_mimic,
+            ..ModelOptions::default()
+        }
+    }
+}
+
+/// `matrix` into `out`, row-major.
+fn row_major(out: &mut [f64], matrix: &DMatrix<f64>) {
+    let ncols = matrix.ncols();
+    for (r, row) in out.chunks_exact_mut(ncols.max(1)).enumerate() {
+        for (c, x) in row.iter_mut().enumerate() {
+            *x = matrix[(r, c)];
+        }
+    }
+}
+
+fn reference_frame(reference: &str) -> PyResult<ReferenceFrame> {
+    match reference {
+        "world" => Ok(ReferenceFrame::World),
+        "local" => Ok(ReferenceFrame::Local),
+        "local_world_aligned" => Ok(ReferenceFrame::LocalWorldAligned),
+        _ => Err(error(format!(
+            "reference '{reference}' is none of 'world', 'local', 'local_world_aligned'"
+        ))),
+    }
+}
+
+#[pymethods]
+impl Model {
+    /// The model of the URDF file at `path`.
+    #[staticmethod]
+    #[pyo3(signature = (path, floating_base=false, ignore_mimic=false))]
+    fn from_urdf(
+        py: Python<'_>,
+        path: PathBuf,
+        floating_base: bool,
+        ignore_mimic: bool,
+    ) -> PyResult<Self> {
+        let options = Self::options(floating_base, ignore_mimic);
+        py.detach(|| urdf::model_from_file(&path, &options).map(Model::new))
+            .map_err(from_library)
+    }
+
+    /// The model of the URDF text `xml`.
+    #[staticmethod]
+    #[pyo3(signature = (xml, floating_base=false, ignore_mimic=false))]
+    fn from_urdf_string(
+        py: Python<'_>,
+        xml: &str,
+        floating_base: bool,
+        ignore_mimic: bool,
+    ) -> PyResult<Self> {
+        let options = Self::options(floating_base, ignore_mimic);
+        py.detach(|| urdf::model_from_str(xml, &options).map(Model::new))
+            .map_err(from_library)
+    }
+
+    /// Position coordinates.
+    #[getter]
+    fn nq(&self) -> usize {
+        self.model.nq()
+    }
+
+    /// Velocity coordinates.
+    #[getter]
+    fn nv(&self) -> usize {
+        self.model.nv()
+    }
+
+    /// The name of each velocity coordinate, in `v` order.
+    #[getter]
+    fn v_names(&self) -> Vec<String> {
+        (0..self.model.nv()).map(|i| self.model.v_name(i)).collect()
+    }
+
+    /// The URDF links, frames of `frame_placement` and `frame_jacobian`.
+    #[getter]
+    fn link_names(&self) -> Vec<String> {
+        self.model.links().iter().map(|l| l.name.clone()).collect()
+    }
+
+    /// The method `forward_dynamics(method=None)` uses for this model: "aba", "crba" or
+    /// "rnea_columns".
+    #[getter]
+    fn forward_dynamics_method(&self) -> &'static str {
+        self.method.name()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Model('{}', nq={}, nv={})",
+            self.model.name(),
+            self.model.nq(),
+            self.model.nv()
+        )
+    }
+
+    /// Inverse dynamics `tau = M(q) a + C(q, v) + g(q)` (gravity, base at rest, no external
+    /// forces): `(nv,)`, or `(N, nv)`.
+    fn rnea<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        v: &Bound<'py, PyAny>,
+        a: &Bound<'py, PyAny>,
+    ) -> PyResult<Array<'py>> {
+        let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
+        let [tau] = run(
+            py,
+            m,
+            &self.workspace,
+            [("q", q, nq), ("v", v, nv), ("a", a, nv)],
+            [&[nv]],
+            |ws, [q, v, a], [tau]| {
+                tau.copy_from_slice(rnea(m, ws, q, v, a)?);
+                Ok(())
+            },
+        )?;
+        Ok(tau)
+    }
+
+    /// Generalized gravity `g(q)`, the efforts that hold the robot still at `q`: `(nv,)`, or
+    /// `(N, nv)`.
+    fn gravity<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<Array<'py>> {
+        let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
+        let [g] = run(
+            py,
+            m,
+            &self.workspace,
+            [("q", q, nq)],
+            [&[nv]],
+            |ws, [q], [g]| {
+                g.copy_from_slice(gravity(m, ws, q)?);
+                Ok(())
+            },
+        )?;
+        Ok(g)
+    }
+
+    /// Forward dynamics `qdd = M(q)⁻¹ (tau − C(q, v) − g(q))` by `method` ("aba", "crba",
+    /// "rnea_columns"; `None`: `forward_dynamics_method`): `(nv,)`, or `(N, nv)`.
+    #[pyo3(signature = (q, v, tau, method=None))]
+    fn forward_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        v: &Bound<'py, PyAny>,
+        tau: &Bound<'py, PyAny>,
+        method: Option<&str>,
+    ) -> PyResult<Array<'py>> {
+        let method = match method {
+            None => self.method,
+            Some(name) => name.parse().map_err(error)?,
+        };
+        let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
+        let [qdd] = run(
+            py,
+            m,
+            &self.workspace,
+            [("q", q, nq), ("v", v, nv), ("tau", tau, nv)],
+            [&[nv]],
+            |ws, [q, v, tau], [qdd]| {
+                qdd.copy_from_slice(forward_dynamics(
+                    m,
+                    ws,
+                    q,
+                    v,
+                    tau,
+                    method,
+                    &Externals::none(),
+                )?);
+                Ok(())
+            },
+        )?;
+        Ok(qdd)
+    }
+
+    /// The joint-space mass matrix `M(q)` (symmetric): `(nv, nv)`, or `(N, nv, nv)`.
+    fn mass_matrix<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<Array<'py>> {
+        let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
+        let [mass] = run(
+            py,
+            m,
+            &self.workspace,
+            [("q", q, nq)],
+            [&[nv, nv]],
+            |ws, [q], [out]| {
+                row_major(out, crba(m, ws, q)?);
+                Ok(())
+            },
+        )?;
+        Ok(mass)
+    }
+
+    /// The placement of URDF link `frame` in the world: `(translation, rotation)`, the link
+    /// origin in world coordinates `(3,)` and the rotation from link to world coordinates
+    /// `(3, 3)` (its columns the link axes; Pinocchio's `oMf`); `(N, 3)` and `(N, 3, 3)` for N
+    /// states.
+    fn frame_placement<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        frame: &str,
+    ) -> PyResult<(Array<'py>, Array<'py>)> {
+        let (m, nq) = (&self.model, self.model.nq());
+        let frame = find_frame(m, frame).map_err(from_library)?;
+        let [translation, rotation] = run(
+            py,
+            m,
+            &self.workspace,
+            [("q", q, nq)],
+            [&[3], &[3, 3]],
+            |ws, [q], [translation, rotation]| {
+                let x = frame_placement(m, ws, q, &frame)?;
+                translation.copy_from_slice(x.trans.as_slice());
+                // `x.rot` turns world into link coordinates: its transpose, row-major, is its
+                // column-major storage.
+                rotation.copy_from_slice(x.rot.as_slice());
+                Ok(())
+            },
+        )?;
+        Ok((translation, rotation))
+    }
+
+    /// The Jacobian of URDF link `frame`, `(6, nv)`, rows `[linear; angular]`, in `reference`
+    /// "world" (world axes about the world origin), "local" (link axes at the link origin) or
+    /// "local_world_aligned" (world axes at the link origin), Pinocchio's WORLD, LOCAL and
+    /// LOCAL_WORLD_ALIGNED; `(N, 6, nv)` for N states.
+    #[pyo3(signature = (q, frame, reference="world"))]
+    fn frame_jacobian<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        frame: &str,
+        reference: &str,
+    ) -> PyResult<Array<'py>> {
+        let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
+        let frame = find_frame(m, frame).map_err(from_library)?;
+        let reference = reference_frame(reference)?;
+        let [j] = run(
+            py,
+            m,
+            &self.workspace,
+            [("q", q, nq)],
+            [&[6, nv]],
+            |ws, [q], [j]| {
+                row_major(j, frame_jacobian(m, ws, q, &frame, reference)?);
+                Ok(())
+            },
+        )?;
+        Ok(j)
+    }
+
+    /// The centre of mass: `(mass, com, J)`, the total mass (kg, a float), its position in the
+    /// world `(3,)` and its Jacobian `(3, nv)` (world axes); `(N,)`, `(N, 3)`, `(N, 3, nv)` for
+    /// N states.
+    fn center_of_mass<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+    ) -> PyResult<(Py<PyAny>, Array<'py>, Array<'py>)> {
+        let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
+        let [mass, com, j] = run(
+            py,
+            m,
+            &self.workspace,
+            [("q", q, nq)],
+            [&[], &[3], &[3, nv]],
+            |ws, [q], [mass, com, j]| {
+                let (c, jacobian) = center_of_mass_jacobian(m, ws, q)?;
+                mass[0] = c.mass;
+                com.copy_from_slice(c.position.as_slice());
+                row_major(j, jacobian);
+                Ok(())
+            },
+        )?;
+        // One state's mass is a float (a 0-d array's item).
+        let mass = match mass.ndim() {
+            0 => mass.call_method0("item")?.unbind(),
+            _ => mass.into_any().unbind(),
+        };
+        Ok((mass, com, j))
+    }
+
+    /// The derivatives of inverse dynamics at `(q, v, a)`: `(dtau_dq, dtau_dv, M)`, each
+    /// `(nv, nv)` (`(N, nv, nv)` for N states), row `i` the derivative of `tau_i`, column `k`
+    /// along velocity coordinate `k` (on the tangent of the configuration, as Pinocchio's
+    /// computeRNEADerivatives); `M` the mass matrix, full.
+    fn rnea_derivatives<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        v: &Bound<'py, PyAny>,
+        a: &Bound<'py, PyAny>,
+    ) -> PyResult<(Array<'py>, Array<'py>, Array<'py>)> {
+        let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
+        let [dq, dv, mass] = run(
+            py,
+            m,
+            &self.workspace,
+            [("q", q, nq), ("v", v, nv), ("a", a, nv)],
+            [&[nv, nv], &[nv, nv], &[nv, nv]],
+            |ws, [q, v, a], [dq, dv, mass]| {
+                let d = rnea_derivatives(m, ws, q, v, a)?;
+                row_major(dq, d.dtau_dq);
+                row_major(dv, d.dtau_dv);
+                row_major(mass, d.mass_matrix);
+                Ok(())
+            },
+        )?;
+        Ok((dq, dv, mass))
+    }
+
+    /// The derivatives of forward dynamics at `(q, v, tau)`: `(ddq_dq, ddq_dv, Minv)`, each
+    /// `(nv, nv)` (`(N, nv, nv)` for N states), as Pinocchio's computeABADerivatives; `Minv`
+    /// the inverse mass matrix, full.
+    fn aba_derivatives<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        v: &Bound<'py, PyAny>,
+        tau: &Bound<'py, PyAny>,
+    ) -> PyResult<(Array<'py>, Array<'py>, Array<'py>)> {
+        let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
+        let [dq, dv, minv] = run(
+            py,
+            m,
+            &self.workspace,
+            [("q", q, nq), ("v", v, nv), ("tau", tau, nv)],
+            [&[nv, nv], &[nv, nv], &[nv, nv]],
+            |ws, [q, v, tau], [dq, dv, minv]| {
+                let d = aba_derivatives(m, ws, q, v, tau, &Externals::none())?;
+                row_major(dq, d.ddq_dq);
+                row_major(dv, d.ddq_dv);
+                row_major(minv, d.minv);
+                Ok(())
+            },
+        )?;
+        Ok((dq, dv, minv))
+    }
+}

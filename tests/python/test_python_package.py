@@ -1,0 +1,312 @@
+"""The Python package (src/python, ``import spatial_dynamics``) against Pinocchio.
+
+Every function of ``spatial_dynamics.Model`` on one random state per case, on the robots of the
+reference suite (pinocchio_cases: UR5, Panda, Kinova with its continuous joints, Solo12 and
+ANYmal on floating bases, Panda with its finger mimic followed), coordinates mapped by name as
+in test_pinocchio_reference (``Mapping`` from our ``model --json``): rnea, gravity,
+forward_dynamics (every method), mass_matrix, frame_placement and frame_jacobian (three links,
+three references), center_of_mass, rnea_derivatives and aba_derivatives (Pinocchio's M and M⁻¹
+symmetrised from their upper triangle), each to TOLERANCE relative to the reference's largest
+entry. Then: N states as 2-D arrays equal the single calls row by row, bit for bit; errors
+raise DynamicsError, a ValueError, naming the coordinate, frame, argument or row; a batch runs
+with the GIL released; the stubs (src/python/spatial_dynamics.pyi) name exactly the module's
+public names and Model's.
+
+The package is installed into the venv by launch_scripts/setup_python_env.sh.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import threading
+import time
+import zlib
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from pinocchio_cases import (
+    REPO,
+    Case,
+    Mapping,
+    _sym,
+    binary_path,
+    build_reference,
+    require_binary,
+    run_command,
+    sample_state,
+    urdf_path,
+)
+from test_pinocchio_reference import CASES
+
+try:
+    import spatial_dynamics as sd
+except ImportError as exc:  # a required test: say how to get the package
+    pytest.fail(
+        f"cannot import spatial_dynamics ({exc}): launch_scripts/setup_python_env.sh installs it",
+        pytrace=False,
+    )
+
+TOLERANCE = 1e-9
+SEED = 2028
+STUBS = REPO / "src" / "python" / "spatial_dynamics.pyi"
+PACKAGE_CASES = tuple(
+    c for c in CASES if c.name in ("ur5", "panda", "kinova", "solo12", "anymal", "panda_mimic")
+)
+REFERENCES = {
+    "world": pin.ReferenceFrame.WORLD,
+    "local": pin.ReferenceFrame.LOCAL,
+    "local_world_aligned": pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+}
+
+
+def close(ours, ref, what):
+    ours, ref = np.asarray(ours, dtype=float), np.asarray(ref, dtype=float)
+    assert ours.shape == ref.shape, f"{what}: shape {ours.shape}, reference {ref.shape}"
+    scale = max(1.0, float(np.max(np.abs(ref)))) if ref.size else 1.0
+    err = float(np.max(np.abs(ours - ref))) / scale if ref.size else 0.0
+    assert err <= TOLERANCE, f"{what}: relative difference {err:.3e} > {TOLERANCE:g}\nours {ours}\nref  {ref}"
+
+
+class Setup:
+    """Our model, Pinocchio's, the mapping between them and one random state (both conventions)."""
+
+    def __init__(self, case: Case):
+        require_binary()
+        path = urdf_path(case)
+        self.case, self.ref = case, build_reference(case, path)
+        self.model = sd.Model.from_urdf(str(path), floating_base=case.floating, ignore_mimic=not case.mimic)
+        out = run_command([str(binary_path()), "model", "--urdf", str(path), *case.our_flags(), "--json"])
+        assert out.returncode == 0, out.stderr
+        self.map = Mapping.build(json.loads(out.stdout), self.ref)
+        rng = np.random.default_rng(SEED ^ zlib.crc32(case.name.encode()))
+        q, self.v, self.a, self.tau = sample_state(self.ref, rng)
+        self.q_ours = self.map.q_to_ours(q)
+        self.q = self.map.q_to_ref(self.q_ours)
+        self.v_ours, self.a_ours, self.tau_ours = (self.map.v_to_ours(x) for x in (self.v, self.a, self.tau))
+
+    def cols(self, matrix):
+        """A reference matrix's columns in our velocity order."""
+        return np.asarray(matrix)[:, self.map.perm]
+
+    def square(self, matrix):
+        """A reference nv × nv matrix in our order (rows and columns)."""
+        return np.asarray(matrix)[np.ix_(self.map.perm, self.map.perm)]
+
+
+_SETUPS: dict = {}
+
+
+def setup_of(case: Case) -> Setup:
+    if case not in _SETUPS:
+        _SETUPS[case] = Setup(case)
+    return _SETUPS[case]
+
+
+@pytest.fixture(params=PACKAGE_CASES, ids=[c.name for c in PACKAGE_CASES])
+def s(request) -> Setup:
+    return setup_of(request.param)
+
+
+def test_coordinates_are_the_binary_s(s):
+    m = s.model
+    assert (m.nq, m.nv) == (s.map.our_nq, s.map.our_nv)
+    assert len(m.v_names) == m.nv and len(set(m.v_names)) == m.nv
+    assert all(isinstance(n, str) for n in m.link_names) and m.link_names
+
+
+def test_dynamics_match_pinocchio(s):
+    m, ref, name = s.model, s.ref, s.case.name
+    close(m.rnea(s.q_ours, s.v_ours, s.a_ours), s.map.v_to_ours(ref.rnea(s.q, s.v, s.a)), f"{name} rnea")
+    close(m.gravity(s.q_ours), s.map.v_to_ours(ref.gravity(s.q)), f"{name} gravity")
+    close(m.mass_matrix(s.q_ours), s.square(ref.mass_matrix(s.q)), f"{name} mass_matrix")
+    want = s.map.v_to_ours(ref.forward_dynamics(s.q, s.v, s.tau))
+    close(m.forward_dynamics(s.q_ours, s.v_ours, s.tau_ours), want, f"{name} forward_dynamics")
+    methods = ("crba", "rnea_columns") if ref.has_mimic else ("aba", "crba", "rnea_columns")
+    for method in methods:
+        got = m.forward_dynamics(s.q_ours, s.v_ours, s.tau_ours, method=method)
+        close(got, want, f"{name} forward_dynamics {method}")
+    # method=None is the model's own choice, bit for bit.
+    chosen = m.forward_dynamics(s.q_ours, s.v_ours, s.tau_ours, method=m.forward_dynamics_method)
+    assert np.array_equal(m.forward_dynamics(s.q_ours, s.v_ours, s.tau_ours), chosen)
+
+
+def frames_checked(s: Setup):
+    """Three links that Pinocchio also has as frames: the first, middle and last such."""
+    names = [n for n in s.model.link_names if s.ref.model.existFrame(n)]
+    assert names, s.case.name
+    return sorted({names[0], names[len(names) // 2], names[-1]})
+
+
+def test_frames_match_pinocchio(s):
+    model, data = s.ref.model, s.ref.data
+    pin.framesForwardKinematics(model, data, s.q)
+    for frame in frames_checked(s):
+        fid = model.getFrameId(frame)
+        translation, rotation = s.model.frame_placement(s.q_ours, frame)
+        close(translation, data.oMf[fid].translation, f"{s.case.name} {frame} translation")
+        close(rotation, data.oMf[fid].rotation, f"{s.case.name} {frame} rotation")
+        for reference, pin_reference in REFERENCES.items():
+            want = s.cols(pin.computeFrameJacobian(model, data, s.q, fid, pin_reference))
+            close(s.model.frame_jacobian(s.q_ours, frame, reference), want, f"{s.case.name} {frame} {reference}")
+    world = s.model.frame_jacobian(s.q_ours, frame)
+    assert np.array_equal(world, s.model.frame_jacobian(s.q_ours, frame, reference="world"))
+
+
+def test_center_of_mass_matches_pinocchio(s):
+    model, data = s.ref.model, s.ref.data
+    com = pin.centerOfMass(model, data, s.q)
+    jacobian = pin.jacobianCenterOfMass(model, data, s.q)
+    mass, position, j = s.model.center_of_mass(s.q_ours)
+    assert isinstance(mass, float)
+    close(mass, data.mass[0], f"{s.case.name} mass")
+    close(position, com, f"{s.case.name} com")
+    close(j, s.cols(jacobian), f"{s.case.name} com jacobian")
+
+
+def test_derivatives_match_pinocchio(s):
+    if s.ref.has_mimic:
+        pytest.skip("Pinocchio's derivatives do not take mimic joints")
+    model, data, name = s.ref.model, s.ref.data, s.case.name
+    dq, dv, da = (np.array(x) for x in pin.computeRNEADerivatives(model, data, s.q, s.v, s.a))
+    ours = s.model.rnea_derivatives(s.q_ours, s.v_ours, s.a_ours)
+    for got, want, what in zip(ours, (dq, dv, _sym(da)), ("dtau_dq", "dtau_dv", "M")):
+        close(got, s.square(want), f"{name} {what}")
+    dq, dv, dtau = (np.array(x) for x in pin.computeABADerivatives(model, data, s.q, s.v, s.tau))
+    ours = s.model.aba_derivatives(s.q_ours, s.v_ours, s.tau_ours)
+    for got, want, what in zip(ours, (dq, dv, _sym(dtau)), ("ddq_dq", "ddq_dv", "Minv")):
+        close(got, s.square(want), f"{name} {what}")
+
+
+def calls(s: Setup):
+    """Every function as (name, arguments per state, call)."""
+    m, frame = s.model, s.model.link_names[-1]
+    return (
+        ("rnea", 3, m.rnea),
+        ("gravity", 1, m.gravity),
+        ("forward_dynamics", 3, m.forward_dynamics),
+        ("mass_matrix", 1, m.mass_matrix),
+        ("frame_placement", 1, lambda q: m.frame_placement(q, frame)),
+        ("frame_jacobian", 1, lambda q: m.frame_jacobian(q, frame, "local")),
+        ("center_of_mass", 1, m.center_of_mass),
+        ("rnea_derivatives", 3, m.rnea_derivatives),
+        ("aba_derivatives", 3, m.aba_derivatives),
+    )
+
+
+def test_batches_equal_single_calls_bit_for_bit(s):
+    """Seven states (more than the threads, not a multiple of two) as 2-D arrays: each row of
+    each result is the single call's on that row, bit for bit."""
+    rng = np.random.default_rng(7)
+    rows = 7
+    qs = np.stack([s.map.q_to_ours(sample_state(s.ref, rng)[0]) for _ in range(rows)])
+    vs, as_ = rng.standard_normal((2, rows, s.model.nv))
+    for name, arity, call in calls(s):
+        if name in ("rnea_derivatives", "aba_derivatives") and s.ref.has_mimic:
+            continue
+        args = (qs, vs, as_)[:arity]
+        batch = call(*args)
+        batch = batch if isinstance(batch, tuple) else (batch,)
+        for i in range(rows):
+            single = call(*(x[i] for x in args))
+            single = single if isinstance(single, tuple) else (single,)
+            for b, one in zip(batch, single):
+                assert b.shape[0] == rows, name
+                assert np.array_equal(b[i], one), f"{s.case.name} {name} row {i}"
+    # No states: empty results of the stacked shapes.
+    assert s.model.gravity(np.zeros((0, s.model.nq))).shape == (0, s.model.nv)
+
+
+def test_lists_and_other_dtypes_are_converted():
+    s = setup_of(PACKAGE_CASES[0])
+    m, q = s.model, s.q_ours
+    want = m.gravity(q)
+    assert np.array_equal(m.gravity(q.tolist()), want)
+    assert np.array_equal(m.gravity(np.asfortranarray(np.stack([q, q]))[:, :]), np.stack([want, want]))
+    assert np.array_equal(m.gravity(np.stack([q, q])[::2]), want[None, :])
+    assert m.gravity(np.zeros(m.nq, dtype=np.int64)).dtype == np.float64
+
+
+def test_errors_raise_dynamics_error_naming_the_fault():
+    s = setup_of(PACKAGE_CASES[0])
+    m, q, v = s.model, s.q_ours.copy(), s.v_ours
+    assert issubclass(sd.DynamicsError, ValueError)
+    q[2] = np.nan
+    with pytest.raises(sd.DynamicsError, match=rf"q\[2\] \({m.v_names[2]}\) is NaN"):
+        m.gravity(q)
+    with pytest.raises(ValueError, match=r"row 1: q\[2\]"):
+        m.rnea(np.stack([s.q_ours, q]), np.stack([v, v]), np.stack([v, v]))
+    with pytest.raises(sd.DynamicsError, match="no link named 'no_such_link'"):
+        m.frame_jacobian(s.q_ours, "no_such_link")
+    with pytest.raises(sd.DynamicsError, match="no link named 'no_such_link'"):
+        m.frame_placement(s.q_ours, "no_such_link")
+    with pytest.raises(sd.DynamicsError, match="reference 'global' is none of"):
+        m.frame_jacobian(s.q_ours, m.link_names[-1], "global")
+    with pytest.raises(sd.DynamicsError, match=rf"v has shape \({m.nv - 1},\), the model needs {m.nv}"):
+        m.rnea(s.q_ours, v[:-1], v)
+    with pytest.raises(sd.DynamicsError, match=r"tau has shape \(2, 2, 3\)"):
+        m.forward_dynamics(s.q_ours, v, np.zeros((2, 2, 3)))
+    with pytest.raises(sd.DynamicsError, match=r"a holds 2 states \(2-D\), q one state \(1-D\)"):
+        m.rnea(s.q_ours, v, np.stack([v, v]))
+    with pytest.raises(sd.DynamicsError, match="q is not an array of numbers"):
+        m.gravity(["x"] * m.nq)
+    with pytest.raises(sd.DynamicsError, match="unknown"):
+        m.forward_dynamics(s.q_ours, v, v, method="newton")
+    with pytest.raises(sd.DynamicsError, match="cannot parse the URDF"):
+        sd.Model.from_urdf_string("<robot name='r'><link name='a'>")
+    with pytest.raises(sd.DynamicsError):
+        sd.Model.from_urdf(str(REPO / "no_such_file.urdf"))
+
+
+def test_a_batch_runs_with_the_gil_released():
+    """While one thread computes a long batch, the main thread keeps running Python: the longest
+    pause between its loop's iterations during the call is a small part of the call. A held GIL
+    would pause it for the whole computation (the switch interval cannot preempt native code)."""
+    s = setup_of(PACKAGE_CASES[1])
+    m = s.model
+    rows = 20000
+    qs = np.tile(s.q_ours, (rows, 1))
+    zeros = np.zeros((rows, m.nv))
+    window = {}
+
+    def work():
+        window["start"] = time.perf_counter()
+        m.aba_derivatives(qs, zeros, zeros)
+        window["end"] = time.perf_counter()
+
+    worker = threading.Thread(target=work)
+    ticks = []
+    worker.start()
+    while worker.is_alive():
+        ticks.append(time.perf_counter())
+    worker.join()
+    start, end = window["start"], window["end"]
+    assert end - start > 0.1, f"the batch took {end - start:.4f} s: too short to tell"
+    inside = [start] + [t for t in ticks if start < t < end] + [end]
+    longest = max(b - a for a, b in zip(inside, inside[1:]))
+    assert longest < 0.5 * (end - start), (
+        f"the main thread paused {longest:.3f} s during a {end - start:.3f} s batch"
+    )
+
+
+def stub_names():
+    """(module names, Model's names) that the stubs declare, public only."""
+    tree = ast.parse(STUBS.read_text())
+    module, model = set(), set()
+    for node in tree.body:
+        if isinstance(node, ast.ClassDef):
+            module.add(node.name)
+            if node.name == "Model":
+                model = {n.name for n in node.body if isinstance(n, ast.FunctionDef)}
+        elif isinstance(node, ast.Assign):
+            module.update(t.id for t in node.targets if isinstance(t, ast.Name))
+    return {n for n in module if not n.startswith("_")}, {n for n in model if not n.startswith("_")}
+
+
+def test_stubs_name_exactly_the_public_api():
+    module, model = stub_names()
+    public = {n for n in dir(sd) if not n.startswith("_")} - {"spatial_dynamics"}
+    assert module == public
+    assert model == {n for n in dir(sd.Model) if not n.startswith("_")}
