@@ -64,11 +64,15 @@ pub fn cholesky_factor(
 /// (`y_k = b_k / L_kk`, then `b_i −= L_ik y_k` below), `Lᵀ x = y` by dot products with the
 /// columns (`x_i = (y_i − Σ_{k>i} L_ki x_k) / L_ii`).
 pub fn cholesky_solve(factor: &DMatrix<f64>, x: &mut DVector<f64>) {
+    cholesky_solve_slice(factor, x.as_mut_slice());
+}
+
+/// [`cholesky_solve`] on a slice of `n` entries (a column of a column-major matrix).
+pub(crate) fn cholesky_solve_slice(factor: &DMatrix<f64>, x: &mut [f64]) {
     let n = factor.nrows();
     if n == 0 {
         return; // nothing to solve (and no columns to walk: `chunks_exact(0)` would panic)
     }
-    let x = x.as_mut_slice();
     for (k, l_k) in factor.as_slice().chunks_exact(n).enumerate() {
         x[k] /= l_k[k];
         let x_k = x[k];

@@ -55,14 +55,19 @@ pub(crate) fn ltl_factor(
     Ok(())
 }
 
-/// `Σ_{m ∈ rows} L_ma L_mb`: two contiguous column segments, summed in four interleaved
-/// partial sums (independent additions that pair up in SIMD registers).
+/// `Σ_{m ∈ rows} L_ma L_mb`: two contiguous column segments ([`dot`]).
 #[inline(always)]
 fn column_dot(l: &[f64], n: usize, a: usize, b: usize, rows: std::ops::Range<usize>) -> f64 {
     if rows.is_empty() {
         return 0.0; // a leaf: nothing below it
     }
-    let (x, y) = (&l[a * n..][rows.clone()], &l[b * n..][rows]);
+    dot(&l[a * n..][rows.clone()], &l[b * n..][rows])
+}
+
+/// `Σ x_m y_m` in four interleaved partial sums (independent additions that pair up in SIMD
+/// registers, where one running sum would wait on each addition).
+#[inline(always)]
+fn dot(x: &[f64], y: &[f64]) -> f64 {
     let mut acc = [0.0; 4];
     let (x4, y4) = (x.chunks_exact(4), y.chunks_exact(4));
     let (x_rest, y_rest) = (x4.remainder(), y4.remainder());
@@ -79,28 +84,38 @@ fn column_dot(l: &[f64], n: usize, a: usize, b: usize, rows: std::ops::Range<usi
 
 /// Solves `Lᵀ L x = b` in place (`x` holds `b` on entry), `factor` as [`ltl_factor`] left it.
 pub(crate) fn ltl_solve(ancestors: &Ancestors, factor: &DMatrix<f64>, x: &mut DVector<f64>) {
+    ltl_solve_columns(ancestors, factor, x.as_mut_slice());
+}
+
+/// [`ltl_solve`] on every column of the column-major `n × k` matrix `x` (its `k` right-hand
+/// sides side by side). The loops run coordinate outside, column inside: each column's solve
+/// is a chain of dependent divisions, and interleaving the columns lets them overlap.
+pub(crate) fn ltl_solve_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, x: &mut [f64]) {
     let n = ancestors.len();
+    if n == 0 {
+        return; // no columns (and `chunks_exact_mut(0)` would panic)
+    }
     let l = factor.as_slice();
-    let x = x.as_mut_slice();
     // Lᵀ y = b, from the leaves inward: y_i = (b_i − Σ_{m ∈ D(i)} L_mi y_m) / L_ii.
     for i in (0..n).rev() {
         let below = ancestors.below(i);
         let column_i = &l[i * n..(i + 1) * n];
-        let dot: f64 = column_i[below.clone()]
-            .iter()
-            .zip(&x[below])
-            .map(|(a, b)| a * b)
-            .sum();
-        x[i] = (x[i] - dot) / column_i[i];
+        let (l_below, l_ii) = (&column_i[below.clone()], column_i[i]);
+        for x in x.chunks_exact_mut(n) {
+            x[i] = (x[i] - dot(l_below, &x[below.clone()])) / l_ii;
+        }
     }
     // L x = y, from the root outward: x_i = y_i / L_ii, then y_m −= L_mi x_i below i.
     for i in 0..n {
         let below = ancestors.below(i);
         let column_i = &l[i * n..(i + 1) * n];
-        x[i] /= column_i[i];
-        let x_i = x[i];
-        for (y, a) in x[below.clone()].iter_mut().zip(&column_i[below]) {
-            *y -= a * x_i;
+        let (l_below, l_ii) = (&column_i[below.clone()], column_i[i]);
+        for x in x.chunks_exact_mut(n) {
+            x[i] /= l_ii;
+            let x_i = x[i];
+            for (y, a) in x[below.clone()].iter_mut().zip(l_below) {
+                *y -= a * x_i;
+            }
         }
     }
 }

@@ -23,7 +23,7 @@ pub use rnea_derivatives::{rnea_derivatives, rnea_derivatives_with, RneaDerivati
 
 use crate::model::Model;
 use crate::spatial::{Matrix6, Motion};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 
 /// Scratch of the derivative algorithms, sized once from the model. Per body `i` and joint
 /// column `k` (the column scaled by a mimic follower's multiplier), in the aligned frame of `i`'s
@@ -52,8 +52,6 @@ pub(crate) struct DerivativeScratch {
     pub(crate) ddq_dv: DMatrix<f64>,
     /// `H⁻¹ = ∂q̈/∂τ` (nv × nv).
     pub(crate) minv: DMatrix<f64>,
-    /// One right-hand side of a solve with the factor of `H`.
-    pub(crate) column: DVector<f64>,
 }
 
 impl DerivativeScratch {
@@ -71,7 +69,6 @@ impl DerivativeScratch {
             ddq_dq: square(),
             ddq_dv: square(),
             minv: square(),
-            column: DVector::zeros(nv),
         }
     }
 }
