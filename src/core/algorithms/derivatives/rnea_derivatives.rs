@@ -231,33 +231,41 @@ fn backward_pass(model: &Model, ws: &mut Workspace) {
             // Row (i, n) against the columns of i and its ancestors: I^C_i S and B^C_iᵀ S.
             let ic_s = ic[i].apply(&s);
             let bt_s = b[i].tr_mul(&s.to_vector());
-            for j in std::iter::once(i).chain(above(i)) {
-                let cj = model.bodies[j].joint.coords.v_index;
-                let columns = if j == i && series {
-                    n + 1
-                } else {
-                    s_world[j].nv
-                };
-                for m in 0..columns {
-                    let (col, s_j) = (cj + m, s_world[j].cols[m]);
-                    dtau_dq[(row, col)] +=
-                        alpha[j][m].dot(&ic_s) + bt_s.dot(&psi[j][m].to_vector());
-                    dtau_dv[(row, col)] += beta[j][m].dot(&ic_s) + bt_s.dot(&s_j.to_vector());
-                    mass_matrix[(row, col)] += s_j.dot(&ic_s);
-                }
-            }
             // Column (i, n) against the rows above it: the forces its motion adds to F_i.
             let w_q = s.cross_force(&f[i])
                 + ic[i].apply(&alpha[i][n])
                 + Force::from_vector(&(b[i] * psi[i][n].to_vector()));
             let w_v = ic[i].apply(&beta[i][n]) + Force::from_vector(&(b[i] * s.to_vector()));
-            let earlier_columns = (0..if series { n } else { 0 }).map(|m| (i, m));
-            let ancestor_columns = above(i).flat_map(|j| (0..s_world[j].nv).map(move |m| (j, m)));
-            for (j, m) in earlier_columns.chain(ancestor_columns) {
-                let (r, s_j) = (model.bodies[j].joint.coords.v_index + m, s_world[j].cols[m]);
-                dtau_dq[(r, row)] += s_j.dot(&w_q);
-                dtau_dv[(r, row)] += s_j.dot(&w_v);
-                mass_matrix[(r, row)] += s_j.dot(&ic_s);
+            // i's own columns: all of them on the left, or in series those up to n on the left
+            // and those before n on the right.
+            for m in 0..if series { n + 1 } else { s_i.nv } {
+                let (col, s_m) = (ci + m, s_i.cols[m]);
+                dtau_dq[(row, col)] += alpha[i][m].dot(&ic_s) + bt_s.dot(&psi[i][m].to_vector());
+                dtau_dv[(row, col)] += beta[i][m].dot(&ic_s) + bt_s.dot(&s_m.to_vector());
+                mass_matrix[(row, col)] += s_m.dot(&ic_s);
+            }
+            for m in 0..if series { n } else { 0 } {
+                let (r, s_m) = (ci + m, s_i.cols[m]);
+                dtau_dq[(r, row)] += s_m.dot(&w_q);
+                dtau_dv[(r, row)] += s_m.dot(&w_v);
+                mass_matrix[(r, row)] += s_m.dot(&ic_s);
+            }
+            // Each ancestor column (j, m): the left entry in row (i, n), the right one in
+            // column (i, n), and H's two (equal) entries from one product. Entries add up: a
+            // mimic follower's row and column are its leader's.
+            for j in above(i) {
+                let cj = model.bodies[j].joint.coords.v_index;
+                for m in 0..s_world[j].nv {
+                    let (other, s_j) = (cj + m, s_world[j].cols[m]);
+                    dtau_dq[(row, other)] +=
+                        alpha[j][m].dot(&ic_s) + bt_s.dot(&psi[j][m].to_vector());
+                    dtau_dv[(row, other)] += beta[j][m].dot(&ic_s) + bt_s.dot(&s_j.to_vector());
+                    dtau_dq[(other, row)] += s_j.dot(&w_q);
+                    dtau_dv[(other, row)] += s_j.dot(&w_v);
+                    let h = s_j.dot(&ic_s);
+                    mass_matrix[(row, other)] += h;
+                    mass_matrix[(other, row)] += h;
+                }
             }
         }
         if let Some(p) = body.parent {
