@@ -120,6 +120,53 @@ pub(crate) fn ltl_solve_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, x:
     }
 }
 
+/// Solves `Lᵀ L X = B` in place for `k` right-hand sides held row by row: `w` is `n` rows of
+/// `k` entries, row `i` of `B` at `w[i k .. (i + 1) k]` (the column-major storage of `Bᵀ`).
+/// Every step is then a whole-row update `row_a −= L_ma row_b`, contiguous and independent entry
+/// by entry, where a column-by-column solve waits on one division after another:
+///
+/// ```text
+/// Lᵀ Y = B, leaves inward:  Y_i = (B_i − Σ_{m ∈ D(i)} L_mi Y_m) / L_ii
+/// L X = Y, root outward:    X_i = Y_i / L_ii,  then Y_m −= L_mi X_i for m ∈ D(i)
+/// ```
+pub(crate) fn ltl_solve_rows(
+    ancestors: &Ancestors,
+    factor: &DMatrix<f64>,
+    w: &mut [f64],
+    k: usize,
+) {
+    let n = ancestors.len();
+    let l = factor.as_slice();
+    for i in (0..n).rev() {
+        let (head, tail) = w.split_at_mut((i + 1) * k);
+        let row_i = &mut head[i * k..];
+        for m in ancestors.below(i) {
+            let row_m = &tail[(m - i - 1) * k..(m - i) * k];
+            axpy(row_i, -l[m + i * n], row_m);
+        }
+        let inv = 1.0 / l[i + i * n];
+        row_i.iter_mut().for_each(|y| *y *= inv);
+    }
+    for i in 0..n {
+        let (head, tail) = w.split_at_mut((i + 1) * k);
+        let row_i = &mut head[i * k..];
+        let inv = 1.0 / l[i + i * n];
+        row_i.iter_mut().for_each(|x| *x *= inv);
+        for m in ancestors.below(i) {
+            let row_m = &mut tail[(m - i - 1) * k..(m - i) * k];
+            axpy(row_m, -l[m + i * n], row_i);
+        }
+    }
+}
+
+/// `y += a x`, entry by entry.
+#[inline(always)]
+fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
+    for (y, x) in y.iter_mut().zip(x) {
+        *y += a * x;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -181,6 +228,17 @@ mod tests {
             assert!(
                 err < 1e-12 * (h.amax() * x.amax()),
                 "{}: |H x − b| = {err:e}",
+                model.name
+            );
+            // Three right-hand sides row by row: the storage of Bᵀ in, of Xᵀ out.
+            let b3 = DMatrix::from_fn(n, 3, |i, j| ((i * 3 + j) as f64 * 0.7).cos());
+            let mut rows = b3.transpose().as_slice().to_vec();
+            ltl_solve_rows(&ancestors, &factor, &mut rows, 3);
+            let x3 = DMatrix::from_column_slice(3, n, &rows).transpose();
+            let err = (&h * &x3 - &b3).amax();
+            assert!(
+                err < 1e-12 * (h.amax() * x3.amax()),
+                "{}: |H X − B| = {err:e} (rows)",
                 model.name
             );
         }

@@ -14,7 +14,7 @@ use super::rnea_derivatives::{check_matrix, derivative_passes};
 use crate::algorithms::cholesky::cholesky_solve_slice;
 use crate::algorithms::forward_dynamics::crba_solve_on_joints;
 use crate::algorithms::kinematics::update_joints;
-use crate::algorithms::ltl::ltl_solve_columns;
+use crate::algorithms::ltl::ltl_solve_rows;
 use crate::algorithms::validate::check_forward_inputs;
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
@@ -67,25 +67,50 @@ pub fn aba_derivatives<'w>(
 }
 
 /// `H⁻¹` into `ws.derivatives.minv` and `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` into `ddq_dq`, `ddq_dv`,
-/// every column solving `H x = b` with the factor `crba_solve_on_joints` left in `ws.factor`
-/// (`b = e_k`, `−∂τ/∂q e_k`, `−∂τ/∂q̇ e_k`): along the tree each solve walks the non-zeros of
-/// `L` twice, `O(nv d)` for depth `d`, where a product with the dense `H⁻¹` costs `nv²`.
+/// solving `H X = B` for `B = [1 | −∂τ/∂q | −∂τ/∂q̇]` with the factor `crba_solve_on_joints` left
+/// in `ws.factor`. Along the tree (`LᵀL`) the `3 nv` right-hand sides go row by row through
+/// [`ltl_solve_rows`], each step an update of whole rows over the non-zeros of `L`: `O(nv d)`
+/// per column for depth `d`, where a product with the dense `H⁻¹` costs `nv²`. With mimic
+/// joints (dense Cholesky) each column is solved on its own.
 fn solve_with_factor(ws: &mut Workspace) {
     let (plan, factor, d) = (&ws.plan, &ws.factor, &mut ws.derivatives);
     let nv = d.minv.nrows();
     if nv == 0 {
         return; // no columns (and `chunks_exact_mut(0)` would panic)
     }
-    d.minv.fill_with_identity();
-    negate_into(&d.dtau_dq, &mut d.ddq_dq);
-    negate_into(&d.dtau_dv, &mut d.ddq_dv);
-    for m in [&mut d.minv, &mut d.ddq_dq, &mut d.ddq_dv] {
-        match &plan.dof_ancestors {
-            Some(ancestors) => ltl_solve_columns(ancestors, factor, m.as_mut_slice()),
-            None => m
-                .as_mut_slice()
-                .chunks_exact_mut(nv)
-                .for_each(|column| cholesky_solve_slice(factor, column)),
+    match &plan.dof_ancestors {
+        Some(ancestors) => {
+            let k = 3 * nv;
+            let rows = &mut d.rhs_rows[..k * nv];
+            // Row i of B: e_iᵀ, then row i of −∂τ/∂q and of −∂τ/∂q̇.
+            for (i, row) in rows.chunks_exact_mut(k).enumerate() {
+                let (unit, rest) = row.split_at_mut(nv);
+                let (dq, dv) = rest.split_at_mut(nv);
+                unit.fill(0.0);
+                unit[i] = 1.0;
+                for c in 0..nv {
+                    dq[c] = -d.dtau_dq[(i, c)];
+                    dv[c] = -d.dtau_dv[(i, c)];
+                }
+            }
+            ltl_solve_rows(ancestors, factor, rows, k);
+            for (i, row) in rows.chunks_exact(k).enumerate() {
+                for c in 0..nv {
+                    d.minv[(i, c)] = row[c];
+                    d.ddq_dq[(i, c)] = row[nv + c];
+                    d.ddq_dv[(i, c)] = row[2 * nv + c];
+                }
+            }
+        }
+        None => {
+            d.minv.fill_with_identity();
+            negate_into(&d.dtau_dq, &mut d.ddq_dq);
+            negate_into(&d.dtau_dv, &mut d.ddq_dv);
+            for m in [&mut d.minv, &mut d.ddq_dq, &mut d.ddq_dv] {
+                for column in m.as_mut_slice().chunks_exact_mut(nv) {
+                    cholesky_solve_slice(factor, column);
+                }
+            }
         }
     }
 }

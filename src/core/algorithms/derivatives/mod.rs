@@ -52,6 +52,9 @@ pub(crate) struct DerivativeScratch {
     pub(crate) ddq_dv: DMatrix<f64>,
     /// `H⁻¹ = ∂q̈/∂τ` (nv × nv).
     pub(crate) minv: DMatrix<f64>,
+    /// The right-hand sides `[1 | −∂τ/∂q | −∂τ/∂q̇]` of `aba_derivatives`' solve, row by row
+    /// (`nv` rows of `3 nv`), then its solutions.
+    pub(crate) rhs_rows: Vec<f64>,
 }
 
 impl DerivativeScratch {
@@ -69,6 +72,7 @@ impl DerivativeScratch {
             ddq_dq: square(),
             ddq_dv: square(),
             minv: square(),
+            rhs_rows: vec![0.0; 3 * nv * nv],
         }
     }
 }
