@@ -17,13 +17,15 @@
 
 mod aba_derivatives;
 mod rnea_derivatives;
+mod velocity_product;
 
 pub use aba_derivatives::{aba_derivatives, AbaDerivatives};
 pub use rnea_derivatives::{rnea_derivatives, rnea_derivatives_with, RneaDerivatives};
 
 use crate::model::Model;
-use crate::spatial::{Matrix6, Motion};
+use crate::spatial::Motion;
 use nalgebra::DMatrix;
+use velocity_product::VelocityProduct;
 
 /// Scratch of the derivative algorithms, sized once from the model. Per body `i` and joint
 /// column `k` (the column scaled by a mimic follower's multiplier), in the aligned frame of `i`'s
@@ -40,8 +42,8 @@ pub(crate) struct DerivativeScratch {
     /// rate `q̇_ik`, besides `S_ik ×` its velocity (`∂a/∂q̇`, `dAdv`).
     pub(crate) beta: Vec<[Motion; 6]>,
     /// `B_i`, then its sum over the subtree `B^C_i`: the velocity-product matrix of the body
-    /// forces (`∂f/∂v` through the velocity-dependent terms).
-    pub(crate) b: Vec<Matrix6>,
+    /// forces (`∂f/∂v` through the velocity-dependent terms), in its sparse form.
+    pub(crate) b: Vec<VelocityProduct>,
     /// `∂τ/∂q` (nv × nv).
     pub(crate) dtau_dq: DMatrix<f64>,
     /// `∂τ/∂q̇` (nv × nv).
@@ -66,7 +68,7 @@ impl DerivativeScratch {
             psi: vec![[Motion::zero(); 6]; n],
             alpha: vec![[Motion::zero(); 6]; n],
             beta: vec![[Motion::zero(); 6]; n],
-            b: vec![Matrix6::zeros(); n],
+            b: vec![VelocityProduct::zero(); n],
             dtau_dq: square(),
             dtau_dv: square(),
             ddq_dq: square(),
