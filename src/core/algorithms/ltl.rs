@@ -129,20 +129,35 @@ pub(crate) fn ltl_solve_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, x:
 /// Lᵀ Y = B, leaves inward:  Y_i = (B_i − Σ_{m ∈ D(i)} L_mi Y_m) / L_ii
 /// L X = Y, root outward:    X_i = Y_i / L_ii,  then Y_m −= L_mi X_i for m ∈ D(i)
 /// ```
+///
+/// With `identity_first`, the first `n` columns of `B` are the identity (`k ≥ n`): there row
+/// `i` of `Y = L⁻ᵀ` is zero outside the columns `i` and `D(i)` (`Y_i` gathers `e_i` and the rows
+/// below `i`, each zero outside its own subtree's range), and the first pass updates only
+/// those columns of that block.
 pub(crate) fn ltl_solve_rows(
     ancestors: &Ancestors,
     factor: &DMatrix<f64>,
     w: &mut [f64],
     k: usize,
+    identity_first: bool,
 ) {
     let n = ancestors.len();
     let l = factor.as_slice();
     for i in (0..n).rev() {
         let (head, tail) = w.split_at_mut((i + 1) * k);
         let row_i = &mut head[i * k..];
-        for m in ancestors.below(i) {
+        let below = ancestors.below(i);
+        // The columns to update: i's subtree in the identity block and all after it, or all.
+        let (subtree, rest) = if identity_first {
+            (i..below.end, n)
+        } else {
+            (0..0, 0)
+        };
+        for m in below {
             let row_m = &tail[(m - i - 1) * k..(m - i) * k];
-            axpy(row_i, -l[m + i * n], row_m);
+            let l_mi = -l[m + i * n];
+            axpy(&mut row_i[subtree.clone()], l_mi, &row_m[subtree.clone()]);
+            axpy(&mut row_i[rest..], l_mi, &row_m[rest..]);
         }
         let inv = 1.0 / l[i + i * n];
         row_i.iter_mut().for_each(|y| *y *= inv);
@@ -233,12 +248,24 @@ mod tests {
             // Three right-hand sides row by row: the storage of Bᵀ in, of Xᵀ out.
             let b3 = DMatrix::from_fn(n, 3, |i, j| ((i * 3 + j) as f64 * 0.7).cos());
             let mut rows = b3.transpose().as_slice().to_vec();
-            ltl_solve_rows(&ancestors, &factor, &mut rows, 3);
+            ltl_solve_rows(&ancestors, &factor, &mut rows, 3, false);
             let x3 = DMatrix::from_column_slice(3, n, &rows).transpose();
             let err = (&h * &x3 - &b3).amax();
             assert!(
                 err < 1e-12 * (h.amax() * x3.amax()),
                 "{}: |H X − B| = {err:e} (rows)",
+                model.name
+            );
+            // The identity first, then B: H⁻¹ and H⁻¹ B.
+            let mut b4 = DMatrix::identity(n, n).insert_columns(n, 3, 0.0);
+            b4.columns_mut(n, 3).copy_from(&b3);
+            let mut rows = b4.transpose().as_slice().to_vec();
+            ltl_solve_rows(&ancestors, &factor, &mut rows, n + 3, true);
+            let x4 = DMatrix::from_column_slice(n + 3, n, &rows).transpose();
+            let err = (&h * &x4 - &b4).amax();
+            assert!(
+                err < 1e-12 * (h.amax() * x4.amax()),
+                "{}: |H X − [1 | B]| = {err:e} (rows, identity first)",
                 model.name
             );
         }

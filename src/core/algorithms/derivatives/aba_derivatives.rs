@@ -82,23 +82,35 @@ fn solve_with_factor(ws: &mut Workspace) {
         Some(ancestors) => {
             let k = 3 * nv;
             let rows = &mut d.rhs_rows[..k * nv];
-            // Row i of B: e_iᵀ, then row i of −∂τ/∂q and of −∂τ/∂q̇.
+            // Row i of B: e_iᵀ, then row i of −∂τ/∂q and of −∂τ/∂q̇ (column c of each, stored
+            // contiguously, gives entry c of every row).
             for (i, row) in rows.chunks_exact_mut(k).enumerate() {
-                let (unit, rest) = row.split_at_mut(nv);
-                let (dq, dv) = rest.split_at_mut(nv);
-                unit.fill(0.0);
-                unit[i] = 1.0;
-                for c in 0..nv {
-                    dq[c] = -d.dtau_dq[(i, c)];
-                    dv[c] = -d.dtau_dv[(i, c)];
+                row[..nv].fill(0.0);
+                row[i] = 1.0;
+            }
+            for (c, (dq, dv)) in d
+                .dtau_dq
+                .as_slice()
+                .chunks_exact(nv)
+                .zip(d.dtau_dv.as_slice().chunks_exact(nv))
+                .enumerate()
+            {
+                for (row, (dq, dv)) in rows.chunks_exact_mut(k).zip(dq.iter().zip(dv)) {
+                    row[nv + c] = -dq;
+                    row[2 * nv + c] = -dv;
                 }
             }
-            ltl_solve_rows(ancestors, factor, rows, k);
-            for (i, row) in rows.chunks_exact(k).enumerate() {
-                for c in 0..nv {
-                    d.minv[(i, c)] = row[c];
-                    d.ddq_dq[(i, c)] = row[nv + c];
-                    d.ddq_dv[(i, c)] = row[2 * nv + c];
+            ltl_solve_rows(ancestors, factor, rows, k, true);
+            for (c, ((minv, dq), dv)) in d
+                .minv
+                .as_mut_slice()
+                .chunks_exact_mut(nv)
+                .zip(d.ddq_dq.as_mut_slice().chunks_exact_mut(nv))
+                .zip(d.ddq_dv.as_mut_slice().chunks_exact_mut(nv))
+                .enumerate()
+            {
+                for (i, row) in rows.chunks_exact(k).enumerate() {
+                    (minv[i], dq[i], dv[i]) = (row[c], row[nv + c], row[2 * nv + c]);
                 }
             }
         }
