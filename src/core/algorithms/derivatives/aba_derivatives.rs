@@ -11,7 +11,7 @@
 //! with mimic joints); `H⁻¹` and both products with it from that factor, one solve per column.
 
 use super::rnea_derivatives::{check_matrix, derivative_passes};
-use crate::algorithms::cholesky::cholesky_solve_slice;
+use crate::algorithms::cholesky::cholesky_solve_rows;
 use crate::algorithms::forward_dynamics::crba_solve_on_joints;
 use crate::algorithms::kinematics::update_joints;
 use crate::algorithms::ltl::ltl_solve_rows;
@@ -68,68 +68,50 @@ pub fn aba_derivatives<'w>(
 
 /// `H⁻¹` into `ws.derivatives.minv` and `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` into `ddq_dq`, `ddq_dv`,
 /// solving `H X = B` for `B = [1 | −∂τ/∂q | −∂τ/∂q̇]` with the factor `crba_solve_on_joints` left
-/// in `ws.factor`. Along the tree (`LᵀL`) the `3 nv` right-hand sides go row by row through
-/// [`ltl_solve_rows`], each step an update of whole rows over the non-zeros of `L`: `O(nv d)`
-/// per column for depth `d`, where a product with the dense `H⁻¹` costs `nv²`. With mimic
-/// joints (dense Cholesky) each column is solved on its own.
+/// in `ws.factor`. The `3 nv` right-hand sides go row by row (each step an update of whole rows):
+/// along the tree ([`ltl_solve_rows`]) over the non-zeros of `L`, `O(nv d)` per column for depth
+/// `d`, where a product with the dense `H⁻¹` costs `nv²`; with mimic joints through the dense
+/// Cholesky factor ([`cholesky_solve_rows`]).
 fn solve_with_factor(ws: &mut Workspace) {
     let (plan, factor, d) = (&ws.plan, &ws.factor, &mut ws.derivatives);
     let nv = d.minv.nrows();
     if nv == 0 {
-        return; // no columns (and `chunks_exact_mut(0)` would panic)
+        return; // no columns (and `chunks_exact(0)` would panic)
+    }
+    let k = 3 * nv;
+    let rows = &mut d.rhs_rows[..k * nv];
+    // Row i of B: e_iᵀ, then row i of −∂τ/∂q and of −∂τ/∂q̇ (column c of each, stored
+    // contiguously, gives entry c of every row).
+    for (i, row) in rows.chunks_exact_mut(k).enumerate() {
+        row[..nv].fill(0.0);
+        row[i] = 1.0;
+    }
+    for (c, (dq, dv)) in d
+        .dtau_dq
+        .as_slice()
+        .chunks_exact(nv)
+        .zip(d.dtau_dv.as_slice().chunks_exact(nv))
+        .enumerate()
+    {
+        for (row, (dq, dv)) in rows.chunks_exact_mut(k).zip(dq.iter().zip(dv)) {
+            row[nv + c] = -dq;
+            row[2 * nv + c] = -dv;
+        }
     }
     match &plan.dof_ancestors {
-        Some(ancestors) => {
-            let k = 3 * nv;
-            let rows = &mut d.rhs_rows[..k * nv];
-            // Row i of B: e_iᵀ, then row i of −∂τ/∂q and of −∂τ/∂q̇ (column c of each, stored
-            // contiguously, gives entry c of every row).
-            for (i, row) in rows.chunks_exact_mut(k).enumerate() {
-                row[..nv].fill(0.0);
-                row[i] = 1.0;
-            }
-            for (c, (dq, dv)) in d
-                .dtau_dq
-                .as_slice()
-                .chunks_exact(nv)
-                .zip(d.dtau_dv.as_slice().chunks_exact(nv))
-                .enumerate()
-            {
-                for (row, (dq, dv)) in rows.chunks_exact_mut(k).zip(dq.iter().zip(dv)) {
-                    row[nv + c] = -dq;
-                    row[2 * nv + c] = -dv;
-                }
-            }
-            ltl_solve_rows(ancestors, factor, rows, k, true);
-            for (c, ((minv, dq), dv)) in d
-                .minv
-                .as_mut_slice()
-                .chunks_exact_mut(nv)
-                .zip(d.ddq_dq.as_mut_slice().chunks_exact_mut(nv))
-                .zip(d.ddq_dv.as_mut_slice().chunks_exact_mut(nv))
-                .enumerate()
-            {
-                for (i, row) in rows.chunks_exact(k).enumerate() {
-                    (minv[i], dq[i], dv[i]) = (row[c], row[nv + c], row[2 * nv + c]);
-                }
-            }
-        }
-        None => {
-            d.minv.fill_with_identity();
-            negate_into(&d.dtau_dq, &mut d.ddq_dq);
-            negate_into(&d.dtau_dv, &mut d.ddq_dv);
-            for m in [&mut d.minv, &mut d.ddq_dq, &mut d.ddq_dv] {
-                for column in m.as_mut_slice().chunks_exact_mut(nv) {
-                    cholesky_solve_slice(factor, column);
-                }
-            }
-        }
+        Some(ancestors) => ltl_solve_rows(ancestors, factor, rows, k, true),
+        None => cholesky_solve_rows(factor, rows, k),
     }
-}
-
-/// `out = −x`, entry by entry.
-fn negate_into(x: &DMatrix<f64>, out: &mut DMatrix<f64>) {
-    for (o, x) in out.as_mut_slice().iter_mut().zip(x.as_slice()) {
-        *o = -x;
+    for (c, ((minv, dq), dv)) in d
+        .minv
+        .as_mut_slice()
+        .chunks_exact_mut(nv)
+        .zip(d.ddq_dq.as_mut_slice().chunks_exact_mut(nv))
+        .zip(d.ddq_dv.as_mut_slice().chunks_exact_mut(nv))
+        .enumerate()
+    {
+        for (i, row) in rows.chunks_exact(k).enumerate() {
+            (minv[i], dq[i], dv[i]) = (row[c], row[nv + c], row[2 * nv + c]);
+        }
     }
 }
