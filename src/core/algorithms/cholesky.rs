@@ -85,6 +85,41 @@ pub fn cholesky_solve(factor: &DMatrix<f64>, x: &mut DVector<f64>) {
     }
 }
 
+/// Solves `L Lᵀ X = B` in place for `k` right-hand sides held row by row (`w` is `n` rows of `k`
+/// entries, the column-major storage of `Bᵀ`), `L` as [`cholesky_factor`] left it. Each step is
+/// a whole-row update, independent entry by entry:
+///
+/// ```text
+/// L Y = B:    Y_j = B_j / L_jj, then B_i −= L_ij Y_j for i > j
+/// Lᵀ X = Y:   X_i = (Y_i − Σ_{j>i} L_ji X_j) / L_ii, from the last row up
+/// ```
+pub(crate) fn cholesky_solve_rows(factor: &DMatrix<f64>, w: &mut [f64], k: usize) {
+    let n = factor.nrows();
+    let l = factor.as_slice();
+    for j in 0..n {
+        let (head, tail) = w.split_at_mut((j + 1) * k);
+        let row_j = &mut head[j * k..];
+        let inv = 1.0 / l[j + j * n];
+        row_j.iter_mut().for_each(|y| *y *= inv);
+        for (row_i, l_ij) in tail.chunks_exact_mut(k).zip(&l[j * n + j + 1..(j + 1) * n]) {
+            for (b, y) in row_i.iter_mut().zip(&*row_j) {
+                *b -= l_ij * y;
+            }
+        }
+    }
+    for i in (0..n).rev() {
+        let (head, tail) = w.split_at_mut((i + 1) * k);
+        let row_i = &mut head[i * k..];
+        for (row_j, l_ji) in tail.chunks_exact(k).zip(&l[i * n + i + 1..(i + 1) * n]) {
+            for (y, x) in row_i.iter_mut().zip(row_j) {
+                *y -= l_ji * x;
+            }
+        }
+        let inv = 1.0 / l[i + i * n];
+        row_i.iter_mut().for_each(|x| *x *= inv);
+    }
+}
+
 /// The inverse of the symmetric positive definite top-left `n × n` block of `d` (`n ≤ 6`) into
 /// the same block of `d_inv` (its other entries are not written), through `D = L Lᵀ`:
 ///
@@ -148,6 +183,27 @@ pub fn spd_inverse(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Row by row, the solve gives `H X = B` for several right-hand sides at once.
+    #[test]
+    fn row_solve_inverts_h() {
+        let text = crate::model::examples::DEFAULT_ARM_URDF;
+        let model = crate::urdf::model_from_str(text, &crate::ModelOptions::default()).unwrap();
+        let n = model.nv();
+        let mut ws = crate::Workspace::new(&model);
+        let q = crate::sampling::random_q(&model, &mut crate::sampling::Rng::new(5));
+        let h = crate::algorithms::crba(&model, &mut ws, &q)
+            .unwrap()
+            .clone();
+        let mut factor = DMatrix::zeros(n, n);
+        cholesky_factor(&model, &h, &mut factor).unwrap();
+        let b = DMatrix::from_fn(n, 4, |i, j| ((i * 4 + j) as f64 * 0.9).sin());
+        let mut rows = b.transpose().as_slice().to_vec();
+        cholesky_solve_rows(&factor, &mut rows, 4);
+        let x = DMatrix::from_column_slice(4, n, &rows).transpose();
+        let err = (&h * &x - &b).amax();
+        assert!(err < 1e-12 * h.amax() * x.amax(), "|H X − B| = {err:e}");
+    }
 
     /// `D⁻¹ D = 1` for SPD blocks of every size, and a singular block is refused.
     #[test]

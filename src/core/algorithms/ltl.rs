@@ -55,14 +55,19 @@ pub(crate) fn ltl_factor(
     Ok(())
 }
 
-/// `Σ_{m ∈ rows} L_ma L_mb`: two contiguous column segments, summed in four interleaved
-/// partial sums (independent additions that pair up in SIMD registers).
+/// `Σ_{m ∈ rows} L_ma L_mb`: two contiguous column segments ([`dot`]).
 #[inline(always)]
 fn column_dot(l: &[f64], n: usize, a: usize, b: usize, rows: std::ops::Range<usize>) -> f64 {
     if rows.is_empty() {
         return 0.0; // a leaf: nothing below it
     }
-    let (x, y) = (&l[a * n..][rows.clone()], &l[b * n..][rows]);
+    dot(&l[a * n..][rows.clone()], &l[b * n..][rows])
+}
+
+/// `Σ x_m y_m` in four interleaved partial sums (independent additions that pair up in SIMD
+/// registers, where one running sum would wait on each addition).
+#[inline(always)]
+fn dot(x: &[f64], y: &[f64]) -> f64 {
     let mut acc = [0.0; 4];
     let (x4, y4) = (x.chunks_exact(4), y.chunks_exact(4));
     let (x_rest, y_rest) = (x4.remainder(), y4.remainder());
@@ -79,29 +84,101 @@ fn column_dot(l: &[f64], n: usize, a: usize, b: usize, rows: std::ops::Range<usi
 
 /// Solves `Lᵀ L x = b` in place (`x` holds `b` on entry), `factor` as [`ltl_factor`] left it.
 pub(crate) fn ltl_solve(ancestors: &Ancestors, factor: &DMatrix<f64>, x: &mut DVector<f64>) {
+    ltl_solve_columns(ancestors, factor, x.as_mut_slice());
+}
+
+/// [`ltl_solve`] on every column of the column-major `n × k` matrix `x` (its `k` right-hand
+/// sides side by side). The loops run coordinate outside, column inside: each column's solve
+/// is a chain of dependent divisions, and interleaving the columns lets them overlap.
+pub(crate) fn ltl_solve_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, x: &mut [f64]) {
     let n = ancestors.len();
+    if n == 0 {
+        return; // no columns (and `chunks_exact_mut(0)` would panic)
+    }
     let l = factor.as_slice();
-    let x = x.as_mut_slice();
     // Lᵀ y = b, from the leaves inward: y_i = (b_i − Σ_{m ∈ D(i)} L_mi y_m) / L_ii.
     for i in (0..n).rev() {
         let below = ancestors.below(i);
         let column_i = &l[i * n..(i + 1) * n];
-        let dot: f64 = column_i[below.clone()]
-            .iter()
-            .zip(&x[below])
-            .map(|(a, b)| a * b)
-            .sum();
-        x[i] = (x[i] - dot) / column_i[i];
+        let (l_below, l_ii) = (&column_i[below.clone()], column_i[i]);
+        for x in x.chunks_exact_mut(n) {
+            x[i] = (x[i] - dot(l_below, &x[below.clone()])) / l_ii;
+        }
     }
     // L x = y, from the root outward: x_i = y_i / L_ii, then y_m −= L_mi x_i below i.
     for i in 0..n {
         let below = ancestors.below(i);
         let column_i = &l[i * n..(i + 1) * n];
-        x[i] /= column_i[i];
-        let x_i = x[i];
-        for (y, a) in x[below.clone()].iter_mut().zip(&column_i[below]) {
-            *y -= a * x_i;
+        let (l_below, l_ii) = (&column_i[below.clone()], column_i[i]);
+        for x in x.chunks_exact_mut(n) {
+            x[i] /= l_ii;
+            let x_i = x[i];
+            for (y, a) in x[below.clone()].iter_mut().zip(l_below) {
+                *y -= a * x_i;
+            }
         }
+    }
+}
+
+/// Solves `Lᵀ L X = B` in place for `k` right-hand sides held row by row: `w` is `n` rows of
+/// `k` entries, row `i` of `B` at `w[i k .. (i + 1) k]` (the column-major storage of `Bᵀ`).
+/// Every step is then a whole-row update `row_a −= L_ma row_b`, contiguous and independent entry
+/// by entry, where a column-by-column solve waits on one division after another:
+///
+/// ```text
+/// Lᵀ Y = B, leaves inward:  Y_i = (B_i − Σ_{m ∈ D(i)} L_mi Y_m) / L_ii
+/// L X = Y, root outward:    X_i = Y_i / L_ii,  then Y_m −= L_mi X_i for m ∈ D(i)
+/// ```
+///
+/// With `identity_first`, the first `n` columns of `B` are the identity (`k ≥ n`): there row
+/// `i` of `Y = L⁻ᵀ` is zero outside the columns `i` and `D(i)` (`Y_i` gathers `e_i` and the rows
+/// below `i`, each zero outside its own subtree's range), and the first pass updates only
+/// those columns of that block.
+pub(crate) fn ltl_solve_rows(
+    ancestors: &Ancestors,
+    factor: &DMatrix<f64>,
+    w: &mut [f64],
+    k: usize,
+    identity_first: bool,
+) {
+    let n = ancestors.len();
+    let l = factor.as_slice();
+    for i in (0..n).rev() {
+        let (head, tail) = w.split_at_mut((i + 1) * k);
+        let row_i = &mut head[i * k..];
+        let below = ancestors.below(i);
+        // The columns to update: i's subtree in the identity block and all after it, or all.
+        let (subtree, rest) = if identity_first {
+            (i..below.end, n)
+        } else {
+            (0..0, 0)
+        };
+        for m in below {
+            let row_m = &tail[(m - i - 1) * k..(m - i) * k];
+            let l_mi = -l[m + i * n];
+            axpy(&mut row_i[subtree.clone()], l_mi, &row_m[subtree.clone()]);
+            axpy(&mut row_i[rest..], l_mi, &row_m[rest..]);
+        }
+        let inv = 1.0 / l[i + i * n];
+        row_i.iter_mut().for_each(|y| *y *= inv);
+    }
+    for i in 0..n {
+        let (head, tail) = w.split_at_mut((i + 1) * k);
+        let row_i = &mut head[i * k..];
+        let inv = 1.0 / l[i + i * n];
+        row_i.iter_mut().for_each(|x| *x *= inv);
+        for m in ancestors.below(i) {
+            let row_m = &mut tail[(m - i - 1) * k..(m - i) * k];
+            axpy(row_m, -l[m + i * n], row_i);
+        }
+    }
+}
+
+/// `y += a x`, entry by entry.
+#[inline(always)]
+fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
+    for (y, x) in y.iter_mut().zip(x) {
+        *y += a * x;
     }
 }
 
@@ -166,6 +243,29 @@ mod tests {
             assert!(
                 err < 1e-12 * (h.amax() * x.amax()),
                 "{}: |H x − b| = {err:e}",
+                model.name
+            );
+            // Three right-hand sides row by row: the storage of Bᵀ in, of Xᵀ out.
+            let b3 = DMatrix::from_fn(n, 3, |i, j| ((i * 3 + j) as f64 * 0.7).cos());
+            let mut rows = b3.transpose().as_slice().to_vec();
+            ltl_solve_rows(&ancestors, &factor, &mut rows, 3, false);
+            let x3 = DMatrix::from_column_slice(3, n, &rows).transpose();
+            let err = (&h * &x3 - &b3).amax();
+            assert!(
+                err < 1e-12 * (h.amax() * x3.amax()),
+                "{}: |H X − B| = {err:e} (rows)",
+                model.name
+            );
+            // The identity first, then B: H⁻¹ and H⁻¹ B.
+            let mut b4 = DMatrix::identity(n, n).insert_columns(n, 3, 0.0);
+            b4.columns_mut(n, 3).copy_from(&b3);
+            let mut rows = b4.transpose().as_slice().to_vec();
+            ltl_solve_rows(&ancestors, &factor, &mut rows, n + 3, true);
+            let x4 = DMatrix::from_column_slice(n + 3, n, &rows).transpose();
+            let err = (&h * &x4 - &b4).amax();
+            assert!(
+                err < 1e-12 * (h.amax() * x4.amax()),
+                "{}: |H X − [1 | B]| = {err:e} (rows, identity first)",
                 model.name
             );
         }

@@ -8,13 +8,13 @@
 //!
 //! with `∂τ/∂q`, `∂τ/∂q̇` from [`rnea_derivatives`](super::rnea_derivatives) at `(q, q̇, q̈)`.
 //! `q̈` comes from `H q̈ = τ − C` (`H` by CRBA, factored as `LᵀL` along the tree or by Cholesky
-//! with mimic joints) and `H⁻¹` from that factor, one solve per column.
+//! with mimic joints); `H⁻¹` and both products with it from that factor, one solve per column.
 
 use super::rnea_derivatives::{check_matrix, derivative_passes};
-use crate::algorithms::cholesky::cholesky_solve;
+use crate::algorithms::cholesky::cholesky_solve_rows;
 use crate::algorithms::forward_dynamics::crba_solve_on_joints;
 use crate::algorithms::kinematics::update_joints;
-use crate::algorithms::ltl::ltl_solve;
+use crate::algorithms::ltl::ltl_solve_rows;
 use crate::algorithms::validate::check_forward_inputs;
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
@@ -49,15 +49,13 @@ pub fn aba_derivatives<'w>(
     check_forward_inputs(model, ws, q, v, tau, ext)?;
     update_joints(model, ws, q);
     crba_solve_on_joints(model, ws, v, tau, ext)?;
-    inverse_from_factor(ws);
     // The passes read q̈ while they write the workspace: lend it out (an empty vector holds no
     // allocation) and put it back.
     let qdd = std::mem::replace(&mut ws.qdd, DVector::zeros(0));
     derivative_passes(model, ws, v, qdd.as_slice(), ext);
     ws.qdd = qdd;
-    let d = &mut ws.derivatives;
-    times_minus_minv(&d.minv, &d.dtau_dq, &mut d.ddq_dq);
-    times_minus_minv(&d.minv, &d.dtau_dv, &mut d.ddq_dv);
+    solve_with_factor(ws);
+    let d = &ws.derivatives;
     check_matrix(model, "ddq_dq", &d.ddq_dq)?;
     check_matrix(model, "ddq_dv", &d.ddq_dv)?;
     check_matrix(model, "Minv", &d.minv)?;
@@ -68,25 +66,52 @@ pub fn aba_derivatives<'w>(
     })
 }
 
-/// `H⁻¹` into `ws.derivatives.minv`, column `k` solving `H x = e_k` with the factor
-/// `crba_solve_on_joints` left in `ws.factor`.
-fn inverse_from_factor(ws: &mut Workspace) {
+/// `H⁻¹` into `ws.derivatives.minv` and `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` into `ddq_dq`, `ddq_dv`,
+/// solving `H X = B` for `B = [1 | −∂τ/∂q | −∂τ/∂q̇]` with the factor `crba_solve_on_joints` left
+/// in `ws.factor`. The `3 nv` right-hand sides go row by row (each step an update of whole rows):
+/// along the tree ([`ltl_solve_rows`]) over the non-zeros of `L`, `O(nv d)` per column for depth
+/// `d`, where a product with the dense `H⁻¹` costs `nv²`; with mimic joints through the dense
+/// Cholesky factor ([`cholesky_solve_rows`]).
+fn solve_with_factor(ws: &mut Workspace) {
     let (plan, factor, d) = (&ws.plan, &ws.factor, &mut ws.derivatives);
-    for k in 0..d.minv.ncols() {
-        d.column.fill(0.0);
-        d.column[k] = 1.0;
-        match &plan.dof_ancestors {
-            Some(ancestors) => ltl_solve(ancestors, factor, &mut d.column),
-            None => cholesky_solve(factor, &mut d.column),
-        }
-        d.minv.set_column(k, &d.column);
+    let nv = d.minv.nrows();
+    if nv == 0 {
+        return; // no columns (and `chunks_exact(0)` would panic)
     }
-}
-
-/// `out = −H⁻¹ x`, column by column (a matrix-vector product each: `gemm` on dynamic matrices
-/// allocates its packing buffers).
-fn times_minus_minv(minv: &DMatrix<f64>, x: &DMatrix<f64>, out: &mut DMatrix<f64>) {
-    for (mut out, x) in out.column_iter_mut().zip(x.column_iter()) {
-        out.gemv(-1.0, minv, &x, 0.0);
+    let k = 3 * nv;
+    let rows = &mut d.rhs_rows[..k * nv];
+    // Row i of B: e_iᵀ, then row i of −∂τ/∂q and of −∂τ/∂q̇ (column c of each, stored
+    // contiguously, gives entry c of every row).
+    for (i, row) in rows.chunks_exact_mut(k).enumerate() {
+        row[..nv].fill(0.0);
+        row[i] = 1.0;
+    }
+    for (c, (dq, dv)) in d
+        .dtau_dq
+        .as_slice()
+        .chunks_exact(nv)
+        .zip(d.dtau_dv.as_slice().chunks_exact(nv))
+        .enumerate()
+    {
+        for (row, (dq, dv)) in rows.chunks_exact_mut(k).zip(dq.iter().zip(dv)) {
+            row[nv + c] = -dq;
+            row[2 * nv + c] = -dv;
+        }
+    }
+    match &plan.dof_ancestors {
+        Some(ancestors) => ltl_solve_rows(ancestors, factor, rows, k, true),
+        None => cholesky_solve_rows(factor, rows, k),
+    }
+    for (c, ((minv, dq), dv)) in d
+        .minv
+        .as_mut_slice()
+        .chunks_exact_mut(nv)
+        .zip(d.ddq_dq.as_mut_slice().chunks_exact_mut(nv))
+        .zip(d.ddq_dv.as_mut_slice().chunks_exact_mut(nv))
+        .enumerate()
+    {
+        for (i, row) in rows.chunks_exact(k).enumerate() {
+            (minv[i], dq[i], dv[i]) = (row[c], row[nv + c], row[2 * nv + c]);
+        }
     }
 }

@@ -21,6 +21,7 @@ mod aba_derivatives;
 mod integrate_jacobians;
 mod linearize;
 mod rnea_derivatives;
+mod velocity_product;
 
 pub use aba_derivatives::{aba_derivatives, AbaDerivatives};
 pub use integrate_jacobians::integrate_jacobians;
@@ -28,8 +29,9 @@ pub use linearize::{linearize, Linearization};
 pub use rnea_derivatives::{rnea_derivatives, rnea_derivatives_with, RneaDerivatives};
 
 use crate::model::Model;
-use crate::spatial::{Matrix6, Motion};
-use nalgebra::{DMatrix, DVector};
+use crate::spatial::Motion;
+use nalgebra::DMatrix;
+use velocity_product::VelocityProduct;
 
 /// Scratch of the derivative algorithms, sized once from the model. Per body `i` and joint
 /// column `k` (the column scaled by a mimic follower's multiplier), in the aligned frame of `i`'s
@@ -46,8 +48,8 @@ pub(crate) struct DerivativeScratch {
     /// rate `q̇_ik`, besides `S_ik ×` its velocity (`∂a/∂q̇`, `dAdv`).
     pub(crate) beta: Vec<[Motion; 6]>,
     /// `B_i`, then its sum over the subtree `B^C_i`: the velocity-product matrix of the body
-    /// forces (`∂f/∂v` through the velocity-dependent terms).
-    pub(crate) b: Vec<Matrix6>,
+    /// forces (`∂f/∂v` through the velocity-dependent terms), in its sparse form.
+    pub(crate) b: Vec<VelocityProduct>,
     /// `∂τ/∂q` (nv × nv).
     pub(crate) dtau_dq: DMatrix<f64>,
     /// `∂τ/∂q̇` (nv × nv).
@@ -58,8 +60,9 @@ pub(crate) struct DerivativeScratch {
     pub(crate) ddq_dv: DMatrix<f64>,
     /// `H⁻¹ = ∂q̈/∂τ` (nv × nv).
     pub(crate) minv: DMatrix<f64>,
-    /// One right-hand side of a solve with the factor of `H`.
-    pub(crate) column: DVector<f64>,
+    /// The right-hand sides `[1 | −∂τ/∂q | −∂τ/∂q̇]` of `aba_derivatives`' solve, row by row
+    /// (`nv` rows of `3 nv`), then its solutions.
+    pub(crate) rhs_rows: Vec<f64>,
 }
 
 impl DerivativeScratch {
@@ -71,13 +74,13 @@ impl DerivativeScratch {
             psi: vec![[Motion::zero(); 6]; n],
             alpha: vec![[Motion::zero(); 6]; n],
             beta: vec![[Motion::zero(); 6]; n],
-            b: vec![Matrix6::zeros(); n],
+            b: vec![VelocityProduct::zero(); n],
             dtau_dq: square(),
             dtau_dv: square(),
             ddq_dq: square(),
             ddq_dv: square(),
             minv: square(),
-            column: DVector::zeros(nv),
+            rhs_rows: vec![0.0; 3 * nv * nv],
         }
     }
 }

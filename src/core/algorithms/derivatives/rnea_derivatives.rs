@@ -9,7 +9,7 @@
 //! v_i = v_λ + S_i q̇_i,    a_i = a_λ + Σ_k (S_ik q̈_ik + v_λ × S_ik q̇_ik)
 //! f_i = I_i a_i + v_i ×* I_i v_i − f^x_i
 //! ψ_ik = v_λ × S_ik,   α_ik = a_λ × S_ik + v_λ × ψ_ik,   β_ik = ψ_ik + v_i × S_ik
-//! B_i ψ = I_i (ψ × v_i) + v_i ×* I_i ψ + ψ ×* I_i v_i
+//! B_i ψ = I_i (ψ × v_i) + v_i ×* I_i ψ + ψ ×* I_i v_i      (sparse: velocity_product.rs)
 //! ```
 //! Turning column `k` of joint `j` by `ε` carries every body of the subtree of `j` rigidly by
 //! `ε S_jk` (a motion `m` becomes `m + ε S_jk × m`, a force `f + ε S_jk ×* f`) and, on top of
@@ -37,6 +37,7 @@
 //! series ([`in_series`]): each column is then the child of the columns before it, with
 //! `v_λ`, `a_λ` the motion after them and `v_i` in `β` the motion after the column itself.
 
+use super::velocity_product::VelocityProduct;
 use super::DerivativeScratch;
 use crate::algorithms::kinematics::{
     update_aligned_placements, update_joints, update_world_axes, Anchors,
@@ -45,10 +46,9 @@ use crate::algorithms::validate::{check_externals, check_q, check_result, check_
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model};
-use crate::spatial::{Force, Inertia, Matrix6, Motion, Translation, Vector3};
+use crate::spatial::{Motion, Translation, Vector3};
 use crate::Workspace;
 use nalgebra::DMatrix;
-use nalgebra::Vector6;
 
 /// The derivatives of inverse dynamics at one state, held in the workspace: `nv × nv`, full,
 /// row `i` the derivative of `τ_i`, columns in `v` order, on the tangent of
@@ -170,28 +170,12 @@ fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64], ext: &E
         if let Some(w) = ext.wrenches {
             f_i -= x.transpose_apply_force(&w[i]);
         }
-        d.b[i] = velocity_product_matrix(&inertia, &v_i);
+        d.b[i] = VelocityProduct::new(&inertia, &v_i);
         ws.ic[i] = inertia;
         ws.f[i] = f_i;
         ws.v_world[i] = v_i;
         ws.a_world[i] = a_i;
     }
-}
-
-/// `B` with `B ψ = I (ψ × v) + v ×* I ψ + ψ ×* I v`, column by column (`ψ = e_c`): the unit
-/// motions make the cross products a few components each, where the dense form
-/// `crf(v) I − I crm(v) − h̄(I v)` would take two 6×6 products.
-fn velocity_product_matrix(inertia: &Inertia, v: &Motion) -> Matrix6 {
-    let momentum = inertia.apply(v);
-    let mut b = Matrix6::zeros();
-    for c in 0..6 {
-        let e = Motion::from_vector(&Vector6::ith(c, 1.0));
-        let column = inertia.apply(&e.cross_motion(v))
-            + v.cross_force(&inertia.column(c))
-            + e.cross_force(&momentum);
-        b.set_column(c, &column.to_vector());
-    }
-    b
 }
 
 /// Backward pass: sums `I^C`, `B^C`, `F` over each subtree and fills `τ`, `∂τ/∂q`, `∂τ/∂q̇` and
@@ -230,34 +214,39 @@ fn backward_pass(model: &Model, ws: &mut Workspace) {
             tau[row] += s.dot(&f[i]);
             // Row (i, n) against the columns of i and its ancestors: I^C_i S and B^C_iᵀ S.
             let ic_s = ic[i].apply(&s);
-            let bt_s = b[i].tr_mul(&s.to_vector());
-            for j in std::iter::once(i).chain(above(i)) {
-                let cj = model.bodies[j].joint.coords.v_index;
-                let columns = if j == i && series {
-                    n + 1
-                } else {
-                    s_world[j].nv
-                };
-                for m in 0..columns {
-                    let (col, s_j) = (cj + m, s_world[j].cols[m]);
-                    dtau_dq[(row, col)] +=
-                        alpha[j][m].dot(&ic_s) + bt_s.dot(&psi[j][m].to_vector());
-                    dtau_dv[(row, col)] += beta[j][m].dot(&ic_s) + bt_s.dot(&s_j.to_vector());
-                    mass_matrix[(row, col)] += s_j.dot(&ic_s);
-                }
-            }
+            let bt_s = b[i].tr_apply(&s);
             // Column (i, n) against the rows above it: the forces its motion adds to F_i.
-            let w_q = s.cross_force(&f[i])
-                + ic[i].apply(&alpha[i][n])
-                + Force::from_vector(&(b[i] * psi[i][n].to_vector()));
-            let w_v = ic[i].apply(&beta[i][n]) + Force::from_vector(&(b[i] * s.to_vector()));
-            let earlier_columns = (0..if series { n } else { 0 }).map(|m| (i, m));
-            let ancestor_columns = above(i).flat_map(|j| (0..s_world[j].nv).map(move |m| (j, m)));
-            for (j, m) in earlier_columns.chain(ancestor_columns) {
-                let (r, s_j) = (model.bodies[j].joint.coords.v_index + m, s_world[j].cols[m]);
-                dtau_dq[(r, row)] += s_j.dot(&w_q);
-                dtau_dv[(r, row)] += s_j.dot(&w_v);
-                mass_matrix[(r, row)] += s_j.dot(&ic_s);
+            let w_q = s.cross_force(&f[i]) + ic[i].apply(&alpha[i][n]) + b[i].apply(&psi[i][n]);
+            let w_v = ic[i].apply(&beta[i][n]) + b[i].apply(&s);
+            // i's own columns: all of them on the left, or in series those up to n on the left
+            // and those before n on the right.
+            for m in 0..if series { n + 1 } else { s_i.nv } {
+                let (col, s_m) = (ci + m, s_i.cols[m]);
+                dtau_dq[(row, col)] += alpha[i][m].dot(&ic_s) + bt_s.dot(&psi[i][m].ang);
+                dtau_dv[(row, col)] += beta[i][m].dot(&ic_s) + bt_s.dot(&s_m.ang);
+                mass_matrix[(row, col)] += s_m.dot(&ic_s);
+            }
+            for m in 0..if series { n } else { 0 } {
+                let (r, s_m) = (ci + m, s_i.cols[m]);
+                dtau_dq[(r, row)] += s_m.dot(&w_q);
+                dtau_dv[(r, row)] += s_m.dot(&w_v);
+                mass_matrix[(r, row)] += s_m.dot(&ic_s);
+            }
+            // Each ancestor column (j, m): the left entry in row (i, n), the right one in
+            // column (i, n), and H's two (equal) entries from one product. Entries add up: a
+            // mimic follower's row and column are its leader's.
+            for j in above(i) {
+                let cj = model.bodies[j].joint.coords.v_index;
+                for m in 0..s_world[j].nv {
+                    let (other, s_j) = (cj + m, s_world[j].cols[m]);
+                    dtau_dq[(row, other)] += alpha[j][m].dot(&ic_s) + bt_s.dot(&psi[j][m].ang);
+                    dtau_dv[(row, other)] += beta[j][m].dot(&ic_s) + bt_s.dot(&s_j.ang);
+                    dtau_dq[(other, row)] += s_j.dot(&w_q);
+                    dtau_dv[(other, row)] += s_j.dot(&w_v);
+                    let h = s_j.dot(&ic_s);
+                    mass_matrix[(row, other)] += h;
+                    mass_matrix[(other, row)] += h;
+                }
             }
         }
         if let Some(p) = body.parent {
