@@ -9,7 +9,13 @@
 //! `world` Jacobian of one link, the one carried by the body deepest in the tree, named in the
 //! JSON as `"frame"`) and `center_of_mass` (the centre of mass with its Jacobian); then the
 //! [`DERIVATIVE_KERNELS`]: `rnea_derivatives` (`∂τ/∂q`, `∂τ/∂q̇`, `H` at `(q, q̇, q̈)`) and
-//! `aba_derivatives` (`∂q̈/∂q`, `∂q̈/∂q̇`, `H⁻¹` at `(q, q̇, τ)`).
+//! `aba_derivatives` (`∂q̈/∂q`, `∂q̈/∂q̇`, `H⁻¹` at `(q, q̇, τ)`). The [`SIM_KERNELS`] (one
+//! simulation step, see [`sim`]) run only when `--kernels` names them; the JSON then also has
+//! `"sim_end"`: per simulation kernel the state its run ends in.
+
+mod sim;
+
+pub use sim::{SimSettings, SIM_KERNELS};
 
 use super::ModelArgs;
 use clap::Args;
@@ -97,9 +103,23 @@ pub fn run(
     as_json: bool,
     only: &[String],
     settings: &Settings,
+    sim_settings: &SimSettings,
 ) -> Result<(), String> {
     settings.check()?;
     let model = args.load()?;
+    let (sim_kernels, only): (Vec<&String>, Vec<&String>) =
+        only.iter().partition(|k| SIM_KERNELS.contains(&k.as_str()));
+    let sim_runs = sim_kernels
+        .iter()
+        .map(|k| {
+            let integrator = sim::integrator_of(k).expect("a simulation kernel");
+            sim::time_simulation(&model, integrator, sim_settings, settings.repeats)
+                .map(|t| (k.as_str(), t))
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    if only.is_empty() && !sim_runs.is_empty() {
+        return print_sim_only(&model, as_json, &sim_runs);
+    }
     let all: Vec<&str> = KERNELS
         .iter()
         .chain(&KINEMATICS_KERNELS)
@@ -136,6 +156,10 @@ pub fn run(
         };
         let mut out = json!({"nv": model.nv(), "ns_per_call": per_call(&times), "flops_per_call": flops,
                              "gflops": gflops, "frame": deepest_link(&model)});
+        for (name, run) in &sim_runs {
+            out["ns_per_call"][*name] = json!(run.ns_per_step);
+            out["sim_end"][*name] = run.end_json();
+        }
         match &auto {
             Ok(choice) => out["auto_method"] = json!(choice.method.name()),
             Err(e) => {
@@ -205,10 +229,35 @@ pub fn run(
             }
         }
     }
+    for (name, run) in &sim_runs {
+        println!("{name:<16} {:>12.1} (ns per step)", run.ns_per_step);
+    }
     println!("frame_jacobian times link '{}'", deepest_link(&model));
     match &auto {
         Ok(choice) => println!("method auto would choose: {}", choice.summary()),
         Err(e) => println!("method auto would choose: none ({e})"),
+    }
+    Ok(())
+}
+
+/// The result when only simulation kernels were asked for: their ns per step (JSON: `"nv"`,
+/// `"ns_per_call"` and `"sim_end"`).
+fn print_sim_only(
+    model: &Model,
+    as_json: bool,
+    runs: &[(&str, sim::SimTiming)],
+) -> Result<(), String> {
+    if as_json {
+        let mut out = json!({"nv": model.nv(), "ns_per_call": {}, "sim_end": {}});
+        for (name, run) in runs {
+            out["ns_per_call"][*name] = json!(run.ns_per_step);
+            out["sim_end"][*name] = run.end_json();
+        }
+        println!("{out}");
+    } else {
+        for (name, run) in runs {
+            println!("{name:<24} {:>12.1} ns per step", run.ns_per_step);
+        }
     }
     Ok(())
 }

@@ -49,6 +49,8 @@ enum Command {
         kernels: Vec<String>,
         #[command(flatten)]
         settings: bench::Settings,
+        #[command(flatten)]
+        sim: bench::SimSettings,
     },
     /// Regenerate the README's charts (SVG) and the CSV behind each: timing against nv,
     /// forward-dynamics error against time, integrator work-precision.
@@ -88,7 +90,8 @@ pub fn run() -> ExitCode {
             json,
             kernels,
             settings,
-        } => bench::run(&model, json, &kernels, &settings),
+            sim,
+        } => bench::run(&model, json, &kernels, &settings, &sim),
         Command::Chart(args) => chart::run(&args),
         Command::Simulate { model, sim } => simulate::run(&model, &sim),
         #[cfg(feature = "replay")]

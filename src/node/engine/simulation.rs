@@ -25,6 +25,10 @@ pub struct Simulation {
     measured_since: (Instant, f64),
     /// Simulated seconds per wall-clock second over the last report period.
     pub measured_rtf: f64,
+    /// Wall time of the last publish tick, and how many ticks came more than one period late
+    /// (more than two periods after the tick before): a whole step slot missed.
+    last_tick: Option<Instant>,
+    late_ticks: u64,
     zero: Vec<f64>,
 }
 
@@ -66,6 +70,8 @@ impl Engine {
             command_timeout: settings.command_timeout,
             measured_since: (Instant::now(), 0.0),
             measured_rtf: 0.0,
+            last_tick: None,
+            late_ticks: 0,
             zero: vec![0.0; self.model.nv()],
         });
         Ok(())
@@ -81,7 +87,15 @@ impl Engine {
     /// One tick of the publish timer: advance by `real_time_factor / publish_rate` seconds (unless
     /// paused or diverged) and return the `joint_states` to publish with the simulated time.
     pub fn simulation_tick(&mut self, now: Instant) -> Option<Result<(JointState, Time), String>> {
-        let sim = self.simulation.as_ref()?;
+        let sim = self.simulation.as_mut()?;
+        let period = Duration::from_secs_f64(1.0 / sim.rate);
+        if sim
+            .last_tick
+            .is_some_and(|last| now.saturating_duration_since(last) > 2 * period)
+        {
+            sim.late_ticks += 1;
+        }
+        sim.last_tick = Some(now);
         if sim.paused || sim.diverged.is_some() {
             return None;
         }
@@ -262,6 +276,11 @@ impl Engine {
     /// The simulated time (s), in simulate mode: the node's clock with `use_sim_time`.
     pub fn simulated_time(&self) -> Option<f64> {
         self.simulation.as_ref().map(|s| s.state.t)
+    }
+
+    /// How many publish ticks came more than one period late, in simulate mode.
+    pub fn simulation_late_ticks(&self) -> Option<u64> {
+        self.simulation.as_ref().map(|s| s.late_ticks)
     }
 
     /// Simulation figures for `/diagnostics`: simulated time, real-time factor, paused, why it

@@ -56,7 +56,8 @@ impl NodeState {
 
     /// `/diagnostics` at the node's time `now` (ns; stamped 0 while unknown): the counters
     /// ([`crate::node::health::Health::report`]), the clock in use and its time, and in simulate mode the
-    /// simulation's time, real-time factor and state (an error status once it diverged).
+    /// simulation's time, real-time factor, late publish ticks (more than one period late) and
+    /// state (an error status once it diverged).
     pub fn diagnostics(&mut self, now: Option<i64>) -> Outputs {
         let simulating = self.engine.simulated_time().is_some();
         let mut status = self
@@ -82,6 +83,9 @@ impl NodeState {
             value("real-time factor", format!("{rtf:.3}"));
             value("paused", paused.to_string());
             value("efforts clamped", clamped.to_string());
+            if let Some(late) = self.engine.simulation_late_ticks() {
+                value("late publish ticks", late.to_string());
+            }
             if let Some(depth) = self.engine.simulated_penetration() {
                 value("deepest ground penetration (m)", format!("{depth:.6}"));
             }
@@ -222,5 +226,25 @@ mod tests {
         let status = &serve.diagnostics(Some(0)).diagnostics.unwrap().status[0];
         assert_eq!(status.level, 0);
         assert!(!status.values.iter().any(|v| v.key == "simulated time (s)"));
+    }
+
+    /// A tick more than two periods after the one before is late; jitter within that is not.
+    #[test]
+    fn diagnostics_count_late_publish_ticks() {
+        let mut state = falling(false);
+        let period = state.engine.simulation_period().expect("simulate mode");
+        let late = |state: &mut NodeState| {
+            let status = &state.diagnostics(Some(0)).diagnostics.unwrap().status[0];
+            let found = status.values.iter().find(|v| v.key == "late publish ticks");
+            found.expect("late publish ticks").value.clone()
+        };
+        let t0 = Instant::now();
+        state.simulation_tick(t0);
+        assert_eq!(late(&mut state), "0");
+        let t1 = t0 + period * 19 / 10;
+        state.simulation_tick(t1);
+        assert_eq!(late(&mut state), "0", "1.9 periods: on time");
+        state.simulation_tick(t1 + period * 21 / 10);
+        assert_eq!(late(&mut state), "1", "2.1 periods: late");
     }
 }

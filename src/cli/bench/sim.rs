@@ -1,0 +1,170 @@
+//! The simulation kernels of `spatial_dynamics bench`: nanoseconds per step of the library's
+//! [`Simulator`] (forward dynamics by ABA, no passive forces, no contact, zero commanded
+//! efforts, gravity on), one kernel per integrator, timed over whole runs of `--sim-steps`
+//! steps of `--sim-dt` from one initial state, nothing written on the way. The median repeat is
+//! reported, with the state the run ends in (`q`, and `v` in the joints' velocity coordinates:
+//! a floating joint's `[v_B; ω_B]`, both in the base frame), so another simulator's run of the
+//! same length can be compared with it.
+
+use clap::Args;
+use serde_json::{json, Value};
+use spatial_dynamics_core::sim::{Integrator, SimConfig, Simulator, State};
+use spatial_dynamics_core::Model;
+use std::hint::black_box;
+use std::time::Instant;
+
+/// The simulation kernels; timed only when named in `--kernels`.
+pub const SIM_KERNELS: [&str; 2] = ["sim_rk4", "sim_semi_implicit_euler"];
+
+/// The run each simulation kernel times.
+#[derive(Args, Clone, Debug)]
+pub struct SimSettings {
+    /// Simulation kernels: steps per timed run.
+    #[arg(long, default_value_t = 1000)]
+    pub sim_steps: usize,
+    /// Simulation kernels: the step, seconds.
+    #[arg(long, value_name = "SECONDS", default_value_t = 1e-3)]
+    pub sim_dt: f64,
+    /// Simulation kernels: the initial state, {"q": [...], "v": [...]} in the model's coordinate
+    /// order (default: the neutral configuration at rest).
+    #[arg(long, value_name = "JSON")]
+    pub sim_initial: Option<String>,
+}
+
+/// The integrator a simulation kernel name stands for.
+pub fn integrator_of(kernel: &str) -> Option<Integrator> {
+    kernel.strip_prefix("sim_")?.parse().ok()
+}
+
+impl SimSettings {
+    /// The initial state; the error names the flag and what is wrong with it.
+    fn initial(&self, model: &Model) -> Result<State, String> {
+        if self.sim_steps == 0 || !(self.sim_dt.is_finite() && self.sim_dt > 0.0) {
+            return Err("--sim-steps must be at least 1 and --sim-dt a positive number".into());
+        }
+        let mut state = State::at_rest(model, model.neutral());
+        let Some(text) = &self.sim_initial else {
+            return Ok(state);
+        };
+        let value: Value = serde_json::from_str(text).map_err(|e| format!("--sim-initial: {e}"))?;
+        for (key, target) in [("q", &mut state.q), ("v", &mut state.v)] {
+            let Some(given) = value.get(key) else {
+                continue;
+            };
+            let numbers: Option<Vec<f64>> = given
+                .as_array()
+                .map(|a| a.iter().map(Value::as_f64).collect())
+                .unwrap_or(None);
+            match numbers {
+                Some(n) if n.len() == target.len() && n.iter().all(|x| x.is_finite()) => {
+                    target.copy_from_slice(&n)
+                }
+                _ => {
+                    return Err(format!(
+                        "--sim-initial: \"{key}\" must be an array of {} finite numbers",
+                        target.len()
+                    ))
+                }
+            }
+        }
+        Ok(state)
+    }
+}
+
+/// One kernel's result: median nanoseconds per step and the state a run ends in.
+pub struct SimTiming {
+    pub ns_per_step: f64,
+    pub end: State,
+}
+
+impl SimTiming {
+    /// `{"q": [...], "v": [...]}` of the end state.
+    pub fn end_json(&self) -> Value {
+        json!({"q": self.end.q, "v": self.end.v})
+    }
+}
+
+/// Times `integrator` on `model`: one untimed run (the end state, and the warm-up), then
+/// `repeats` timed runs from the same initial state; the median per step.
+pub fn time_simulation(
+    model: &Model,
+    integrator: Integrator,
+    settings: &SimSettings,
+    repeats: usize,
+) -> Result<SimTiming, String> {
+    let initial = settings.initial(model)?;
+    let config = SimConfig {
+        integrator,
+        dt: settings.sim_dt,
+        ..SimConfig::default()
+    };
+    let tau = vec![0.0; model.nv()];
+    let mut sim = Simulator::new(model, config)?;
+    let mut state = initial.clone();
+    let mut run = |state: &mut State| -> Result<f64, String> {
+        state.clone_from(&initial);
+        sim.restart_energy_budget();
+        let start = Instant::now();
+        for _ in 0..settings.sim_steps {
+            black_box(sim.step(model, black_box(&mut *state), &tau))
+                .map_err(|e| format!("sim_{integrator}: {e}"))?;
+        }
+        Ok(start.elapsed().as_nanos() as f64 / settings.sim_steps as f64)
+    };
+    run(&mut state)?;
+    let end = state.clone();
+    let mut samples = (0..repeats.max(1))
+        .map(|_| run(&mut state))
+        .collect::<Result<Vec<f64>, String>>()?;
+    samples.sort_by(f64::total_cmp);
+    Ok(SimTiming {
+        ns_per_step: (samples[samples.len() / 2] * 10.0).round() / 10.0,
+        end,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use spatial_dynamics_core::model::examples;
+    use spatial_dynamics_core::urdf::model_from_str;
+    use spatial_dynamics_core::ModelOptions;
+
+    #[test]
+    fn kernel_names_map_to_their_integrators() {
+        assert_eq!(integrator_of("sim_rk4"), Some(Integrator::Rk4));
+        assert_eq!(
+            integrator_of("sim_semi_implicit_euler"),
+            Some(Integrator::SemiImplicitEuler)
+        );
+        assert_eq!(integrator_of("rnea"), None);
+        assert!(SIM_KERNELS.iter().all(|k| integrator_of(k).is_some()));
+    }
+
+    /// A uniform rod pendulum (1 m, 1 kg: θ̈ = −(3g / 2l) sin θ) released from rest at θ₀ = 0.3:
+    /// after 0.1 s, θ ≈ θ₀ − ½ (3g / 2) sin θ₀ t² (the t⁴ term is below 3e-4); a wrong-length
+    /// initial state is refused.
+    #[test]
+    fn the_end_state_is_the_state_after_the_run() {
+        let urdf = examples::pendulum_urdf(1, 1.0, 1.0);
+        let model = model_from_str(&urdf, &ModelOptions::default()).unwrap();
+        let settings = SimSettings {
+            sim_steps: 100,
+            sim_dt: 1e-3,
+            sim_initial: Some(r#"{"q": [0.3], "v": [0.0]}"#.into()),
+        };
+        let t = time_simulation(&model, Integrator::Rk4, &settings, 1).unwrap();
+        assert!(t.ns_per_step > 0.0);
+        let expected = 0.3 - 0.5 * 1.5 * 9.81 * 0.3f64.sin() * 0.01;
+        assert!((t.end.q[0] - expected).abs() < 2e-3, "{}", t.end.q[0]);
+        assert!(t.end.v[0] < 0.0);
+        let bad = SimSettings {
+            sim_initial: Some(r#"{"q": [0.3, 1.0]}"#.into()),
+            ..settings
+        };
+        let err = time_simulation(&model, Integrator::Rk4, &bad, 1)
+            .err()
+            .unwrap();
+        assert!(err.contains("\"q\" must be an array of 1"), "{err}");
+    }
+}
