@@ -142,6 +142,7 @@ pub struct Endpoints {
     pub joint_states: Subscription<JointState>,
     pub effort_command: Subscription<JointState>,
     pub commands: Subscription<Float64MultiArray>,
+    pub joint_commands: Subscription<JointState>,
     pub reference: Subscription<JointTrajectory>,
     pub base_state: Subscription<Odometry>,
     pub robot_description: Subscription<StringMsg>,
@@ -195,6 +196,8 @@ impl Endpoints {
         let effort_command =
             subscription(node, &names.effort_command, JOINT_STATE, &reliable, None)?;
         let commands = subscription(node, &names.commands, MULTI_ARRAY, &reliable, None)?;
+        let joint_commands =
+            subscription(node, &names.joint_commands, JOINT_STATE, &reliable, None)?;
         let reference = subscription(
             node,
             &names.reference,
@@ -253,6 +256,7 @@ impl Endpoints {
             joint_states,
             effort_command,
             commands,
+            joint_commands,
             reference,
             base_state,
             robot_description,

@@ -38,6 +38,7 @@ pub struct Names {
     pub joint_states: String,
     pub effort_command: String,
     pub commands: String,
+    pub joint_commands: String,
     pub reference: String,
     /// `~/base_state`: read in serve mode, published in simulate mode.
     pub base_state: String,
@@ -71,6 +72,7 @@ impl Names {
             joint_states: r("joint_states"),
             effort_command: r("~/effort_command"),
             commands: r("~/commands"),
+            joint_commands: r("~/joint_commands"),
             reference: r("~/reference"),
             base_state: r("~/base_state"),
             robot_description: r("robot_description"),
