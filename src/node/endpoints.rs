@@ -167,11 +167,14 @@ pub struct Endpoints {
     pub clock_topic: Topic,
 }
 
-/// Simulate mode's outputs: `joint_states`, the floating base on `~/base_state`, `/clock`.
+/// Simulate mode's outputs: `joint_states`, the floating base on `~/base_state` and `/tf`,
+/// `/clock`.
 struct SimulationPublishers {
     joint_states: Publisher<JointState>,
     base_state: Publisher<Odometry>,
     clock: Publisher<Clock>,
+    /// `/tf`, QoS as tf2's broadcaster: reliable, volatile, depth 100.
+    tf: Publisher<TFMessage>,
 }
 
 impl Endpoints {
@@ -248,6 +251,12 @@ impl Endpoints {
                 joint_states: publisher(node, &names.joint_states, JOINT_STATE, &reliable)?,
                 clock: publisher_on(node, &clock_topic, &names.clock)?,
                 base_state: publisher(node, &names.base_state, ODOMETRY, &reliable)?,
+                tf: publisher(
+                    node,
+                    &names.tf,
+                    ("tf2_msgs", "TFMessage"),
+                    &qos(true, Durability::Volatile, 100),
+                )?,
             })
         } else {
             None
@@ -314,6 +323,7 @@ impl Endpoints {
                 health,
             );
             send(&sim.base_state, out.base_state, &names.base_state, health);
+            send(&sim.tf, out.tf, &names.tf, health);
         }
         if let Some(diagnostics) = out.diagnostics {
             let _ = self.diagnostics.publish(diagnostics);

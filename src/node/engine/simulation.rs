@@ -39,6 +39,7 @@ pub struct Simulation {
     tau: Vec<f64>,
     /// `step_mode: on_command`: the steps each accepted command advances; `None`: free running.
     lockstep: Option<usize>,
+    publish_tf: bool,
 }
 
 impl Engine {
@@ -84,6 +85,7 @@ impl Engine {
             servo,
             tau: vec![0.0; self.model.nv()],
             lockstep: settings.lockstep.then_some(settings.steps_per_command),
+            publish_tf: settings.publish_tf,
         });
         Ok(())
     }
@@ -302,6 +304,11 @@ impl Engine {
                 covariance: Covariance::default(),
             },
         })
+    }
+
+    /// Whether the floating base's pose goes on `/tf` (simulate mode, `publish_tf`).
+    pub fn publishes_tf(&self) -> bool {
+        self.simulation.as_ref().is_some_and(|s| s.publish_tf)
     }
 
     /// The deepest ground penetration so far (m), in simulate mode with ground contacts.

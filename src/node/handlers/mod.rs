@@ -50,6 +50,7 @@ pub struct Names {
     pub feedforward_commands: String,
     pub diagnostics: String,
     pub clock: String,
+    pub tf: String,
     pub inverse_dynamics: String,
     pub forward_dynamics: String,
     pub mass_matrix: String,
@@ -83,6 +84,7 @@ impl Names {
             feedforward_commands: r("~/feedforward_commands"),
             diagnostics: r("/diagnostics"),
             clock: r("/clock"),
+            tf: r("/tf"),
             inverse_dynamics: r("~/inverse_dynamics"),
             forward_dynamics: r("~/forward_dynamics"),
             mass_matrix: r("~/mass_matrix"),
@@ -112,6 +114,8 @@ pub struct Outputs {
     pub joint_states: Option<JointState>,
     /// Simulate mode: the simulated floating base on `~/base_state`.
     pub base_state: Option<Odometry>,
+    /// Simulate mode: world → floating base on `/tf` (with `publish_tf`).
+    pub tf: Option<TFMessage>,
     pub diagnostics: Option<DiagnosticArray>,
 }
 
