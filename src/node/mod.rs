@@ -6,7 +6,7 @@
 //! `~/inverse_dynamics`, `~/forward_dynamics`, `~/mass_matrix`, `~/describe_model`,
 //! `~/frame_kinematics`, `~/linearize`, and the standard parameter services. In simulate mode (`mode: simulate`)
 //! the node also publishes
-//! `joint_states`, a floating base's `~/base_state` (and `/clock` if `publish_clock`) from its
+//! `joint_states`, a floating base's `~/base_state` and `/tf` (and `/clock` if `publish_clock`) from its
 //! own integrated state, with ground contact at `ground_contacts` if given, and serves
 //! `~/reset`, `~/pause` (std_srvs/SetBool) and `~/step` (std_srvs/Trigger); serve mode creates
 //! none of those three publishers. With `use_sim_time`
