@@ -142,6 +142,7 @@ pub struct Endpoints {
     pub joint_states: Subscription<JointState>,
     pub effort_command: Subscription<JointState>,
     pub commands: Subscription<Float64MultiArray>,
+    pub joint_commands: Subscription<JointState>,
     pub reference: Subscription<JointTrajectory>,
     pub base_state: Subscription<Odometry>,
     pub robot_description: Subscription<StringMsg>,
@@ -166,11 +167,14 @@ pub struct Endpoints {
     pub clock_topic: Topic,
 }
 
-/// Simulate mode's outputs: `joint_states`, the floating base on `~/base_state`, `/clock`.
+/// Simulate mode's outputs: `joint_states`, the floating base on `~/base_state` and `/tf`,
+/// `/clock`.
 struct SimulationPublishers {
     joint_states: Publisher<JointState>,
     base_state: Publisher<Odometry>,
     clock: Publisher<Clock>,
+    /// `/tf`, QoS as tf2's broadcaster: reliable, volatile, depth 100.
+    tf: Publisher<TFMessage>,
 }
 
 impl Endpoints {
@@ -195,6 +199,8 @@ impl Endpoints {
         let effort_command =
             subscription(node, &names.effort_command, JOINT_STATE, &reliable, None)?;
         let commands = subscription(node, &names.commands, MULTI_ARRAY, &reliable, None)?;
+        let joint_commands =
+            subscription(node, &names.joint_commands, JOINT_STATE, &reliable, None)?;
         let reference = subscription(
             node,
             &names.reference,
@@ -245,6 +251,12 @@ impl Endpoints {
                 joint_states: publisher(node, &names.joint_states, JOINT_STATE, &reliable)?,
                 clock: publisher_on(node, &clock_topic, &names.clock)?,
                 base_state: publisher(node, &names.base_state, ODOMETRY, &reliable)?,
+                tf: publisher(
+                    node,
+                    &names.tf,
+                    ("tf2_msgs", "TFMessage"),
+                    &qos(true, Durability::Volatile, 100),
+                )?,
             })
         } else {
             None
@@ -253,6 +265,7 @@ impl Endpoints {
             joint_states,
             effort_command,
             commands,
+            joint_commands,
             reference,
             base_state,
             robot_description,
@@ -310,6 +323,7 @@ impl Endpoints {
                 health,
             );
             send(&sim.base_state, out.base_state, &names.base_state, health);
+            send(&sim.tf, out.tf, &names.tf, health);
         }
         if let Some(diagnostics) = out.diagnostics {
             let _ = self.diagnostics.publish(diagnostics);

@@ -1,12 +1,12 @@
 //! `spatial_dynamics node`: the dynamics served over ROS 2 (ros2-client on RustDDS).
 //!
-//! Inputs: `joint_states`, `~/effort_command`, `~/commands`, `~/reference`, `~/base_state`,
+//! Inputs: `joint_states`, `~/effort_command`, `~/commands`, `~/joint_commands`, `~/reference`, `~/base_state`,
 //! `robot_description` (latched). Outputs: `~/gravity_effort`, `~/acceleration`,
 //! `~/effort_residual` (one joint state late), `~/feedforward_effort`, `~/feedforward_commands`, `/diagnostics`, `/rosout`. Services:
 //! `~/inverse_dynamics`, `~/forward_dynamics`, `~/mass_matrix`, `~/describe_model`,
 //! `~/frame_kinematics`, `~/linearize`, and the standard parameter services. In simulate mode (`mode: simulate`)
 //! the node also publishes
-//! `joint_states`, a floating base's `~/base_state` (and `/clock` if `publish_clock`) from its
+//! `joint_states`, a floating base's `~/base_state` and `/tf` (and `/clock` if `publish_clock`) from its
 //! own integrated state, with ground contact at `ground_contacts` if given, and serves
 //! `~/reset`, `~/pause` (std_srvs/SetBool) and `~/step` (std_srvs/Trigger); serve mode creates
 //! none of those three publishers. With `use_sim_time`
@@ -175,6 +175,7 @@ async fn serve(
     let js_stream = ends.joint_states.async_stream();
     let effort_stream = ends.effort_command.async_stream();
     let commands_stream = ends.commands.async_stream();
+    let joint_commands_stream = ends.joint_commands.async_stream();
     let reference_stream = ends.reference.async_stream();
     let base_stream = ends.base_state.async_stream();
     let description_stream = ends.robot_description.async_stream();
@@ -191,6 +192,7 @@ async fn serve(
         js_stream,
         effort_stream,
         commands_stream,
+        joint_commands_stream,
         reference_stream,
         base_stream,
         description_stream,
@@ -220,8 +222,18 @@ async fn serve(
                 let out = state.joint_states(message, now);
                 ends.publish(out, &names, &mut state.health);
             }
-            Some(item) = effort_stream.next() => state.effort_command(decoded(item).0),
-            Some(item) = commands_stream.next() => state.commands(decoded(item).0),
+            Some(item) = effort_stream.next() => {
+                let out = state.effort_command(decoded(item).0);
+                ends.publish(out, &names, &mut state.health);
+            }
+            Some(item) = commands_stream.next() => {
+                let out = state.commands(decoded(item).0);
+                ends.publish(out, &names, &mut state.health);
+            }
+            Some(item) = joint_commands_stream.next() => {
+                let out = state.joint_commands(decoded(item).0);
+                ends.publish(out, &names, &mut state.health);
+            }
             Some(item) = reference_stream.next() => {
                 let (message, arrived) = decoded(item);
                 let now = time.now(&mut node, &mut state, arrived);

@@ -20,6 +20,11 @@
 //! | `real_time_factor` | double | `1.0` | simulate: simulated seconds per wall-clock second |
 //! | `publish_clock` | bool | `false` | simulate: publish the simulated time on `/clock` |
 //! | `command_timeout` | double | `0.5` | simulate: a command older than this (wall s) drops to zero effort; 0: never |
+//! | `command_interface` | string | `effort` | simulate: what `~/commands` and `~/joint_commands` set: `effort`, `position` (PD servo) or `velocity` (damping servo) |
+//! | `servo_kp`, `servo_kd` | double[] | `[100]`, `[10]` | simulate: servo gains, one value for every command joint or one per `command_joints` entry (N·m/rad, N·m·s/rad; N/m, N·s/m) |
+//! | `step_mode` | string | `free` | simulate: `free` (the publish timer advances the state) or `on_command` (each accepted command advances it) |
+//! | `steps_per_command` | integer | `1` | simulate, `on_command`: `sim_dt` steps per command |
+//! | `publish_tf` | bool | `true` | simulate: a floating base's pose on `/tf` (world → base link) with each joint state |
 //! | `passive` | string[] | `[]` | simulate: URDF forces applied: `damping`, `friction`, `effort_limits`, `position_limits` |
 //! | `initial_positions` | string[] | `[]` | simulate: `"NAME=POSITION"` at start and on reload (others zero) |
 //! | `ground_contacts` | string[] | `[]` | simulate: `"LINK:X,Y,Z"` points (link frame, m) that touch a ground plane; empty: no ground |
@@ -41,7 +46,7 @@
 
 use ros2_client::ParameterValue;
 use spatial_dynamics_core::model::joint_position;
-use spatial_dynamics_core::sim::{ContactPoint, Ground, Integrator, Passive};
+use spatial_dynamics_core::sim::{CommandInterface, ContactPoint, Ground, Integrator, Passive};
 use spatial_dynamics_core::spatial::Vector3;
 use spatial_dynamics_core::{ForwardDynamicsMethod, ModelOptions};
 use std::path::Path;
@@ -68,6 +73,13 @@ pub struct Settings {
     pub real_time_factor: f64,
     pub publish_clock: bool,
     pub command_timeout: f64,
+    pub command_interface: CommandInterface,
+    pub servo_kp: Vec<f64>,
+    pub servo_kd: Vec<f64>,
+    /// Simulate: each accepted command advances the state (`step_mode: on_command`).
+    pub lockstep: bool,
+    pub steps_per_command: usize,
+    pub publish_tf: bool,
     pub passive: Vec<String>,
     pub initial_positions: Vec<(String, f64)>,
     /// Simulate: the ground plane and its contact points (no points: no ground).
@@ -98,6 +110,12 @@ impl Default for Settings {
             real_time_factor: 1.0,
             publish_clock: false,
             command_timeout: 0.5,
+            command_interface: CommandInterface::Effort,
+            servo_kp: vec![100.0],
+            servo_kd: vec![10.0],
+            lockstep: false,
+            steps_per_command: 1,
+            publish_tf: true,
             passive: Vec::new(),
             initial_positions: Vec::new(),
             ground: Ground::default(),
@@ -109,7 +127,7 @@ impl Default for Settings {
 }
 
 /// The names of all parameters, in declaration order.
-pub const NAMES: [&str; 28] = [
+pub const NAMES: [&str; 34] = [
     "robot_description",
     "urdf_file",
     "floating_base",
@@ -131,6 +149,12 @@ pub const NAMES: [&str; 28] = [
     "real_time_factor",
     "publish_clock",
     "command_timeout",
+    "command_interface",
+    "servo_kp",
+    "servo_kd",
+    "step_mode",
+    "steps_per_command",
+    "publish_tf",
     "passive",
     "initial_positions",
     "ground_contacts",
@@ -142,13 +166,19 @@ pub const NAMES: [&str; 28] = [
 
 /// Parameters read only when the simulation is built (at start, and from their values then
 /// whenever a model parameter rebuilds the model): read-only, as rclcpp declares such parameters.
-pub const START_PARAMETERS: [&str; 13] = [
+pub const START_PARAMETERS: [&str; 19] = [
     "mode",
     "publish_rate",
     "sim_dt",
     "integrator",
     "real_time_factor",
     "command_timeout",
+    "command_interface",
+    "servo_kp",
+    "servo_kd",
+    "step_mode",
+    "steps_per_command",
+    "publish_tf",
     "passive",
     "initial_positions",
     "ground_contacts",
@@ -211,6 +241,12 @@ impl Settings {
             "real_time_factor" => P::Double(self.real_time_factor),
             "publish_clock" => P::Boolean(self.publish_clock),
             "command_timeout" => P::Double(self.command_timeout),
+            "command_interface" => P::String(self.command_interface.name().into()),
+            "servo_kp" => P::DoubleArray(self.servo_kp.clone()),
+            "servo_kd" => P::DoubleArray(self.servo_kd.clone()),
+            "step_mode" => P::String(if self.lockstep { "on_command" } else { "free" }.into()),
+            "steps_per_command" => P::Integer(self.steps_per_command as i64),
+            "publish_tf" => P::Boolean(self.publish_tf),
             "passive" => P::StringArray(self.passive.clone()),
             "initial_positions" => P::StringArray(
                 self.initial_positions
@@ -296,6 +332,33 @@ impl Settings {
             ("use_sim_time", P::Boolean(b)) => self.use_sim_time = *b,
             ("integrator", P::String(s)) => self.integrator = s.parse()?,
             ("publish_clock", P::Boolean(b)) => self.publish_clock = *b,
+            ("publish_tf", P::Boolean(b)) => self.publish_tf = *b,
+            ("command_interface", P::String(s)) => self.command_interface = s.parse()?,
+            ("servo_kp" | "servo_kd", _) => {
+                let gains = match value {
+                    P::DoubleArray(g) => g.clone(),
+                    P::IntegerArray(g) => g.iter().map(|&x| x as f64).collect(),
+                    P::Double(x) => vec![*x],
+                    P::Integer(x) => vec![*x as f64],
+                    _ => vec![],
+                };
+                if gains.is_empty() || !gains.iter().all(|g| g.is_finite() && *g >= 0.0) {
+                    return wrong("one or more finite gains ≥ 0");
+                }
+                *if name == "servo_kp" {
+                    &mut self.servo_kp
+                } else {
+                    &mut self.servo_kd
+                } = gains;
+            }
+            ("step_mode", P::String(m)) if m == "free" || m == "on_command" => {
+                self.lockstep = m == "on_command"
+            }
+            ("step_mode", _) => return wrong("'free' or 'on_command'"),
+            ("steps_per_command", P::Integer(n)) if (1..=1_000_000).contains(n) => {
+                self.steps_per_command = *n as usize
+            }
+            ("steps_per_command", _) => return wrong("an integer from 1 to 1000000"),
             ("passive", P::StringArray(items)) => {
                 parse_passive(items)?;
                 self.passive = items.clone();
@@ -330,8 +393,8 @@ impl Settings {
                     .map_err(|e| format!("parameter '{name}': {e}"))?;
                 self.ground = ground;
             }
-            ("integrator", _) => return wrong("a string"),
-            ("publish_clock" | "use_sim_time", _) => return wrong("a bool"),
+            ("integrator" | "command_interface", _) => return wrong("a string"),
+            ("publish_clock" | "use_sim_time" | "publish_tf", _) => return wrong("a bool"),
             ("passive" | "initial_positions" | "ground_contacts", _) => {
                 return wrong("a list of strings")
             }

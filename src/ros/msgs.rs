@@ -52,6 +52,12 @@ ros_message! {
     PoseWithCovariance { pose: Pose, covariance: Covariance }
     /// geometry_msgs/TwistWithCovariance
     TwistWithCovariance { twist: Twist, covariance: Covariance }
+    /// geometry_msgs/Transform
+    TransformMsg { translation: Vector3, rotation: Quaternion }
+    /// geometry_msgs/TransformStamped
+    TransformStamped { header: Header, child_frame_id: String, transform: TransformMsg }
+    /// tf2_msgs/TFMessage
+    TFMessage { transforms: Vec<TransformStamped> }
     /// nav_msgs/Odometry
     Odometry { header: Header, child_frame_id: String, pose: PoseWithCovariance, twist: TwistWithCovariance }
     /// diagnostic_msgs/KeyValue

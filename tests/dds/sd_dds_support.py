@@ -638,3 +638,34 @@ def urdf_links(path):
 def yaml_string(text: str) -> str:
     """A YAML double-quoted scalar (JSON string syntax is valid YAML)."""
     return json.dumps(text)
+
+
+# --------------------------------------------------------------------------------------------
+# Simulate mode in lockstep (step_mode: on_command)
+# --------------------------------------------------------------------------------------------
+
+
+def stamp_ns(m):
+    """A message's header stamp in integer nanoseconds."""
+    return m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
+
+
+def joint_command(names, position=(), velocity=()):
+    """A ~/joint_commands message: joints by name, as topic_based_ros2_control sends them."""
+    from sensor_msgs.msg import JointState
+
+    return JointState(name=list(names), position=[float(x) for x in position], velocity=[float(x) for x in velocity])
+
+
+def drive(states, pub, message, n):
+    """Publishes `message` (or `message(last_state)`) n times, each after the joint state the
+    previous one produced on `states`; returns the n joint states. Reliable both ways and matched
+    first: no command is resent (in lockstep a resent command would step again)."""
+    states.wait_publisher()
+    out, last = [], None
+    for _ in range(n):
+        states.clear()
+        pub.publish(message(last) if callable(message) else message)
+        last = states.wait(timeout=EVENT_S)[0]
+        out.append(last)
+    return out

@@ -26,11 +26,14 @@ TYPES = {
     "sim_dt": T.DOUBLE, "integrator": T.STRING, "real_time_factor": T.DOUBLE, "publish_clock": T.BOOL,
     "command_timeout": T.DOUBLE, "passive": T.STRING_ARRAY, "initial_positions": T.STRING_ARRAY,
     "ground_contacts": T.STRING_ARRAY, "ground_height": T.DOUBLE, "ground_stiffness": T.DOUBLE,
-    "ground_damping": T.DOUBLE, "ground_friction": T.DOUBLE,
+    "ground_damping": T.DOUBLE, "ground_friction": T.DOUBLE, "command_interface": T.STRING,
+    "servo_kp": T.DOUBLE_ARRAY, "servo_kd": T.DOUBLE_ARRAY, "step_mode": T.STRING, "steps_per_command": T.INTEGER,
+    "publish_tf": T.BOOL,
 }
 READ_ONLY = {
     "mode", "publish_rate", "sim_dt", "integrator", "real_time_factor", "command_timeout", "passive",
     "initial_positions", "ground_contacts", "ground_height", "ground_stiffness", "ground_damping", "ground_friction",
+    "command_interface", "servo_kp", "servo_kd", "step_mode", "steps_per_command", "publish_tf",
 }
 # Numbers that must be > 0, >= 0, or only finite: the lower bound of their range.
 POSITIVE = {"publish_rate", "sim_dt", "real_time_factor", "ground_stiffness"}

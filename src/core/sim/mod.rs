@@ -5,16 +5,19 @@
 //! chosen [`Integrator`] and forward-dynamics method. Configurations move on their manifold
 //! ([`Model::integrate`]: quaternions by the exponential map, renormalised). A step that cannot be
 //! trusted stops with a [`SimError`] saying when and why: non-finite state, energy blow-up,
-//! singular mass matrix.
+//! singular mass matrix. A [`Servo`] turns position or velocity commands into the efforts of
+//! each step.
 
 mod contact;
 mod forces;
 mod integrator;
+mod servo;
 
 use contact::Contacts;
 pub use contact::{ContactPoint, Ground};
 pub use forces::{Passive, PassiveForces};
 pub use integrator::Integrator;
+pub use servo::{CommandInterface, Servo, ServoAxis};
 
 use crate::algorithms::{energy, forward_dynamics};
 use crate::error::DynamicsError;

@@ -20,6 +20,7 @@ use spatial_dynamics_core::algorithms::{
     choose_method, crba, forward_dynamics, rnea_with, JointStateInputs, Linearization,
 };
 use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
+use spatial_dynamics_core::sim::CommandInterface;
 use spatial_dynamics_core::spatial::{Force, Transform};
 use spatial_dynamics_core::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
 use std::time::{Duration, Instant};
@@ -403,9 +404,63 @@ impl Engine {
         Ok(())
     }
 
-    /// `~/commands` (in `command_joints` order; joints left out get zero).
+    /// `~/commands` (in `command_joints` order): efforts (joints left out get zero), or the
+    /// servos' targets with `command_interface` position or velocity.
     pub fn set_commands(&mut self, cmd: &Float64MultiArray) -> Result<(), String> {
-        self.commands.set_commands(&cmd.data).map_err(|(_, e)| e)?;
+        if self.command_interface() == CommandInterface::Effort {
+            self.commands.set_commands(&cmd.data).map_err(|(_, e)| e)?;
+        } else {
+            let names = self.commands.names();
+            let slots: Vec<usize> = (0..names.len()).collect();
+            check_command_field("commands", &cmd.data, &names)?;
+            self.set_servo_targets(&slots, &cmd.data, &[]);
+        }
+        self.command_time = Some(Instant::now());
+        Ok(())
+    }
+
+    /// `~/joint_commands` (sensor_msgs/JointState, as topic_based_ros2_control sends commands):
+    /// command joints by name, any subset in any order, the field of the command interface
+    /// (`effort`, `position`, `velocity`) one finite value per name; with position servos a
+    /// `velocity` field of the same length is the rate target (empty: zero). Joints not named
+    /// keep their command. A refused message changes nothing.
+    pub fn set_joint_commands(&mut self, js: &JointState) -> Result<(), String> {
+        let interface = self.command_interface();
+        let names = self.commands.names();
+        let mut slots = Vec::with_capacity(js.name.len());
+        for name in &js.name {
+            let k = names.iter().position(|c| c == name).ok_or_else(|| {
+                format!(
+                    "unknown joint '{name}' (the command joints: {})",
+                    names.join(", ")
+                )
+            })?;
+            if slots.contains(&k) {
+                return Err(format!("joint '{name}' is named twice"));
+            }
+            slots.push(k);
+        }
+        let values = match interface {
+            CommandInterface::Effort => &js.effort,
+            CommandInterface::Position => &js.position,
+            CommandInterface::Velocity => &js.velocity,
+        };
+        check_command_field(interface.name(), values, &js.name)?;
+        if interface == CommandInterface::Effort {
+            let mut data = self.commands.gather(self.commands.effort());
+            for (&k, &x) in slots.iter().zip(values) {
+                data[k] = x;
+            }
+            self.commands.set_commands(&data).map_err(|(_, e)| e)?;
+        } else {
+            let rates = if interface == CommandInterface::Position && !js.velocity.is_empty() {
+                check_command_field("velocity", &js.velocity, &js.name)?;
+                &js.velocity[..]
+            } else {
+                &[]
+            };
+            self.set_servo_targets(&slots, values, rates);
+        }
         self.command_time = Some(Instant::now());
         Ok(())
     }
@@ -759,6 +814,25 @@ fn write_pose(q: &mut [f64], at: usize, pose: &Pose, field: &str) -> Result<(), 
     }
     q[at..at + 7].copy_from_slice(&values);
     Ok(())
+}
+
+/// A command's `field`: one finite value per joint of `names` (the interface's field of
+/// `~/joint_commands`, or `~/commands` in command-joint order).
+fn check_command_field(field: &str, values: &[f64], names: &[String]) -> Result<(), String> {
+    if values.len() != names.len() {
+        return Err(format!(
+            "{field} has {} values for {} joints (command interface: the {field} field)",
+            values.len(),
+            names.len()
+        ));
+    }
+    match values.iter().position(|x| !x.is_finite()) {
+        Some(i) => Err(format!(
+            "{field}[{i}] (joint '{}') is {}",
+            names[i], values[i]
+        )),
+        None => Ok(()),
+    }
 }
 
 #[cfg(test)]

@@ -1,14 +1,20 @@
-//! Simulate mode: the engine owns the robot state and integrates it from the commanded efforts
-//! (`~/commands`, `~/effort_command`); a command older than `command_timeout` (wall clock) drops
-//! to zero effort. The state advances `real_time_factor × period` per tick of the publish timer,
-//! in steps of `sim_dt`. A diverging integration stops the simulation (the last finite state
-//! stays, nothing non-finite is published) and says when and why.
+//! Simulate mode: the engine owns the robot state and integrates it from the commands
+//! (`~/commands`, `~/joint_commands`, `~/effort_command`). With `command_interface: effort` a
+//! command is the joint effort; with `position` or `velocity` it is a servo target, and the
+//! servo's effort ([`Servo`]) is formed from the state at every `sim_dt` step, with the effort
+//! command added as a feed-forward. A command older than `command_timeout` (wall clock) drops
+//! to zero effort, servos off. With `step_mode: free` the state advances
+//! `real_time_factor × period` per tick of the publish timer, in steps of `sim_dt`; with
+//! `on_command` each accepted command advances it by `steps_per_command` steps and nothing else
+//! does (the wall-clock `command_timeout` does not apply: time only moves with commands). A
+//! diverging integration stops the simulation (the last finite state stays, nothing non-finite
+//! is published) and says when and why.
 
 use super::Engine;
 use crate::joint_states::joint_map::Target;
 use crate::node::params::{parse_passive, Settings};
 use crate::ros::msgs::*;
-use spatial_dynamics_core::sim::{SimConfig, Simulator, State};
+use spatial_dynamics_core::sim::{CommandInterface, Servo, ServoAxis, SimConfig, Simulator, State};
 use std::time::{Duration, Instant};
 
 /// The simulated robot.
@@ -30,6 +36,14 @@ pub struct Simulation {
     last_tick: Option<Instant>,
     late_ticks: u64,
     zero: Vec<f64>,
+    /// Position or velocity servos on the command joints, axis `k` on `command_joints[k]`;
+    /// none with `command_interface: effort`.
+    servo: Option<Servo>,
+    /// The effort of the current step (`nv`): the effort command plus the servos'.
+    tau: Vec<f64>,
+    /// `step_mode: on_command`: the steps each accepted command advances; `None`: free running.
+    lockstep: Option<usize>,
+    publish_tf: bool,
 }
 
 impl Engine {
@@ -60,6 +74,7 @@ impl Engine {
             })?;
             q[self.map.slot(index).0] = *value;
         }
+        let servo = self.make_servo(settings)?;
         self.simulation = Some(Simulation {
             sim: Simulator::new(&self.model, config)?,
             state: State::at_rest(&self.model, q),
@@ -73,8 +88,87 @@ impl Engine {
             last_tick: None,
             late_ticks: 0,
             zero: vec![0.0; self.model.nv()],
+            servo,
+            tau: vec![0.0; self.model.nv()],
+            lockstep: settings.lockstep.then_some(settings.steps_per_command),
+            publish_tf: settings.publish_tf,
         });
         Ok(())
+    }
+
+    /// The servos of `command_interface` on the command joints, with `servo_kp`, `servo_kd`
+    /// (one gain for all, or one per command joint).
+    fn make_servo(&self, settings: &Settings) -> Result<Option<Servo>, String> {
+        if settings.command_interface == CommandInterface::Effort {
+            return Ok(None);
+        }
+        let names = self.commands.names();
+        let gain = |gains: &[f64], name: &str, k: usize| match gains.len() {
+            1 => Ok(gains[0]),
+            n if n == names.len() => Ok(gains[k]),
+            n => Err(format!(
+                "{name} has {n} gains: give one, or one per command joint ({}: {})",
+                names.len(),
+                names.join(", ")
+            )),
+        };
+        let axes = names
+            .iter()
+            .enumerate()
+            .map(|(k, name)| {
+                let index = self
+                    .map
+                    .index(name)
+                    .expect("command joints are the model's");
+                let (q_index, v_index) = self.map.slot(index);
+                Ok(ServoAxis {
+                    q_index,
+                    v_index,
+                    kp: gain(&settings.servo_kp, "servo_kp", k)?,
+                    kd: gain(&settings.servo_kd, "servo_kd", k)?,
+                })
+            })
+            .collect::<Result<_, String>>()?;
+        Servo::new(settings.command_interface, axes).map(Some)
+    }
+
+    /// What `~/commands` and `~/joint_commands` set: the servos' interface in simulate mode,
+    /// else effort.
+    pub fn command_interface(&self) -> CommandInterface {
+        self.simulation
+            .as_ref()
+            .and_then(|s| s.servo.as_ref())
+            .map_or(CommandInterface::Effort, |s| s.interface())
+    }
+
+    /// Targets for the servos: `values[i]` (position or velocity, per the interface) and, for
+    /// position servos, `rates[i]` (empty: zero) for command joint `slots[i]`. The caller has
+    /// checked the lengths and finiteness.
+    pub(crate) fn set_servo_targets(&mut self, slots: &[usize], values: &[f64], rates: &[f64]) {
+        let Some(servo) = self.simulation.as_mut().and_then(|s| s.servo.as_mut()) else {
+            return;
+        };
+        let position = servo.interface() == CommandInterface::Position;
+        for (i, (&k, &x)) in slots.iter().zip(values).enumerate() {
+            let rate = rates.get(i).copied().unwrap_or(0.0);
+            if position {
+                servo.set_target(k, x, rate);
+            } else {
+                servo.set_target(k, 0.0, x);
+            }
+        }
+    }
+
+    /// After an accepted command with `step_mode: on_command`: advance `steps_per_command`
+    /// steps (unless paused or stopped) and return the `joint_states` to publish; `None` when
+    /// free running.
+    pub fn command_step(&mut self, now: Instant) -> Option<Result<(JointState, Time), String>> {
+        let sim = self.simulation.as_ref()?;
+        let steps = sim.lockstep?;
+        if sim.paused || sim.diverged.is_some() {
+            return None;
+        }
+        Some(self.advance(steps, now))
     }
 
     /// The publish period in simulate mode.
@@ -85,7 +179,7 @@ impl Engine {
     }
 
     /// One tick of the publish timer: advance by `real_time_factor / publish_rate` seconds (unless
-    /// paused or diverged) and return the `joint_states` to publish with the simulated time.
+    /// paused, diverged or stepping on commands) and return the `joint_states` to publish with the simulated time.
     pub fn simulation_tick(&mut self, now: Instant) -> Option<Result<(JointState, Time), String>> {
         let sim = self.simulation.as_mut()?;
         let period = Duration::from_secs_f64(1.0 / sim.rate);
@@ -96,7 +190,7 @@ impl Engine {
             sim.late_ticks += 1;
         }
         sim.last_tick = Some(now);
-        if sim.paused || sim.diverged.is_some() {
+        if sim.paused || sim.diverged.is_some() || sim.lockstep.is_some() {
             return None;
         }
         let steps = ((sim.real_time_factor / sim.rate) / sim.sim.config.dt)
@@ -121,24 +215,30 @@ impl Engine {
     }
 
     fn advance(&mut self, steps: usize, now: Instant) -> Result<(JointState, Time), String> {
-        let stale = match self.command_time {
-            Some(at) => {
-                let timeout = self.simulation.as_ref().map_or(0.0, |s| s.command_timeout);
-                timeout > 0.0 && now.duration_since(at).as_secs_f64() > timeout
-            }
-            None => true,
-        };
         let sim = self
             .simulation
             .as_mut()
             .expect("advance is only called when simulating");
-        let tau = if stale {
+        let stale = match self.command_time {
+            Some(at) => {
+                let timeout = sim.command_timeout;
+                sim.lockstep.is_none()
+                    && timeout > 0.0
+                    && now.duration_since(at).as_secs_f64() > timeout
+            }
+            None => true,
+        };
+        let feedforward = if stale {
             &sim.zero
         } else {
             self.commands.effort()
         };
         for _ in 0..steps {
-            if let Err(e) = sim.sim.step(&self.model, &mut sim.state, tau) {
+            sim.tau.copy_from_slice(feedforward);
+            if let (Some(servo), false) = (&sim.servo, stale) {
+                servo.add_effort(&sim.state.q, &sim.state.v, &mut sim.tau);
+            }
+            if let Err(e) = sim.sim.step(&self.model, &mut sim.state, &sim.tau) {
                 let message = format!("simulation stopped: {e}");
                 sim.diverged = Some(message.clone());
                 return Err(message);
@@ -157,7 +257,7 @@ impl Engine {
             .gather_all(&sim.state.q, Target::Position, &mut position);
         self.map
             .gather_all(&sim.state.v, Target::Rate, &mut velocity);
-        self.map.gather_all(tau, Target::Rate, &mut effort);
+        self.map.gather_all(&sim.tau, Target::Rate, &mut effort);
         let js = JointState {
             header: Header {
                 stamp: stamp.clone(),
@@ -218,6 +318,11 @@ impl Engine {
                 covariance: Covariance::default(),
             },
         })
+    }
+
+    /// Whether the floating base's pose goes on `/tf` (simulate mode, `publish_tf`).
+    pub fn publishes_tf(&self) -> bool {
+        self.simulation.as_ref().is_some_and(|s| s.publish_tf)
     }
 
     /// The deepest ground penetration so far (m), in simulate mode with ground contacts.

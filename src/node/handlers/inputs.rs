@@ -51,19 +51,43 @@ impl NodeState {
         out
     }
 
-    /// `~/effort_command`: the effort to apply from now on, by joint name.
-    pub fn effort_command(&mut self, message: Result<JointState, String>) {
-        self.health.received(&self.names.effort_command);
-        if let Err(e) = message.and_then(|m| self.engine.set_effort_command(&m)) {
-            self.health.dropped(&self.names.effort_command, &e);
-        }
+    /// `~/effort_command`: the effort to apply from now on, by joint name (with servos, their
+    /// feed-forward).
+    pub fn effort_command(&mut self, message: Result<JointState, String>) -> Outputs {
+        let accepted = message.and_then(|m| self.engine.set_effort_command(&m));
+        let topic = self.names.effort_command.clone();
+        self.command_received(&topic, accepted)
     }
 
-    /// `~/commands`: the effort to apply from now on, in `command_joints` order.
-    pub fn commands(&mut self, message: Result<Float64MultiArray, String>) {
-        self.health.received(&self.names.commands);
-        if let Err(e) = message.and_then(|m| self.engine.set_commands(&m)) {
-            self.health.dropped(&self.names.commands, &e);
+    /// `~/commands`: the command from now on, in `command_joints` order, per
+    /// `command_interface` (efforts, or the servos' position or velocity targets).
+    pub fn commands(&mut self, message: Result<Float64MultiArray, String>) -> Outputs {
+        let accepted = message.and_then(|m| self.engine.set_commands(&m));
+        let topic = self.names.commands.clone();
+        self.command_received(&topic, accepted)
+    }
+
+    /// `~/joint_commands`: the command from now on by joint name, the field of
+    /// `command_interface` ([`Engine::set_joint_commands`]).
+    pub fn joint_commands(&mut self, message: Result<JointState, String>) -> Outputs {
+        let accepted = message.and_then(|m| self.engine.set_joint_commands(&m));
+        let topic = self.names.joint_commands.clone();
+        self.command_received(&topic, accepted)
+    }
+
+    /// A command on `topic`, counted; a refused one dropped with its reason. With
+    /// `step_mode: on_command` an accepted one advances the simulation, whose state goes out.
+    fn command_received(&mut self, topic: &str, accepted: Result<(), String>) -> Outputs {
+        self.health.received(topic);
+        match accepted {
+            Ok(()) => {
+                let step = self.engine.command_step(Instant::now());
+                self.simulation_outputs(step)
+            }
+            Err(e) => {
+                self.health.dropped(topic, &e);
+                Outputs::default()
+            }
         }
     }
 
@@ -409,5 +433,133 @@ mod tests {
         // Kept for when the parameter is cleared.
         let kept = state.topic_description().lock().unwrap().clone();
         assert_eq!(kept.as_deref(), Some(PARTICLE_URDF));
+    }
+}
+
+#[cfg(test)]
+mod command_interface_tests {
+    use super::super::test_support::*;
+    use super::*;
+    use crate::node::params::Settings;
+    use spatial_dynamics_core::model::examples::PARTICLE_URDF;
+    use spatial_dynamics_core::sim::CommandInterface;
+
+    /// The particle (1 kg on joints x, z) simulated in 1 ms steps, commands stepping it.
+    fn lockstep(interface: CommandInterface, steps_per_command: usize) -> NodeState {
+        serving(Settings {
+            robot_description: PARTICLE_URDF.into(),
+            simulate: true,
+            command_interface: interface,
+            servo_kp: vec![400.0],
+            servo_kd: vec![40.0],
+            lockstep: true,
+            steps_per_command,
+            ..Settings::default()
+        })
+    }
+
+    fn by_name(names: &[&str], position: &[f64], velocity: &[f64]) -> JointState {
+        JointState {
+            name: names.iter().map(|n| n.to_string()).collect(),
+            position: position.to_vec(),
+            velocity: velocity.to_vec(),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn each_command_advances_exactly_steps_per_command_and_publishes_once() {
+        let mut state = lockstep(CommandInterface::Effort, 3);
+        assert!(state.simulation_tick(Instant::now()).joint_states.is_none());
+        let mut ns = 0;
+        for _ in 0..4 {
+            let out = state.commands(Ok(Float64MultiArray {
+                data: vec![0.0, G],
+                ..Default::default()
+            }));
+            ns += 3_000_000;
+            let js = out.joint_states.expect("a joint state per command");
+            assert_eq!(
+                js.header.stamp,
+                crate::node::engine::clock::time_from_nanos(ns)
+            );
+            // The weight carried: the particle stays at rest.
+            assert_eq!(js.position, [0.0, 0.0]);
+        }
+        // A refused command does not step.
+        let out = state.commands(Ok(Float64MultiArray {
+            data: vec![f64::NAN, 0.0],
+            ..Default::default()
+        }));
+        assert!(out.joint_states.is_none());
+        assert_close(state.engine.simulated_time().unwrap(), 0.012);
+    }
+
+    #[test]
+    fn a_position_servo_holds_the_particle_short_by_m_g_over_kp() {
+        let mut state = lockstep(CommandInterface::Position, 100);
+        let mut last = None;
+        for _ in 0..30 {
+            last = state
+                .joint_commands(Ok(by_name(&["z", "x"], &[0.5, 0.2], &[])))
+                .joint_states;
+        }
+        let js = last.unwrap();
+        assert_close(js.position[0], 0.2);
+        assert!(
+            (js.position[1] - (0.5 - G / 400.0)).abs() < 1e-9,
+            "{:?}",
+            js.position
+        );
+        // The published effort is the servo's: the weight on z.
+        assert!((js.effort[1] - G).abs() < 1e-6, "{:?}", js.effort);
+    }
+
+    #[test]
+    fn a_velocity_servo_reaches_the_commanded_rate() {
+        let mut state = lockstep(CommandInterface::Velocity, 100);
+        let mut last = None;
+        for _ in 0..10 {
+            last = state
+                .joint_commands(Ok(by_name(&["x"], &[], &[0.3])))
+                .joint_states;
+        }
+        let js = last.unwrap();
+        // v = 0.3 (1 − (1 − h kd/m)^n) with h kd = 0.04, n = 1000.
+        assert!((js.velocity[0] - 0.3).abs() < 1e-12, "{:?}", js.velocity);
+        // z never named: its rate target stays zero, and the servo's damping carries the weight
+        // at the terminal rate −m g / kd.
+        assert!(
+            (js.velocity[1] + G / 40.0).abs() < 1e-9,
+            "{:?}",
+            js.velocity
+        );
+    }
+
+    #[test]
+    fn bad_joint_commands_are_dropped_counted_and_change_nothing() {
+        let mut state = lockstep(CommandInterface::Position, 1);
+        let topic = state.names.joint_commands.clone();
+        let bad = [
+            by_name(&["elbow"], &[0.1], &[]),
+            by_name(&["x"], &[], &[0.1]),
+            by_name(&["x"], &[f64::NAN], &[]),
+            by_name(&["x", "x"], &[0.1, 0.2], &[]),
+            by_name(&["x"], &[0.1], &[0.1, 0.2]),
+        ];
+        for message in bad {
+            assert!(state.joint_commands(Ok(message)).joint_states.is_none());
+        }
+        assert_eq!(state.health.received_on(&topic), 5);
+        assert_eq!(state.health.total_dropped(), 5);
+        assert_eq!(state.health.dropped_on(&topic, "unknown joint 'x'"), 1);
+        assert_eq!(state.engine.simulated_time(), Some(0.0));
+        // ~/commands in position mode: one target per command joint.
+        let wrong_length = Float64MultiArray {
+            data: vec![0.1],
+            ..Default::default()
+        };
+        assert!(state.commands(Ok(wrong_length)).joint_states.is_none());
+        assert_eq!(state.health.total_dropped(), 6);
     }
 }

@@ -38,6 +38,7 @@ pub struct Names {
     pub joint_states: String,
     pub effort_command: String,
     pub commands: String,
+    pub joint_commands: String,
     pub reference: String,
     /// `~/base_state`: read in serve mode, published in simulate mode.
     pub base_state: String,
@@ -49,6 +50,7 @@ pub struct Names {
     pub feedforward_commands: String,
     pub diagnostics: String,
     pub clock: String,
+    pub tf: String,
     pub inverse_dynamics: String,
     pub forward_dynamics: String,
     pub mass_matrix: String,
@@ -71,6 +73,7 @@ impl Names {
             joint_states: r("joint_states"),
             effort_command: r("~/effort_command"),
             commands: r("~/commands"),
+            joint_commands: r("~/joint_commands"),
             reference: r("~/reference"),
             base_state: r("~/base_state"),
             robot_description: r("robot_description"),
@@ -81,6 +84,7 @@ impl Names {
             feedforward_commands: r("~/feedforward_commands"),
             diagnostics: r("/diagnostics"),
             clock: r("/clock"),
+            tf: r("/tf"),
             inverse_dynamics: r("~/inverse_dynamics"),
             forward_dynamics: r("~/forward_dynamics"),
             mass_matrix: r("~/mass_matrix"),
@@ -110,6 +114,8 @@ pub struct Outputs {
     pub joint_states: Option<JointState>,
     /// Simulate mode: the simulated floating base on `~/base_state`.
     pub base_state: Option<Odometry>,
+    /// Simulate mode: world → floating base on `/tf` (with `publish_tf`).
+    pub tf: Option<TFMessage>,
     pub diagnostics: Option<DiagnosticArray>,
 }
 

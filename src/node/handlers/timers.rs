@@ -17,6 +17,26 @@ pub fn simulation_timer(engine: &Engine) -> Option<tokio::time::Interval> {
     })
 }
 
+/// The base pose of `~/base_state` as one world → base link transform for `/tf` (same stamp,
+/// same frames).
+fn tf_of(odometry: &Odometry) -> TFMessage {
+    let pose = &odometry.pose.pose;
+    TFMessage {
+        transforms: vec![TransformStamped {
+            header: odometry.header.clone(),
+            child_frame_id: odometry.child_frame_id.clone(),
+            transform: TransformMsg {
+                translation: Vector3 {
+                    x: pose.position.x,
+                    y: pose.position.y,
+                    z: pose.position.z,
+                },
+                rotation: pose.orientation.clone(),
+            },
+        }],
+    }
+}
+
 impl NodeState {
     /// A tick of the simulation's publish timer at wall time `at`: the simulation advances by
     /// `real_time_factor / publish_rate` s (unless paused or stopped) and its state goes out.
@@ -26,7 +46,7 @@ impl NodeState {
     }
 
     /// What a simulation step gives to publish: `joint_states`, a floating base's
-    /// `~/base_state`, and `/clock` when `publish_clock` is set; or, when the simulation
+    /// `~/base_state` (and its pose on `/tf` with `publish_tf`), and `/clock` when `publish_clock` is set; or, when the simulation
     /// stopped (diverged), nothing, and the reason logged as an error.
     pub(super) fn simulation_outputs(
         &mut self,
@@ -47,6 +67,9 @@ impl NodeState {
                 out.joint_states = checked(&mut self.health, js, &self.names.joint_states);
                 if let Some(odometry) = self.engine.simulated_base_state() {
                     out.base_state = checked(&mut self.health, odometry, &self.names.base_state);
+                }
+                if self.engine.publishes_tf() {
+                    out.tf = out.base_state.as_ref().map(tf_of);
                 }
             }
             Some(Err(why)) => log!(self.logger, Error, "{why}"),
@@ -167,6 +190,38 @@ mod tests {
         assert_close(state.engine.simulated_time().unwrap(), 0.02);
         // Serve mode has no timer.
         assert!(simulation_timer(&serving(pendulum()).engine).is_none());
+    }
+
+    #[test]
+    fn a_floating_base_goes_on_tf_with_its_base_state_unless_publish_tf_is_off() {
+        let box_settings = |publish_tf| {
+            Settings {
+            robot_description: r#"<robot name="box"><link name="box"><inertial><mass value="2"/>
+                <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>"#
+                .into(),
+            floating_base: true,
+            simulate: true,
+            publish_tf,
+            ..Settings::default()
+        }
+        };
+        let mut state = serving(box_settings(true));
+        let out = state.simulation_tick(Instant::now());
+        let odometry = out.base_state.expect("a floating base");
+        let tf = out.tf.expect("publish_tf is on");
+        assert_eq!(tf.transforms.len(), 1);
+        let t = &tf.transforms[0];
+        assert_eq!(t.header, odometry.header);
+        assert_eq!(t.header.frame_id, "world");
+        assert_eq!(t.child_frame_id, "box");
+        // Free fall over 10 steps of 1 ms: z = −g dt² n (n + 1) / 2.
+        assert_close(t.transform.translation.z, fall(10.0, 1e-3).0);
+        assert_eq!(t.transform.rotation, odometry.pose.pose.orientation);
+        let mut off = serving(box_settings(false));
+        let out = off.simulation_tick(Instant::now());
+        assert!(out.base_state.is_some() && out.tf.is_none());
+        // A fixed base has no transform to publish.
+        assert!(falling(false).simulation_tick(Instant::now()).tf.is_none());
     }
 
     #[test]

@@ -241,7 +241,7 @@ fn settings(u: &mut Unstructured) -> Result<Settings> {
             PARTICLE_URDF,
         ])?
         .to_string();
-    let args: [&[&str]; 8] = [
+    let args: [&[&str]; 12] = [
         &["floating_base", "true"],
         &["ignore_mimic", "true"],
         &["method", "crba"],
@@ -250,6 +250,10 @@ fn settings(u: &mut Unstructured) -> Result<Settings> {
         &["locked_joints", "[joint2=0.5]"],
         &["mode", "simulate"],
         &["gravity", "[0.0, 1e300, -9.81]"],
+        &["command_interface", "position"],
+        &["command_interface", "velocity"],
+        &["step_mode", "on_command"],
+        &["servo_kp", "[1e300]"],
     ];
     for arg in args {
         if u.ratio(1u8, 5)? {
@@ -271,7 +275,7 @@ fn run(u: &mut Unstructured) -> Result<()> {
     };
     let vocabulary = Vocabulary::new(&engine);
     for _ in 0..u.int_in_range(1u8..=12)? {
-        match u.int_in_range(0u8..=14)? {
+        match u.int_in_range(0u8..=15)? {
             0 => {
                 let names = vocabulary.names(u)?;
                 let js = JointState {
@@ -532,6 +536,20 @@ fn run(u: &mut Unstructured) -> Result<()> {
                     let n = r.columns.len();
                     assert_eq!((r.a.len(), r.b.len(), r.minv.len()), (4 * n * n, 2 * n * n, n * n));
                     assert_eq!((r.effort.len(), r.acceleration.len()), (n, n));
+                }
+            }
+            14 => {
+                let names = vocabulary.names(u)?;
+                let js = JointState {
+                    position: numbers(u, names.len())?,
+                    velocity: numbers(u, names.len())?,
+                    effort: numbers(u, names.len())?,
+                    name: names,
+                    ..Default::default()
+                };
+                topic("joint_commands", engine.set_joint_commands(&js), |_| true);
+                if let Some(Ok((js, _))) = engine.command_step(Instant::now()) {
+                    assert!(js_finite(&js), "lockstep joint_states not finite: {js:?}");
                 }
             }
             _ => {
