@@ -2,8 +2,10 @@
 
 Each block is run by this venv's Python as a script of its own (a fresh process, as a user pastes
 it into a file), with a node serving the embedded default arm as /spatial_dynamics on this run's
-ROS_DOMAIN_ID. A block passes when it exits 0 within 60 s; a block must therefore fail loudly
-(raise, exit non-zero) when what it shows does not work. None is skipped.
+ROS_DOMAIN_ID. A block names the repository's files by their path from its root
+(`config/models/default_arm.urdf`): the script's directory links to the repository's `config/`.
+A block passes when it exits 0 within 60 s; a block must therefore fail loudly (raise, exit
+non-zero) when what it shows does not work. None is skipped.
 """
 
 import re
@@ -35,6 +37,7 @@ def test_the_documents_have_python_blocks():
 @pytest.mark.parametrize("code", python_blocks())
 def test_python_block_runs_against_the_node(code, arm, tmp_path):
     script = tmp_path / "block.py"
+    (tmp_path / "config").symlink_to(sd.REPO / "config")
     script.write_text(code)
     try:
         out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60,

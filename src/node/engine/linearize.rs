@@ -10,7 +10,7 @@
 use super::Engine;
 use crate::ros::msgs::{LinearizeRequest, LinearizeResponse};
 use nalgebra::DMatrix;
-use spatial_dynamics_core::algorithms::{bias, linearize};
+use spatial_dynamics_core::algorithms::{bias, linearize, Linearization};
 use spatial_dynamics_core::Externals;
 
 impl Engine {
@@ -46,6 +46,10 @@ impl Engine {
             self.read_efforts(&req.effort, &req.base_wrench)?;
         }
         let (index, columns) = self.velocity_columns();
+        let model = &self.model;
+        let linearization = self
+            .linearization
+            .get_or_insert_with(|| Linearization::new(model));
         let d = linearize(
             &self.model,
             &mut self.ws,
@@ -53,7 +57,7 @@ impl Engine {
             &self.v,
             &self.tau,
             req.dt,
-            &mut self.linearization,
+            linearization,
         )
         .map_err(|e| e.to_string())?;
         let ddq_dq = permuted(d.ddq_dq, &index, &index);
@@ -72,8 +76,8 @@ impl Engine {
             dt: req.dt,
             effort: index.iter().map(|&i| self.tau[i]).collect(),
             acceleration: index.iter().map(|&i| self.ws.qdd()[i]).collect(),
-            a: permuted(self.linearization.a(), &state, &state),
-            b: permuted(self.linearization.b(), &state, &index),
+            a: permuted(linearization.a(), &state, &state),
+            b: permuted(linearization.b(), &state, &index),
             ddq_dq,
             ddq_dv,
             minv,

@@ -90,8 +90,9 @@ pub struct Engine {
     /// Latest floating-base pose `[x y z qx qy qz qw]` and twist from `~/base_state`.
     base_q: [f64; 7],
     base_v: [f64; 6],
-    /// `~/linearize`'s matrices and scratch.
-    linearization: Linearization,
+    /// `~/linearize`'s matrices and scratch (`4nv² + 2nv²` numbers), made by the first request:
+    /// a model that is never linearised (a 10 000-link chain) never holds them.
+    linearization: Option<Linearization>,
 }
 
 impl Engine {
@@ -141,7 +142,7 @@ impl Engine {
             simulation: None,
             base_q: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
             base_v: [0.0; 6],
-            linearization: Linearization::new(&model),
+            linearization: None,
             method: ForwardDynamicsMethod::Aba,
             method_choice: None,
             model,

@@ -54,11 +54,14 @@ impl Linearization {
     /// Zeroed matrices sized for `model`.
     pub fn new(model: &Model) -> Self {
         let nv = model.nv();
+        // From zeroed allocations, as the workspace's matrices: untouched pages cost nothing.
+        let zeros =
+            |rows: usize, cols: usize| DMatrix::from_vec(rows, cols, vec![0.0; rows * cols]);
         Linearization {
-            a: DMatrix::zeros(2 * nv, 2 * nv),
-            b: DMatrix::zeros(2 * nv, nv),
-            dq: DMatrix::zeros(nv, nv),
-            dv: DMatrix::zeros(nv, nv),
+            a: zeros(2 * nv, 2 * nv),
+            b: zeros(2 * nv, nv),
+            dq: zeros(nv, nv),
+            dv: zeros(nv, nv),
             v_next: vec![0.0; nv],
         }
     }
