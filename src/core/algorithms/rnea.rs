@@ -25,7 +25,7 @@
 //! costs 42.
 
 use super::kinematics::{update_joints, with_up_transform};
-use super::validate::{check_externals, check_q, check_result, check_v};
+use super::validate::{check_inverse_inputs, check_result};
 use super::Externals;
 use crate::error::DynamicsError;
 use crate::model::Model;
@@ -52,10 +52,7 @@ pub fn rnea_with<'w>(
     a: &[f64],
     ext: &Externals<'_>,
 ) -> Result<&'w [f64], DynamicsError> {
-    check_q(model, ws, q)?;
-    check_v(model, "v", v)?;
-    check_v(model, "a", a)?;
-    check_externals(model, ext)?;
+    check_inverse_inputs(model, ws, q, v, a, ext)?;
     // [X_J, S_i] = jcalc(jtype(i), q_i),  ⁱX_λ(i) = X_J X_T(i)   (RBDA Table 5.1, for every i)
     update_joints(model, ws, q);
     rnea_passes(model, ws, Some(v), Some(a), ext);

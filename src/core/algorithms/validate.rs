@@ -128,6 +128,21 @@ pub(crate) fn check_externals(model: &Model, ext: &Externals<'_>) -> Result<(), 
     Ok(())
 }
 
+/// The inputs of inverse dynamics: the workspace, `q`, `v`, `a` and the externals.
+pub(crate) fn check_inverse_inputs(
+    model: &Model,
+    ws: &Workspace,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    ext: &Externals<'_>,
+) -> Result<(), DynamicsError> {
+    check_q(model, ws, q)?;
+    check_v(model, "v", v)?;
+    check_v(model, "a", a)?;
+    check_externals(model, ext)
+}
+
 /// The inputs of forward dynamics: the workspace, `q`, `v`, `τ` and the externals.
 pub(crate) fn check_forward_inputs(
     model: &Model,

@@ -42,7 +42,7 @@ use super::DerivativeScratch;
 use crate::algorithms::kinematics::{
     update_aligned_placements, update_joints, update_world_axes, Anchors,
 };
-use crate::algorithms::validate::{check_externals, check_q, check_result, check_v};
+use crate::algorithms::validate::{check_inverse_inputs, check_result};
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model};
@@ -85,10 +85,7 @@ pub fn rnea_derivatives_with<'w>(
     a: &[f64],
     ext: &Externals<'_>,
 ) -> Result<RneaDerivatives<'w>, DynamicsError> {
-    check_q(model, ws, q)?;
-    check_v(model, "v", v)?;
-    check_v(model, "a", a)?;
-    check_externals(model, ext)?;
+    check_inverse_inputs(model, ws, q, v, a, ext)?;
     update_joints(model, ws, q);
     derivative_passes(model, ws, v, a, ext);
     check_result(model, "tau", ws.tau.as_slice())?;
