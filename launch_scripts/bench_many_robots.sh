@@ -2,7 +2,7 @@
 # How many simulated robots this machine runs in real time at 1 kHz: benches/many_robots.py
 # starts N `spatial_dynamics node` processes in simulate mode (sim_dt 1 ms, publish_rate 1000),
 # each in its own namespace and ROS_DOMAIN_ID, inside a private network namespace (loopback
-# only), and reports the largest N with no late publish tick on /diagnostics, with the CPU per
+# only), and reports the largest N with no missed step on /diagnostics, with the CPU per
 # robot. Node logs go to target/bench-many-robots/.
 #
 # Usage: launch_scripts/bench_many_robots.sh [MODEL OPTIONS, e.g. --urdf FILE]

@@ -248,8 +248,8 @@ async fn serve(
             Some(item) = fk_stream.next() => respond(&ends.frame_kinematics, item, &mut state, |n| &n.frame_kinematics, |s, r| s.frame_kinematics(&r)),
             Some(item) = lin_stream.next() => respond(&ends.linearize, item, &mut state, |n| &n.linearize, |s, r| s.linearize(&r)),
             Some(item) = dm_stream.next() => respond(&ends.describe_model, item, &mut state, |n| &n.describe_model, |s, _| s.describe_model()),
-            _ = async { sim_timer.as_mut().expect("guarded").tick().await }, if sim_timer.is_some() => {
-                let out = state.simulation_tick(Instant::now());
+            due = async { sim_timer.as_mut().expect("guarded").tick().await }, if sim_timer.is_some() => {
+                let out = state.simulation_tick(due.into_std(), Instant::now());
                 time.simulated(node.time_now_not_simulated(), state.engine.simulated_time());
                 ends.publish(out, &names, &mut state.health);
             }

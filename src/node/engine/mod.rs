@@ -6,6 +6,7 @@ pub mod clock;
 mod frame_kinematics;
 mod linearize;
 mod simulation;
+pub use simulation::MAX_LAG_TICKS;
 
 use super::params::Settings;
 use crate::joint_states::commands::Commands;

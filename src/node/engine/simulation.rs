@@ -17,6 +17,11 @@ use crate::ros::msgs::*;
 use spatial_dynamics_core::sim::{CommandInterface, Servo, ServoAxis, SimConfig, Simulator, State};
 use std::time::{Duration, Instant};
 
+/// How far behind its due time a publish tick may run and still step: a tick later than this
+/// many periods is dropped and its steps counted as missed. Ticks within it are run as soon as
+/// they can (the timer bursts), so a short stall of the process costs no simulated time.
+pub const MAX_LAG_TICKS: u32 = 10;
+
 /// The simulated robot.
 pub struct Simulation {
     sim: Simulator,
@@ -35,6 +40,9 @@ pub struct Simulation {
     /// (more than two periods after the tick before): a whole step slot missed.
     last_tick: Option<Instant>,
     late_ticks: u64,
+    /// Steps dropped because their tick ran more than [`MAX_LAG_TICKS`] periods after it was
+    /// due: simulated time the robot did not live in real time.
+    missed_steps: u64,
     zero: Vec<f64>,
     /// Position or velocity servos on the command joints, axis `k` on `command_joints[k]`;
     /// none with `command_interface: effort`.
@@ -87,6 +95,7 @@ impl Engine {
             measured_rtf: 0.0,
             last_tick: None,
             late_ticks: 0,
+            missed_steps: 0,
             zero: vec![0.0; self.model.nv()],
             servo,
             tau: vec![0.0; self.model.nv()],
@@ -178,9 +187,15 @@ impl Engine {
             .map(|s| Duration::from_secs_f64(1.0 / s.rate))
     }
 
-    /// One tick of the publish timer: advance by `real_time_factor / publish_rate` seconds (unless
-    /// paused, diverged or stepping on commands) and return the `joint_states` to publish with the simulated time.
-    pub fn simulation_tick(&mut self, now: Instant) -> Option<Result<(JointState, Time), String>> {
+    /// One tick of the publish timer, due at `due` and run at `now`: advance by
+    /// `real_time_factor / publish_rate` seconds (unless paused, diverged or stepping on commands)
+    /// and return the `joint_states` to publish with the simulated time. A tick more than
+    /// [`MAX_LAG_TICKS`] periods behind `due` does not step: its steps count as missed.
+    pub fn simulation_tick(
+        &mut self,
+        due: Instant,
+        now: Instant,
+    ) -> Option<Result<(JointState, Time), String>> {
         let sim = self.simulation.as_mut()?;
         let period = Duration::from_secs_f64(1.0 / sim.rate);
         if sim
@@ -196,6 +211,10 @@ impl Engine {
         let steps = ((sim.real_time_factor / sim.rate) / sim.sim.config.dt)
             .round()
             .max(1.0) as usize;
+        if now.saturating_duration_since(due) > MAX_LAG_TICKS * period {
+            sim.missed_steps += steps as u64;
+            return None;
+        }
         Some(self.advance(steps, now))
     }
 
@@ -386,6 +405,12 @@ impl Engine {
     /// How many publish ticks came more than one period late, in simulate mode.
     pub fn simulation_late_ticks(&self) -> Option<u64> {
         self.simulation.as_ref().map(|s| s.late_ticks)
+    }
+
+    /// Steps dropped because their tick came more than [`MAX_LAG_TICKS`] periods after it was
+    /// due (simulate mode).
+    pub fn simulation_missed_steps(&self) -> Option<u64> {
+        self.simulation.as_ref().map(|s| s.missed_steps)
     }
 
     /// Simulation figures for `/diagnostics`: simulated time, real-time factor, paused, why it

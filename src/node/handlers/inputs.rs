@@ -470,7 +470,7 @@ mod command_interface_tests {
     #[test]
     fn each_command_advances_exactly_steps_per_command_and_publishes_once() {
         let mut state = lockstep(CommandInterface::Effort, 3);
-        assert!(state.simulation_tick(Instant::now()).joint_states.is_none());
+        assert!(state.simulation_tick_now().joint_states.is_none());
         let mut ns = 0;
         for _ in 0..4 {
             let out = state.commands(Ok(Float64MultiArray {

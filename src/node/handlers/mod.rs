@@ -220,6 +220,14 @@ pub(crate) mod test_support {
         NodeState::new(engine, settings, names, Logger::new("test", Level::Debug))
     }
 
+    impl NodeState {
+        /// A publish tick run the moment it is due.
+        pub fn simulation_tick_now(&mut self) -> Outputs {
+            let now = std::time::Instant::now();
+            self.simulation_tick(now, now)
+        }
+    }
+
     /// The lines the node logged at `level`.
     pub fn logged(state: &NodeState, level: Level) -> Vec<String> {
         let lines = state.logger.kept_lines().into_iter();

@@ -8,11 +8,14 @@ use crate::ros::msgs::*;
 use std::time::Instant;
 
 /// The publish timer of simulate mode, one tick per `1 / publish_rate` s (none in serve mode).
-/// A late tick delays the ones after it rather than bunching them.
+/// Ticks the process was too busy or too stalled to run come at once when it can, so the
+/// simulation keeps to wall-clock time; those more than
+/// [`MAX_LAG_TICKS`](crate::node::engine::MAX_LAG_TICKS) periods late are dropped
+/// ([`Engine::simulation_tick`]).
 pub fn simulation_timer(engine: &Engine) -> Option<tokio::time::Interval> {
     engine.simulation_period().map(|period| {
         let mut timer = tokio::time::interval(period);
-        timer.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        timer.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Burst);
         timer
     })
 }
@@ -38,10 +41,11 @@ fn tf_of(odometry: &Odometry) -> TFMessage {
 }
 
 impl NodeState {
-    /// A tick of the simulation's publish timer at wall time `at`: the simulation advances by
-    /// `real_time_factor / publish_rate` s (unless paused or stopped) and its state goes out.
-    pub fn simulation_tick(&mut self, at: Instant) -> Outputs {
-        let tick = self.engine.simulation_tick(at);
+    /// A tick of the simulation's publish timer due at `due`, run at wall time `now`: the
+    /// simulation advances by `real_time_factor / publish_rate` s (unless paused, stopped or
+    /// the tick is too late) and its state goes out.
+    pub fn simulation_tick(&mut self, due: Instant, now: Instant) -> Outputs {
+        let tick = self.engine.simulation_tick(due, now);
         self.simulation_outputs(tick)
     }
 
@@ -109,6 +113,9 @@ impl NodeState {
             if let Some(late) = self.engine.simulation_late_ticks() {
                 value("late publish ticks", late.to_string());
             }
+            if let Some(missed) = self.engine.simulation_missed_steps() {
+                value("missed steps", missed.to_string());
+            }
             if let Some(depth) = self.engine.simulated_penetration() {
                 value("deepest ground penetration (m)", format!("{depth:.6}"));
             }
@@ -168,7 +175,7 @@ mod tests {
         let period = simulation_timer(&state.engine).expect("a timer").period();
         assert_eq!(period, std::time::Duration::from_millis(10));
         for tick in 1..=2 {
-            let out = state.simulation_tick(Instant::now());
+            let out = state.simulation_tick_now();
             let js = out.joint_states.expect("joint_states");
             let (z, v) = fall(10.0 * tick as f64, 1e-3);
             assert_close(js.position[1], z);
@@ -185,7 +192,7 @@ mod tests {
         assert_close(state.engine.simulated_time().unwrap(), 0.02);
         // Paused: no step, nothing published.
         assert!(state.pause(&SetBoolRequest { data: true }).success);
-        let out = state.simulation_tick(Instant::now());
+        let out = state.simulation_tick_now();
         assert!(out.joint_states.is_none() && out.clock.is_none());
         assert_close(state.engine.simulated_time().unwrap(), 0.02);
         // Serve mode has no timer.
@@ -206,7 +213,7 @@ mod tests {
         }
         };
         let mut state = serving(box_settings(true));
-        let out = state.simulation_tick(Instant::now());
+        let out = state.simulation_tick_now();
         let odometry = out.base_state.expect("a floating base");
         let tf = out.tf.expect("publish_tf is on");
         assert_eq!(tf.transforms.len(), 1);
@@ -218,23 +225,23 @@ mod tests {
         assert_close(t.transform.translation.z, fall(10.0, 1e-3).0);
         assert_eq!(t.transform.rotation, odometry.pose.pose.orientation);
         let mut off = serving(box_settings(false));
-        let out = off.simulation_tick(Instant::now());
+        let out = off.simulation_tick_now();
         assert!(out.base_state.is_some() && out.tf.is_none());
         // A fixed base has no transform to publish.
-        assert!(falling(false).simulation_tick(Instant::now()).tf.is_none());
+        assert!(falling(false).simulation_tick_now().tf.is_none());
     }
 
     #[test]
     fn without_publish_clock_no_clock_goes_out() {
         let mut state = falling(false);
-        let out = state.simulation_tick(Instant::now());
+        let out = state.simulation_tick_now();
         assert!(out.joint_states.is_some() && out.clock.is_none());
     }
 
     #[test]
     fn diagnostics_report_counters_clock_and_simulation() {
         let mut state = falling(false);
-        state.simulation_tick(Instant::now());
+        state.simulation_tick_now();
         state.commands(Ok(Float64MultiArray::default()));
         state.effort_command(Err("unreadable message: x".into()));
         let now = 1_500_000_000;
@@ -294,12 +301,41 @@ mod tests {
             found.expect("late publish ticks").value.clone()
         };
         let t0 = Instant::now();
-        state.simulation_tick(t0);
+        state.simulation_tick(t0, t0);
         assert_eq!(late(&mut state), "0");
         let t1 = t0 + period * 19 / 10;
-        state.simulation_tick(t1);
+        state.simulation_tick(t1, t1);
         assert_eq!(late(&mut state), "0", "1.9 periods: on time");
-        state.simulation_tick(t1 + period * 21 / 10);
+        let t2 = t1 + period * 21 / 10;
+        state.simulation_tick(t2, t2);
         assert_eq!(late(&mut state), "1", "2.1 periods: late");
+    }
+
+    /// A tick run more than `MAX_LAG_TICKS` periods after it was due does not step and counts
+    /// its steps as missed; one within that steps as though on time.
+    /// (`falling`: ticks of 10 ms, steps of 1 ms.)
+    #[test]
+    fn ticks_too_far_behind_are_dropped_and_counted_as_missed_steps() {
+        use crate::node::engine::MAX_LAG_TICKS;
+        let mut state = falling(false);
+        let period = state.engine.simulation_period().expect("simulate mode");
+        let missed = |state: &mut NodeState| {
+            let status = &state.diagnostics(Some(0)).diagnostics.unwrap().status[0];
+            let found = status.values.iter().find(|v| v.key == "missed steps");
+            found.expect("missed steps").value.clone()
+        };
+        let due = Instant::now();
+        let within = state.simulation_tick(due, due + period * (MAX_LAG_TICKS - 1));
+        assert!(
+            within.joint_states.is_some(),
+            "late within the bound: a step"
+        );
+        assert_eq!(missed(&mut state), "0");
+        let t = state.engine.simulated_time().unwrap();
+        let beyond = state.simulation_tick(due, due + period * (MAX_LAG_TICKS + 1));
+        assert!(beyond.joint_states.is_none(), "beyond the bound: no step");
+        assert_eq!(state.engine.simulated_time().unwrap(), t);
+        let steps_per_tick = (period.as_secs_f64() / 1e-3).round();
+        assert_eq!(missed(&mut state), steps_per_tick.to_string());
     }
 }
