@@ -26,24 +26,15 @@ repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 venv="$repo/target/mujoco-venv"
 build="$repo/target/bench-mujoco"
 python="${PYTHON:-python3.11}"
-packages=(mujoco==4.0.0 numpy example-robot-data==6.0.0)
+packages=(mujoco==4.0.0 numpy --no-deps example-robot-data==6.0.0)
 
 log() { printf '== %s\n' "$*" >&2; }
 die() { printf 'bench_mujoco.sh: %s\n' "$*" >&2; exit 1; }
 
-export PIP_NO_INPUT=1 PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_PROGRESS_BAR=off
-
 # --- 1. the venv ---------------------------------------------------------------------------------
-stamp="$venv/.bench_packages"
-if [[ ! -x "$venv/bin/python" || "$(cat "$stamp" 2>/dev/null)" != "${packages[*]}" ]]; then
-    command -v "$python" >/dev/null 2>&1 || python=python3
-    log "creating $venv (${packages[*]})"
-    "$python" -m venv "$venv"
-    # example-robot-data's dependencies are Pinocchio's: only its robot files are needed here.
-    "$venv/bin/pip" install --quiet "${packages[@]:0:2}"
-    "$venv/bin/pip" install --quiet --no-deps "${packages[2]}"
-    echo "${packages[*]}" > "$stamp"
-fi
+# example-robot-data's dependencies are Pinocchio's: only its robot files are needed here.
+source "$repo/launch_scripts/bench_venv.sh"
+bench_venv "$venv" "$python" "${packages[@]}"
 site="$(echo "$venv"/lib/python3*/site-packages)"
 mujoco_dir="$site/mujoco"
 [[ -f "$mujoco_dir/include/mujoco/mujoco.h" ]] || die "no MuJoCo headers under $mujoco_dir"

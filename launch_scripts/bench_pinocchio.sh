@@ -59,17 +59,9 @@ robot_table=(
 log() { printf '== %s\n' "$*" >&2; }
 die() { printf 'bench_pinocchio.sh: %s\n' "$*" >&2; exit 1; }
 
-export PIP_NO_INPUT=1 PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_PROGRESS_BAR=off
-
 # --- 1. the venv ---------------------------------------------------------------------------------
-stamp="$venv/.bench_packages"
-if [[ ! -x "$venv/bin/python" || "$(cat "$stamp" 2>/dev/null)" != "${packages[*]}" ]]; then
-    command -v "$python" >/dev/null 2>&1 || python=python3
-    log "creating $venv (${packages[*]})"
-    "$python" -m venv "$venv"
-    "$venv/bin/pip" install --quiet "${packages[@]}"
-    echo "${packages[*]}" > "$stamp"
-fi
+source "$repo/launch_scripts/bench_venv.sh"
+bench_venv "$venv" "$python" "${packages[@]}"
 prefix="$(echo "$venv"/lib/python3*/site-packages/cmeel.prefix)"
 [[ -d "$prefix/include/pinocchio" ]] || die "no Pinocchio headers under $prefix"
 robots="$prefix/share/example-robot-data/robots"
