@@ -187,9 +187,10 @@ def test_reference_gives_feedforward_effort_and_commands(ros, io, ref, with_rate
 
 def test_diagnostics_count_inputs_outputs_and_compute_time(ros, io):
     status_name = "spatial_dynamics: dynamics"
-    # Two more joint states, then a report that includes them.
+    # Two joint states and a reference, answered, then a report that includes them.
     for _ in range(2):
         send_until_answered(ros, io, lambda: joint_state(ARM_JOINTS, [0.0] * 7), "gravity")
+    send_until_answered(ros, io, lambda: trajectory(ARM_JOINTS, [0.0] * 7), "ff", pub="reference")
     io["diag"].clear()
     report = io["diag"].wait(1, timeout=sd.EVENT_S, predicate=lambda m: sd.status_values(m, status_name) is not None)[0]
     values = sd.status_values(report, status_name)
