@@ -226,9 +226,12 @@ build_interface() {
     prepare_interface_build
 
     # 4c. Remove what a previous build installed (an interface deleted from the package must go
-    #     too), then configure, build and install from a fresh build dir.
+    #     too), then configure, build and install from a fresh build dir. Only files inside this
+    #     venv: the manifest of a venv copied from elsewhere names the original's files.
     if [[ -f "$build_dir/install_manifest.txt" ]]; then
-        while IFS= read -r f; do rm -f -- "$f"; done <"$build_dir/install_manifest.txt"
+        while IFS= read -r f; do
+            if [[ "$f" == "$venv"/* ]]; then rm -f -- "$f"; fi
+        done <"$build_dir/install_manifest.txt"
     fi
     rm -rf "$build_dir"
     mkdir -p "$build_dir"

@@ -47,8 +47,7 @@ def test_tf_carries_the_pose_of_a_falling_box(nodes, ros, tmp_path):
     start(nodes, tmp_path, "tf", publish_tf=True)
     tf.wait_publisher()
     # Twenty transforms past 0.1 s of simulated time (the box has fallen ≥ 5 cm by then).
-    late = lambda m: seconds(m.transforms[0].header.stamp) > 0.1  # noqa: E731
-    messages = tf.wait(n=20, timeout=sd.EVENT_S, predicate=late)
+    messages = tf.wait(n=20, timeout=sd.EVENT_S, predicate=lambda m: seconds(m.transforms[0].header.stamp) > 0.1)
     for message in messages:
         assert len(message.transforms) == 1, message
         tr = message.transforms[0]
