@@ -152,12 +152,13 @@ fn rk4(
     move_q(model, &mut state.q, &s.v_stage, h, &mut s.q_stage)
 }
 
-/// `k ← dexp⁻¹(θ, k)` on each floating joint's block, with `θ = c·dir`: the rate `θ̇` that moves
-/// `q ⊕ θ` with the body twist `k`. Both `k = [v; ω]` and `θ` are twists in the base frame at
-/// the step's start (body frame), so `d/dt exp(θ) = exp(θ) (1 − e^{−ad_θ})/ad_θ θ̇` and
-/// `θ̇ = k + ½ [θ, k] + 1/12 [θ, [θ, k]] + O(|θ|³)`, with `[θ, k] = ad_θ k` the motion cross
-/// product. The omitted terms are `O(h³)` per stage, which keeps RK4 of order 4
-/// (Iserles et al. 2000, §4). Euclidean coordinates are left as they are.
+/// `k ← dexp⁻¹(θ, k)` on each floating joint's block, with `θ = c·dir`: the rate `θ̇` at which
+/// `q ⊕ θ = q·exp(θ)` moves when the base's body twist there is `k = [v; ω]` (in the base's own
+/// frame at `q ⊕ θ`; `θ` in the base frame at `q`). From `exp(−θ) d/dt exp(θ) =
+/// (1 − e^{−ad_θ})/ad_θ θ̇ = k`: `θ̇ = Σ_n B_n/n! (−ad_θ)ⁿ k = k + ½ [θ, k] + 1/12 [θ, [θ, k]]
+/// − ad_θ⁴ k / 720 + …`, with `[θ, k] = ad_θ k` the motion cross product and `B_n` the Bernoulli
+/// numbers (`B_3 = 0`). The first term omitted is `O(h⁴)` per stage, `O(h⁵)` per step: RK4 keeps
+/// order 4. Euclidean coordinates are left as they are.
 fn dexp_inv_in_place(model: &Model, dir: &[f64], c: f64, k: &mut [f64]) {
     let twist = |x: &[f64]| {
         Motion::new(
