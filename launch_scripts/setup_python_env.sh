@@ -3,6 +3,8 @@
 #   - ROS 2 from PyPI wheels (rclpy, Fast DDS, the common interface packages),
 #   - pytest, numpy, Pinocchio (`pin`), example-robot-data (reference URDFs), rosbags, colcon,
 #   - our own interface package msg/ (spatial_dynamics_msgs), built and installed into the venv,
+#   - tf2_msgs (only TFMessage, tests/dds/interfaces/tf2_msgs: no wheel on PyPI), built the same
+#     way, for the DDS test of /tf,
 #   - our Python package src/python (`import spatial_dynamics`), built by maturin in the
 #     workspace's target/ and installed into the venv (not into .venv-jazzy).
 # With --jazzy it sets up `.venv-jazzy/` instead: the genuine ROS 2 Jazzy wheels (`ros-jazzy-*`:
@@ -12,9 +14,9 @@
 #
 # Usage: launch_scripts/setup_python_env.sh [--jazzy] [--force]
 #   Idempotent: a second run only compares two stamp files and exits in well under a second.
-#   The Python packages are (re)installed when the package list below changes, and msg/ is
-#   rebuilt when any file under msg/ changes, src/python when src/core, src/python or Cargo.lock
-#   changes. --force (or SETUP_FORCE=1) redoes all three.
+#   The Python packages are (re)installed when the package list below changes, and msg/ (or
+#   tests/dds/interfaces/tf2_msgs) is rebuilt when any file under it changes, src/python when src/core, src/python or Cargo.lock
+#   changes. --force (or SETUP_FORCE=1) redoes them all.
 #   Environment: PYTHON=/path/to/python3.11 picks the interpreter (default: python3.11, python3).
 #   Works without a terminal (CI=true, no stdin); missing Debian packages are installed with apt-get.
 set -euo pipefail
@@ -32,11 +34,8 @@ for arg in "$@"; do
 done
 
 if [[ "$jazzy" == 1 ]]; then venv="$repo/.venv-jazzy"; else venv="$repo/.venv"; fi
-msg_dir="$repo/msg"
-build_dir="$venv/build/spatial_dynamics_msgs"   # inside the venv: never tracked by git
 pip_stamp="$venv/.setup_pip.stamp"
 package_stamp="$venv/.setup_package.stamp"
-msg_stamp="$venv/.setup_msgs.stamp"
 
 # Started from a venv's Python, we inherit its ROS wheels bootstrapper's guard and LD_LIBRARY_PATH
 # (that venv's ROS libraries): drop both, so this venv's Python sets up its own.
@@ -124,9 +123,10 @@ find_python() {
 
 # Fast path: everything already in place and up to date.
 msg_hash() {
-    # Content and names of every file under msg/, plus the package stamp (new packages => rebuild).
+    # Content and names of every file under the interface package $1, plus the package stamp
+    # (new packages => rebuild).
     {
-        (cd "$msg_dir" && find . -type f -print0 | LC_ALL=C sort -z | xargs -0 sha256sum)
+        (cd "$1" && find . -type f -print0 | LC_ALL=C sort -z | xargs -0 sha256sum)
         cat "$pip_stamp" 2>/dev/null || true
     } | sha256sum | cut -d' ' -f1
 }
@@ -170,15 +170,17 @@ else
     log "Python packages up to date (stamp $pip_stamp)"
 fi
 
-# --- 4. Our interface package msg/ (skipped when msg/ has not changed) -----------------------------
-want_msg="$(msg_hash)"
+# --- 4. Interface packages: our msg/, and tf2_msgs for the tests (each skipped when unchanged) ---
 site="$("$vpy" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
-if [[ "$force" == 1 || ! -f "$msg_stamp" || "$(cat "$msg_stamp")" != "$want_msg" \
-      || ! -d "$site/spatial_dynamics_msgs" ]]; then
-    log "building spatial_dynamics_msgs (msg/) into $venv"
+build_ready=0
+
+# 4a/4b, once, before the first build.
+prepare_interface_build() {
+    [[ "$build_ready" == 0 ]] || return 0
+    build_ready=1
 
     # 4a. What the build needs from Debian: C and C++ compilers, make, Python's headers.
-    missing=()
+    local missing=() py_include np_include
     command -v cc >/dev/null 2>&1 || missing+=(gcc)
     command -v c++ >/dev/null 2>&1 || missing+=(g++)
     command -v make >/dev/null 2>&1 || missing+=(make)
@@ -192,7 +194,7 @@ if [[ "$force" == 1 || ! -f "$msg_stamp" || "$(cat "$msg_stamp")" != "$want_msg"
 
     # 4b. The wheels' exported CMake files hard-code the include dirs of the machine that built
     #     them (/opt/python/cp311-cp311/...): point them at this interpreter's and numpy's.
-    PY_INCLUDE="$py_include" NP_INCLUDE="$np_include" "$vpy" - "$venv/share" <<'EOF'
+    PY_INCLUDE="$py_include" NP_INCLUDE="$np_include" "$vpy" - "$venv/share" <<'PYEOF'
 import glob, os, re, sys
 py_inc, np_inc = os.environ["PY_INCLUDE"], os.environ["NP_INCLUDE"]
 numpy_re = re.compile(r'/opt/python/[^/;" ]+/lib/python3\.\d+/site-packages/numpy/_core/include')
@@ -206,18 +208,34 @@ for path in glob.glob(os.path.join(sys.argv[1], "*", "cmake", "*.cmake")):
     if new != text:
         with open(path, "w") as f:
             f.write(new)
-EOF
+PYEOF
+    export AMENT_PREFIX_PATH="$venv"   # the typesupport lookup reads this, not CMAKE_PREFIX_PATH
+    export PATH="$venv/bin:$PATH"      # cmake and the generators' python come from the venv
+}
 
-    # 4c. Remove what a previous build installed (an interface deleted from msg/ must go too),
-    #     then configure, build and install from a fresh build dir.
+# build_interface NAME SOURCE_DIR STAMP IMPORT_CHECK: builds the interface package at SOURCE_DIR
+# and installs it into the venv (build dir inside the venv: never tracked by git).
+build_interface() {
+    local name="$1" src="$2" stamp="$3" check="$4" want build_dir="$venv/build/$1"
+    want="$(msg_hash "$src")"
+    if [[ "$force" != 1 && -f "$stamp" && "$(cat "$stamp")" == "$want" && -d "$site/$name" ]]; then
+        log "$name up to date (stamp $stamp)"
+        return 0
+    fi
+    log "building $name (${src#"$repo"/}) into $venv"
+    prepare_interface_build
+
+    # 4c. Remove what a previous build installed (an interface deleted from the package must go
+    #     too), then configure, build and install from a fresh build dir. Only files inside this
+    #     venv: the manifest of a venv copied from elsewhere names the original's files.
     if [[ -f "$build_dir/install_manifest.txt" ]]; then
-        while IFS= read -r f; do rm -f -- "$f"; done <"$build_dir/install_manifest.txt"
+        while IFS= read -r f; do
+            if [[ "$f" == "$venv"/* ]]; then rm -f -- "$f"; fi
+        done <"$build_dir/install_manifest.txt"
     fi
     rm -rf "$build_dir"
     mkdir -p "$build_dir"
-    export AMENT_PREFIX_PATH="$venv"   # the typesupport lookup reads this, not CMAKE_PREFIX_PATH
-    export PATH="$venv/bin:$PATH"      # cmake and the generators' python come from the venv
-    cmake -S "$msg_dir" -B "$build_dir" -Wno-dev \
+    cmake -S "$src" -B "$build_dir" -Wno-dev \
         -DCMAKE_BUILD_TYPE=Release \
         -DCMAKE_PREFIX_PATH="$venv" \
         -DCMAKE_INSTALL_PREFIX="$venv" \
@@ -230,12 +248,14 @@ EOF
         || { tail -n 40 "$build_dir/install.log" >&2; die "install failed (log: $build_dir/install.log)"; }
 
     # 4d. Check that Python can use it, then record what was built.
-    "$vpy" -c 'from spatial_dynamics_msgs.srv import InverseDynamics; InverseDynamics.Request()' \
-        || die "spatial_dynamics_msgs was installed but does not import"
-    echo "$want_msg" >"$msg_stamp"
-else
-    log "spatial_dynamics_msgs up to date (stamp $msg_stamp)"
-fi
+    "$vpy" -c "$check" || die "$name was installed but does not import"
+    echo "$want" >"$stamp"
+}
+
+build_interface spatial_dynamics_msgs "$repo/msg" "$venv/.setup_msgs.stamp" \
+    'from spatial_dynamics_msgs.srv import InverseDynamics; InverseDynamics.Request()'
+build_interface tf2_msgs "$repo/tests/dds/interfaces/tf2_msgs" "$venv/.setup_tf2_msgs.stamp" \
+    'from tf2_msgs.msg import TFMessage; TFMessage()'
 
 # --- 5. Our Python package src/python (skipped when what it is built from has not changed) -------
 # maturin builds the wheel in the workspace's target/ (release; only the binding crate and PyO3

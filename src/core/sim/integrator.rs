@@ -5,7 +5,7 @@
 //! |---|---|---|---|
 //! | `explicit_euler` | `q' = q ⊕ h v`, `v' = v + h a(q, v)` | 1 | gains energy at any step: the cautionary baseline |
 //! | `semi_implicit_euler` | `v' = v + h a(q, v)`, `q' = q ⊕ h v'` | 1 | symplectic: bounded energy error while `ω h < 2` |
-//! | `rk4` | classical Runge–Kutta on `(q, v)`, stages through `⊕` | 4 | |
+//! | `rk4` | classical Runge–Kutta on `(q, v)`, stages through `⊕`, Munthe-Kaas on a floating base | 4 | order 4 on SE(3) too: stage twists carried to one tangent space by `dexp⁻¹` |
 //! | `implicit_euler` | `v' = v + h a(q ⊕ h v', v')`, `q' = q ⊕ h v'`, Newton on `v'` | 1 | A-stable: for stiff damping |
 //!
 //! The implicit scheme's Newton matrix `I − h ∂a/∂v − h² ∂a/∂q` is built by finite differences
@@ -16,6 +16,8 @@
 
 use super::{Evaluator, Scratch, State};
 use crate::error::DynamicsError;
+use crate::model::JointKind;
+use crate::spatial::{Motion, Vector3};
 use crate::Model;
 use std::fmt;
 use std::str::FromStr;
@@ -106,8 +108,16 @@ fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
     }
 }
 
-/// Classical RK4: stage i at `(q ⊕ c_i h k_v[i−1], v + c_i h k_a[i−1])`, then
-/// `q' = q ⊕ h/6 (k_v1 + 2 k_v2 + 2 k_v3 + k_v4)`, `v' = v + h/6 (k_a1 + 2 k_a2 + 2 k_a3 + k_a4)`.
+/// Classical RK4 in the Runge–Kutta–Munthe-Kaas form (Munthe-Kaas 1999; Iserles et al.,
+/// "Lie-group methods", Acta Numerica 2000), of order 4 on the floating base's SE(3) too.
+///
+/// `q` moves as `q ⊕ θ`, with `θ` in the tangent space at the step's start `q`. Stage `i`
+/// (`c = [0, ½, ½, 1]`) is evaluated at `(q ⊕ θ_i, v + c_i h k_a[i−1])` with `θ_1 = 0`,
+/// `θ_i = c_i h u_{i−1}`, and its velocity `k_v[i]` is carried back to that tangent space:
+/// `u_i = dexp⁻¹(θ_i, k_v[i])`. Then
+/// `q' = q ⊕ h/6 (u_1 + 2 u_2 + 2 u_3 + u_4)`, `v' = v + h/6 (k_a1 + 2 k_a2 + 2 k_a3 + k_a4)`.
+/// On Euclidean coordinates `u_i = k_v[i]` and this is the classical scheme; see
+/// [`dexp_inv_in_place`] for a floating base.
 fn rk4(
     eval: &mut Evaluator,
     s: &mut Scratch,
@@ -129,13 +139,44 @@ fn rk4(
             }
         }
         eval.acceleration(model, &s.q_stage, &rest[0], tau, &mut s.k_a[stage])?;
+        if stage > 0 {
+            // k_v[stage] ← u_stage, with θ_stage = c u_{stage−1}.
+            dexp_inv_in_place(model, &done[stage - 1], c, &mut rest[0]);
+        }
     }
-    let (k_v, k_a) = (&s.k_v, &s.k_a);
+    let (u, k_a) = (&s.k_v, &s.k_a);
     for i in 0..state.v.len() {
-        s.v_stage[i] = (k_v[0][i] + 2.0 * k_v[1][i] + 2.0 * k_v[2][i] + k_v[3][i]) / 6.0;
+        s.v_stage[i] = (u[0][i] + 2.0 * u[1][i] + 2.0 * u[2][i] + u[3][i]) / 6.0;
         state.v[i] += h / 6.0 * (k_a[0][i] + 2.0 * k_a[1][i] + 2.0 * k_a[2][i] + k_a[3][i]);
     }
     move_q(model, &mut state.q, &s.v_stage, h, &mut s.q_stage)
+}
+
+/// `k ← dexp⁻¹(θ, k)` on each floating joint's block, with `θ = c·dir`: the rate `θ̇` at which
+/// `q ⊕ θ = q·exp(θ)` moves when the base's body twist there is `k = [v; ω]` (in the base's own
+/// frame at `q ⊕ θ`; `θ` in the base frame at `q`). From `exp(−θ) d/dt exp(θ) =
+/// (1 − e^{−ad_θ})/ad_θ θ̇ = k`: `θ̇ = Σ_n B_n/n! (−ad_θ)ⁿ k = k + ½ [θ, k] + 1/12 [θ, [θ, k]]
+/// − ad_θ⁴ k / 720 + …`, with `[θ, k] = ad_θ k` the motion cross product and `B_n` the Bernoulli
+/// numbers (`B_3 = 0`). The first term omitted is `O(h⁴)` per stage, `O(h⁵)` per step: RK4 keeps
+/// order 4. Euclidean coordinates are left as they are.
+fn dexp_inv_in_place(model: &Model, dir: &[f64], c: f64, k: &mut [f64]) {
+    let twist = |x: &[f64]| {
+        Motion::new(
+            Vector3::new(x[3], x[4], x[5]),
+            Vector3::new(x[0], x[1], x[2]),
+        )
+    };
+    for j in model.coordinate_joints() {
+        if *j.kind != JointKind::Floating {
+            continue;
+        }
+        let block = j.v_index..j.v_index + 6;
+        let theta = twist(&dir[block.clone()]) * c;
+        let k_j = twist(&k[block.clone()]);
+        let once = theta.cross_motion(&k_j);
+        let u = k_j + once * 0.5 + theta.cross_motion(&once) * (1.0 / 12.0);
+        k[block].copy_from_slice(&[u.lin.x, u.lin.y, u.lin.z, u.ang.x, u.ang.y, u.ang.z]);
+    }
 }
 
 /// Backward Euler with Newton iterations on `v'`:
