@@ -15,7 +15,7 @@ use crate::algorithms::cholesky::cholesky_solve_rows;
 use crate::algorithms::forward_dynamics::crba_solve_on_joints;
 use crate::algorithms::kinematics::update_joints;
 use crate::algorithms::ltl::ltl_solve_rows;
-use crate::algorithms::validate::check_forward_inputs;
+use crate::algorithms::validate::{all_finite, check_forward_inputs};
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::model::Model;
@@ -56,9 +56,16 @@ pub fn aba_derivatives<'w>(
     ws.qdd = qdd;
     solve_with_factor(ws);
     let d = &ws.derivatives;
-    check_matrix(model, "ddq_dq", &d.ddq_dq)?;
-    check_matrix(model, "ddq_dv", &d.ddq_dv)?;
-    check_matrix(model, "Minv", &d.minv)?;
+    // One branch-free pass over each result; the coordinate is looked for only on failure.
+    for (quantity, m) in [
+        ("ddq_dq", &d.ddq_dq),
+        ("ddq_dv", &d.ddq_dv),
+        ("Minv", &d.minv),
+    ] {
+        if !all_finite(m.as_slice()) {
+            check_matrix(model, quantity, m)?;
+        }
+    }
     Ok(AbaDerivatives {
         ddq_dq: &ws.derivatives.ddq_dq,
         ddq_dv: &ws.derivatives.ddq_dv,
