@@ -122,18 +122,23 @@ pub(crate) fn ltl_solve_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, x:
 
 /// Solves `Lᵀ L X = B` in place for `k` right-hand sides held row by row: `w` is `n` rows of
 /// `k` entries, row `i` of `B` at `w[i k .. (i + 1) k]` (the column-major storage of `Bᵀ`).
-/// Every step is then a whole-row update `row_a −= L_ma row_b`, contiguous and independent entry
-/// by entry, where a column-by-column solve waits on one division after another:
+/// Every step is then a whole-row update, contiguous and independent entry by entry, where a
+/// column-by-column solve waits on one division after another:
 ///
 /// ```text
 /// Lᵀ Y = B, leaves inward:  Y_i = (B_i − Σ_{m ∈ D(i)} L_mi Y_m) / L_ii
-/// L X = Y, root outward:    X_i = Y_i / L_ii,  then Y_m −= L_mi X_i for m ∈ D(i)
+/// L X = Y, root outward:    X_m = (Y_m − Σ_{a ∈ A(m)} L_ma X_a) / L_mm      (A(m): m's ancestors)
 /// ```
 ///
-/// With `identity_first`, the first `n` columns of `B` are the identity (`k ≥ n`): there row
-/// `i` of `Y = L⁻ᵀ` is zero outside the columns `i` and `D(i)` (`Y_i` gathers `e_i` and the rows
-/// below `i`, each zero outside its own subtree's range), and the first pass updates only
-/// those columns of that block.
+/// Each row gathers its sum four rows at a time ([`subtract_combination`]), reading and
+/// writing its own entries once per four terms.
+///
+/// With `identity_first`, the first `n` columns of `B` are the identity (`k ≥ n`), and there:
+/// row `i` of `Y = L⁻ᵀ` is zero outside the columns `i` and `D(i)` (`Y_i` gathers `e_i` and the
+/// rows below `i`, each zero outside its own subtree's range), so the first pass updates only
+/// those; and `X = H⁻¹` is symmetric, its row `m` at columns `c ≥ m` needs only its ancestors'
+/// rows at the same columns (`c ≥ m > a`), so the second pass computes only the upper triangle
+/// of that block (the entries below it are left as scratch, not `H⁻¹`).
 pub(crate) fn ltl_solve_rows(
     ancestors: &Ancestors,
     factor: &DMatrix<f64>,
@@ -148,29 +153,73 @@ pub(crate) fn ltl_solve_rows(
         let row_i = &mut head[i * k..];
         let below = ancestors.below(i);
         // The columns to update: i's subtree in the identity block and all after it, or all.
-        let (subtree, rest) = if identity_first {
-            (i..below.end, n)
+        let segments = if identity_first {
+            [i..below.end, n..k]
         } else {
-            (0..0, 0)
+            [0..k, 0..0]
         };
-        for m in below {
-            let row_m = &tail[(m - i - 1) * k..(m - i) * k];
-            let l_mi = -l[m + i * n];
-            axpy(&mut row_i[subtree.clone()], l_mi, &row_m[subtree.clone()]);
-            axpy(&mut row_i[rest..], l_mi, &row_m[rest..]);
+        for s in segments.clone() {
+            let (tail, columns) = (&*tail, s.clone());
+            let terms = below.clone().map(move |m| {
+                let row_m = &tail[(m - i - 1) * k..(m - i) * k];
+                (l[m + i * n], &row_m[columns.clone()])
+            });
+            subtract_combination(&mut row_i[s], terms);
         }
         let inv = 1.0 / l[i + i * n];
-        row_i.iter_mut().for_each(|y| *y *= inv);
+        for s in segments {
+            row_i[s].iter_mut().for_each(|y| *y *= inv);
+        }
     }
-    for i in 0..n {
-        let (head, tail) = w.split_at_mut((i + 1) * k);
-        let row_i = &mut head[i * k..];
-        let inv = 1.0 / l[i + i * n];
-        row_i.iter_mut().for_each(|x| *x *= inv);
-        for m in ancestors.below(i) {
-            let row_m = &mut tail[(m - i - 1) * k..(m - i) * k];
-            axpy(row_m, -l[m + i * n], row_i);
+    for m in 0..n {
+        let (head, tail) = w.split_at_mut(m * k);
+        let first = if identity_first { m } else { 0 };
+        let row_m = &mut tail[first..k];
+        let terms = ancestors
+            .of(m)
+            .iter()
+            .map(|&a| (l[m + a * n], &head[a * k + first..(a + 1) * k]));
+        subtract_combination(row_m, terms);
+        let inv = 1.0 / l[m + m * n];
+        row_m.iter_mut().for_each(|x| *x *= inv);
+    }
+}
+
+/// `y −= Σ_t c_t x_t` over the terms `(c_t, x_t)` (each `x_t` as long as `y`), four terms per
+/// sweep over `y`: each entry of `y` is loaded and stored once per four products.
+#[inline(always)]
+fn subtract_combination<'a>(y: &mut [f64], terms: impl Iterator<Item = (f64, &'a [f64])>) {
+    let mut group: [(f64, &[f64]); 4] = [(0.0, &[]); 4];
+    let mut len = 0;
+    for term in terms {
+        group[len] = term;
+        len += 1;
+        if len == 4 {
+            let [(a, p), (b, q), (c, r), (d, s)] = group;
+            let n = y.len();
+            let (p, q, r, s) = (&p[..n], &q[..n], &r[..n], &s[..n]);
+            for (j, y) in y.iter_mut().enumerate() {
+                *y -= (a * p[j] + b * q[j]) + (c * r[j] + d * s[j]);
+            }
+            len = 0;
         }
+    }
+    let n = y.len();
+    match group[..len] {
+        [(a, p), (b, q), (c, r)] => {
+            let (p, q, r) = (&p[..n], &q[..n], &r[..n]);
+            for (j, y) in y.iter_mut().enumerate() {
+                *y -= (a * p[j] + b * q[j]) + c * r[j];
+            }
+        }
+        [(a, p), (b, q)] => {
+            let (p, q) = (&p[..n], &q[..n]);
+            for (j, y) in y.iter_mut().enumerate() {
+                *y -= a * p[j] + b * q[j];
+            }
+        }
+        [(a, p)] => axpy(y, -a, p),
+        _ => {}
     }
 }
 
@@ -261,7 +310,12 @@ mod tests {
             b4.columns_mut(n, 3).copy_from(&b3);
             let mut rows = b4.transpose().as_slice().to_vec();
             ltl_solve_rows(&ancestors, &factor, &mut rows, n + 3, true);
-            let x4 = DMatrix::from_column_slice(n + 3, n, &rows).transpose();
+            let mut x4 = DMatrix::from_column_slice(n + 3, n, &rows).transpose();
+            for r in 0..n {
+                for c in 0..r {
+                    x4[(r, c)] = x4[(c, r)]; // H⁻¹ from its upper triangle
+                }
+            }
             let err = (&h * &x4 - &b4).amax();
             assert!(
                 err < 1e-12 * (h.amax() * x4.amax()),

@@ -15,7 +15,7 @@ use crate::algorithms::cholesky::cholesky_solve_rows;
 use crate::algorithms::forward_dynamics::crba_solve_on_joints;
 use crate::algorithms::kinematics::update_joints;
 use crate::algorithms::ltl::ltl_solve_rows;
-use crate::algorithms::validate::check_forward_inputs;
+use crate::algorithms::validate::{all_finite, check_forward_inputs};
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::model::Model;
@@ -56,9 +56,16 @@ pub fn aba_derivatives<'w>(
     ws.qdd = qdd;
     solve_with_factor(ws);
     let d = &ws.derivatives;
-    check_matrix(model, "ddq_dq", &d.ddq_dq)?;
-    check_matrix(model, "ddq_dv", &d.ddq_dv)?;
-    check_matrix(model, "Minv", &d.minv)?;
+    // One branch-free pass over each result; the coordinate is looked for only on failure.
+    for (quantity, m) in [
+        ("ddq_dq", &d.ddq_dq),
+        ("ddq_dv", &d.ddq_dv),
+        ("Minv", &d.minv),
+    ] {
+        if !all_finite(m.as_slice()) {
+            check_matrix(model, quantity, m)?;
+        }
+    }
     Ok(AbaDerivatives {
         ddq_dq: &ws.derivatives.ddq_dq,
         ddq_dv: &ws.derivatives.ddq_dv,
@@ -71,7 +78,8 @@ pub fn aba_derivatives<'w>(
 /// in `ws.factor`. The `3 nv` right-hand sides go row by row (each step an update of whole rows):
 /// along the tree ([`ltl_solve_rows`]) over the non-zeros of `L`, `O(nv d)` per column for depth
 /// `d`, where a product with the dense `H⁻¹` costs `nv²`; with mimic joints through the dense
-/// Cholesky factor ([`cholesky_solve_rows`]).
+/// Cholesky factor ([`cholesky_solve_rows`]). Of the symmetric `H⁻¹` the tree solve computes
+/// the upper triangle, which is mirrored here.
 fn solve_with_factor(ws: &mut Workspace) {
     let (plan, factor, d) = (&ws.plan, &ws.factor, &mut ws.derivatives);
     let nv = d.minv.nrows();
@@ -102,16 +110,25 @@ fn solve_with_factor(ws: &mut Workspace) {
         Some(ancestors) => ltl_solve_rows(ancestors, factor, rows, k, true),
         None => cholesky_solve_rows(factor, rows, k),
     }
-    for (c, ((minv, dq), dv)) in d
-        .minv
+    // H⁻¹ from its upper triangle (symmetric; the tree solve computes only that), the
+    // products in full. Column c of H⁻¹: entries i ≤ c from column c of rows 0..=c, entries
+    // i > c from row c itself.
+    for (c, minv) in d.minv.as_mut_slice().chunks_exact_mut(nv).enumerate() {
+        let (upper, lower) = minv.split_at_mut(c + 1);
+        for (x, row) in upper.iter_mut().zip(rows.chunks_exact(k)) {
+            *x = row[c];
+        }
+        lower.copy_from_slice(&rows[c * k + c + 1..c * k + nv]);
+    }
+    for (c, (dq, dv)) in d
+        .ddq_dq
         .as_mut_slice()
         .chunks_exact_mut(nv)
-        .zip(d.ddq_dq.as_mut_slice().chunks_exact_mut(nv))
         .zip(d.ddq_dv.as_mut_slice().chunks_exact_mut(nv))
         .enumerate()
     {
         for (i, row) in rows.chunks_exact(k).enumerate() {
-            (minv[i], dq[i], dv[i]) = (row[c], row[nv + c], row[2 * nv + c]);
+            (dq[i], dv[i]) = (row[nv + c], row[2 * nv + c]);
         }
     }
 }
