@@ -123,7 +123,13 @@ impl Evaluator {
         tau_cmd: &[f64],
         out: &mut [f64],
     ) -> Result<(), DynamicsError> {
-        self.clamped += self.passive.total(&self.on, q, v, tau_cmd, &mut self.tau) as u64;
+        // With no passive force on, the commanded efforts go to the dynamics as they are.
+        let tau: &[f64] = if self.on == Passive::default() {
+            tau_cmd
+        } else {
+            self.clamped += self.passive.total(&self.on, q, v, tau_cmd, &mut self.tau) as u64;
+            &self.tau
+        };
         let wrenches = match &mut self.contacts {
             Some(c) if !c.is_empty() => Some(c.wrenches(model, &mut self.ws, q, v)?),
             _ => None,
@@ -132,7 +138,7 @@ impl Evaluator {
             wrenches,
             ..Default::default()
         };
-        let a = forward_dynamics(model, &mut self.ws, q, v, &self.tau, self.method, &ext)?;
+        let a = forward_dynamics(model, &mut self.ws, q, v, tau, self.method, &ext)?;
         out.copy_from_slice(a);
         Ok(())
     }
