@@ -110,9 +110,9 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
     let mut out = std::io::BufWriter::new(file);
     let write_err = |e: std::io::Error| format!("{}: {e}", args.output.display());
     writeln!(out, "{}", header(&model)).map_err(write_err)?;
-    let mut energy = sim.energy(&model, &state).map_err(|e| e.to_string())?;
     let steps = (args.duration / args.dt).round() as usize;
     for step in 0..=steps {
+        let energy = sim.energy(&model, &state).map_err(|e| e.to_string())?;
         write_row(&mut out, step as f64 * args.dt, &state, energy).map_err(write_err)?;
         if step == steps {
             break;
@@ -120,12 +120,9 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
         let active = args
             .effort_until
             .is_none_or(|until| state.t < until - 1e-12);
-        match sim.step(&model, &mut state, if active { &tau } else { &zero }) {
-            Ok(e) => energy = e,
-            Err(e) => {
-                out.flush().map_err(write_err)?;
-                return Err(format!("the simulation diverged {e} ({} with dt = {} s, method {}; the rows up to then are in {})", args.integrator, args.dt, args.method, args.output.display()));
-            }
+        if let Err(e) = sim.step(&model, &mut state, if active { &tau } else { &zero }) {
+            out.flush().map_err(write_err)?;
+            return Err(format!("the simulation diverged {e} ({} with dt = {} s, method {}; the rows up to then are in {})", args.integrator, args.dt, args.method, args.output.display()));
         }
     }
     out.flush().map_err(write_err)?;

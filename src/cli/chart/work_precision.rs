@@ -7,7 +7,7 @@
 //! 0.1–0.3 rad off zero, so that it swings and twists (from near upright it falls over and spins,
 //! a motion that the first-order methods do not resolve even at 16 kHz). For each integrator and step `h = T / N`
 //! (`N` a power of two), the error is `max_i |q_i(T) − q_ref,i(T)|` (rad) and the work the
-//! wall-clock time of [`Simulator::step`] (one thread; its per-step energy check included) per
+//! wall-clock time of [`Simulator::step`] (one thread; its energy check included) per
 //! simulated second, the least over repeated runs (so other processes disturb it least).
 //!
 //! Reference: RK4 with `2 N_ref` steps, `N_ref` 16 times the finest step charted. Richardson:

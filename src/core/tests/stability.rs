@@ -44,7 +44,7 @@ fn run(
     let tau = vec![0.0; model.nv()];
     for _ in 0..steps {
         match sim.step(model, &mut state, &tau) {
-            Ok(e) => energies.push(e),
+            Ok(()) => energies.push(sim.energy(model, &state).unwrap()),
             Err(e) => return (energies, Some(e)),
         }
     }
