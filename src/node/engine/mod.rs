@@ -5,8 +5,7 @@
 pub mod clock;
 mod frame_kinematics;
 mod linearize;
-mod simulation;
-pub use simulation::MAX_LAG_TICKS;
+pub(crate) mod simulation;
 
 use super::params::Settings;
 use crate::joint_states::commands::Commands;

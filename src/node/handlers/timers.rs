@@ -10,7 +10,7 @@ use std::time::Instant;
 /// The publish timer of simulate mode, one tick per `1 / publish_rate` s (none in serve mode).
 /// Ticks the process was too busy or too stalled to run come at once when it can, so the
 /// simulation keeps to wall-clock time; those more than
-/// [`MAX_LAG_TICKS`](crate::node::engine::MAX_LAG_TICKS) periods late are dropped
+/// [`MAX_LAG_TICKS`](crate::node::engine::simulation::MAX_LAG_TICKS) periods late are dropped
 /// ([`Engine::simulation_tick`]).
 pub fn simulation_timer(engine: &Engine) -> Option<tokio::time::Interval> {
     engine.simulation_period().map(|period| {
@@ -316,7 +316,7 @@ mod tests {
     /// (`falling`: ticks of 10 ms, steps of 1 ms.)
     #[test]
     fn ticks_too_far_behind_are_dropped_and_counted_as_missed_steps() {
-        use crate::node::engine::MAX_LAG_TICKS;
+        use crate::node::engine::simulation::MAX_LAG_TICKS;
         let mut state = falling(false);
         let period = state.engine.simulation_period().expect("simulate mode");
         let missed = |state: &mut NodeState| {
