@@ -42,11 +42,11 @@ use super::DerivativeScratch;
 use crate::algorithms::kinematics::{
     update_aligned_placements, update_joints, update_world_axes, Anchors,
 };
-use crate::algorithms::validate::{check_inverse_inputs, check_result};
+use crate::algorithms::validate::{all_finite, check_inverse_inputs, check_result};
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
-use crate::model::{JointKind, Model};
-use crate::spatial::{Motion, Translation, Vector3};
+use crate::model::{JointKind, Model, MotionSubspace};
+use crate::spatial::{Force, Motion, Translation, Vector3};
 use crate::Workspace;
 use nalgebra::DMatrix;
 
@@ -196,53 +196,69 @@ fn backward_pass(model: &Model, ws: &mut Workspace) {
         dtau_dv,
         ..
     } = derivatives;
-    dtau_dq.fill(0.0);
-    dtau_dv.fill(0.0);
-    mass_matrix.fill(0.0);
-    tau.fill(0.0);
+    // On the storage slices: one memset each, where nalgebra's `fill` walks index by index.
+    dtau_dq.as_mut_slice().fill(0.0);
+    dtau_dv.as_mut_slice().fill(0.0);
+    mass_matrix.as_mut_slice().fill(0.0);
+    tau.as_mut_slice().fill(0.0);
+    // Column-major storage: entry (r, c) of an `n × n` matrix at `c n + r`.
+    let n = tau.len();
+    let (dq, dv, h) = (
+        dtau_dq.as_mut_slice(),
+        dtau_dv.as_mut_slice(),
+        mass_matrix.as_mut_slice(),
+    );
     let above =
         |i: usize| std::iter::successors(model.bodies[i].parent, |&j| model.bodies[j].parent);
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let ci = body.joint.coords.v_index;
         let series = in_series(&body.joint.kind);
-        let s_i = &s_world[i];
-        for n in 0..s_i.nv {
-            let (s, row) = (s_i.cols[n], ci + n);
+        let nvi = s_world[i].nv;
+        let own = Columns::of(&s_world[i], &psi[i], &alpha[i], &beta[i]);
+        for (n_i, &s) in own.s.iter().enumerate() {
+            let row = ci + n_i;
             tau[row] += s.dot(&f[i]);
             // Row (i, n) against the columns of i and its ancestors: I^C_i S and B^C_iᵀ S.
-            let ic_s = ic[i].apply(&s);
-            let bt_s = b[i].tr_apply(&s);
             // Column (i, n) against the rows above it: the forces its motion adds to F_i.
-            let w_q = s.cross_force(&f[i]) + ic[i].apply(&alpha[i][n]) + b[i].apply(&psi[i][n]);
-            let w_v = ic[i].apply(&beta[i][n]) + b[i].apply(&s);
+            let r = RowVectors {
+                ic_s: ic[i].apply(&s),
+                bt_s: b[i].tr_apply(&s),
+                w_q: s.cross_force(&f[i])
+                    + ic[i].apply(&own.alpha[n_i])
+                    + b[i].apply(&own.psi[n_i]),
+                w_v: ic[i].apply(&own.beta[n_i]) + b[i].apply(&s),
+            };
             // i's own columns: all of them on the left, or in series those up to n on the left
             // and those before n on the right.
-            for m in 0..if series { n + 1 } else { s_i.nv } {
-                let (col, s_m) = (ci + m, s_i.cols[m]);
-                dtau_dq[(row, col)] += alpha[i][m].dot(&ic_s) + bt_s.dot(&psi[i][m].ang);
-                dtau_dv[(row, col)] += beta[i][m].dot(&ic_s) + bt_s.dot(&s_m.ang);
-                mass_matrix[(row, col)] += s_m.dot(&ic_s);
+            let left = if series { n_i + 1 } else { nvi };
+            for m in 0..left {
+                let at = (ci + m) * n + row;
+                dq[at] += r.left_q(own.alpha[m], own.psi[m]);
+                dv[at] += r.left_v(own.beta[m], own.s[m]);
+                h[at] += own.s[m].dot(&r.ic_s);
             }
-            for m in 0..if series { n } else { 0 } {
-                let (r, s_m) = (ci + m, s_i.cols[m]);
-                dtau_dq[(r, row)] += s_m.dot(&w_q);
-                dtau_dv[(r, row)] += s_m.dot(&w_v);
-                mass_matrix[(r, row)] += s_m.dot(&ic_s);
+            for m in 0..if series { n_i } else { 0 } {
+                let at = row * n + ci + m;
+                dq[at] += own.s[m].dot(&r.w_q);
+                dv[at] += own.s[m].dot(&r.w_v);
+                h[at] += own.s[m].dot(&r.ic_s);
             }
             // Each ancestor column (j, m): the left entry in row (i, n), the right one in
             // column (i, n), and H's two (equal) entries from one product. Entries add up: a
             // mimic follower's row and column are its leader's.
             for j in above(i) {
                 let cj = model.bodies[j].joint.coords.v_index;
-                for m in 0..s_world[j].nv {
-                    let (other, s_j) = (cj + m, s_world[j].cols[m]);
-                    dtau_dq[(row, other)] += alpha[j][m].dot(&ic_s) + bt_s.dot(&psi[j][m].ang);
-                    dtau_dv[(row, other)] += beta[j][m].dot(&ic_s) + bt_s.dot(&s_j.ang);
-                    dtau_dq[(other, row)] += s_j.dot(&w_q);
-                    dtau_dv[(other, row)] += s_j.dot(&w_v);
-                    let h = s_j.dot(&ic_s);
-                    mass_matrix[(row, other)] += h;
-                    mass_matrix[(other, row)] += h;
+                let c = Columns::of(&s_world[j], &psi[j], &alpha[j], &beta[j]);
+                let columns = c.s.iter().zip(c.psi).zip(c.alpha.iter().zip(c.beta));
+                for (m, ((s_j, psi_j), (alpha_j, beta_j))) in columns.enumerate() {
+                    let (in_row, in_col) = ((cj + m) * n + row, row * n + cj + m);
+                    dq[in_row] += r.left_q(*alpha_j, *psi_j);
+                    dv[in_row] += r.left_v(*beta_j, *s_j);
+                    dq[in_col] += s_j.dot(&r.w_q);
+                    dv[in_col] += s_j.dot(&r.w_v);
+                    let h_ij = s_j.dot(&r.ic_s);
+                    h[in_row] += h_ij;
+                    h[in_col] += h_ij;
                 }
             }
         }
@@ -255,12 +271,94 @@ fn backward_pass(model: &Model, ws: &mut Workspace) {
     }
 }
 
-/// Every entry of `m` is finite; names the coordinate of the first row that is not.
+/// One body's columns `S_k` with their `ψ_k`, `α_k`, `β_k`, cut to its degrees of freedom.
+struct Columns<'a> {
+    s: &'a [Motion],
+    psi: &'a [Motion],
+    alpha: &'a [Motion],
+    beta: &'a [Motion],
+}
+
+impl<'a> Columns<'a> {
+    fn of(
+        s: &'a MotionSubspace,
+        psi: &'a [Motion; 6],
+        alpha: &'a [Motion; 6],
+        beta: &'a [Motion; 6],
+    ) -> Self {
+        let nv = s.nv;
+        Columns {
+            s: &s.cols[..nv],
+            psi: &psi[..nv],
+            alpha: &alpha[..nv],
+            beta: &beta[..nv],
+        }
+    }
+}
+
+/// What row `(i, n)` of the backward pass reads from its body's subtree sums, with `S = S_in`:
+/// `I^C_i S` and the angular part of `B^C_iᵀ S` (the left entries), and the forces column
+/// `(i, n)` adds to `F_i`, `w_q = S ×* F_i + I^C_i α + B^C_i ψ` and `w_v = I^C_i β + B^C_i S`
+/// (the right entries).
+struct RowVectors {
+    ic_s: Force,
+    bt_s: Vector3,
+    w_q: Force,
+    w_v: Force,
+}
+
+impl RowVectors {
+    /// `∂τ_i/∂q_j = (I^C_i S_i)ᵀ α_j + (B^C_iᵀ S_i)ᵀ ψ_j` (`ψ_j` read through its angular part).
+    fn left_q(&self, alpha_j: Motion, psi_j: Motion) -> f64 {
+        alpha_j.dot(&self.ic_s) + self.bt_s.dot(&psi_j.ang)
+    }
+
+    /// `∂τ_i/∂q̇_j = (I^C_i S_i)ᵀ β_j + (B^C_iᵀ S_i)ᵀ S_j`.
+    fn left_v(&self, beta_j: Motion, s_j: Motion) -> f64 {
+        beta_j.dot(&self.ic_s) + self.bt_s.dot(&s_j.ang)
+    }
+}
+
+/// Every entry of `m` is finite; names the coordinate of the first row that is not. The whole
+/// storage is probed at once ([`all_finite`]); only a matrix that fails is searched column by
+/// column for the row to name.
 pub(crate) fn check_matrix(
     model: &Model,
     quantity: &'static str,
     m: &DMatrix<f64>,
 ) -> Result<(), DynamicsError> {
+    if all_finite(m.as_slice()) {
+        return Ok(());
+    }
     m.column_iter()
         .try_for_each(|col| check_result(model, quantity, col.as_slice()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::ModelOptions;
+    use crate::urdf::model_from_str;
+
+    /// A non-finite entry anywhere fails the whole-storage probe and is named by its row's
+    /// coordinate; a finite matrix with entries near overflow passes.
+    #[test]
+    fn check_matrix_names_the_row_of_a_non_finite_entry() {
+        let text = include_str!("../../tests/models/tree.urdf");
+        let model = model_from_str(text, &ModelOptions::default()).unwrap();
+        let nv = model.nv();
+        let mut m = DMatrix::from_element(nv, nv, 1e300);
+        assert!(check_matrix(&model, "dtau_dq", &m).is_ok());
+        for (value, row, col) in [(f64::NAN, nv - 1, 0), (f64::INFINITY, 1, nv - 1)] {
+            m[(row, col)] = value;
+            match check_matrix(&model, "dtau_dq", &m) {
+                Err(DynamicsError::NonFiniteResult {
+                    quantity,
+                    coordinate,
+                }) => assert_eq!((quantity, coordinate), ("dtau_dq", model.v_name(row))),
+                other => panic!("{value} at ({row}, {col}): {other:?}"),
+            }
+            m[(row, col)] = 1e300;
+        }
+    }
 }
