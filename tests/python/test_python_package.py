@@ -260,6 +260,34 @@ def test_errors_raise_dynamics_error_naming_the_fault():
         sd.Model.from_urdf(str(REPO / "no_such_file.urdf"))
 
 
+def test_a_long_batch_equals_single_calls_in_every_block():
+    """2 501 states (many blocks of rows per thread, the last one short): every row of each
+    result, one output or several, is the single call's on that row, bit for bit."""
+    s = setup_of(PACKAGE_CASES[0])
+    m, rng, rows = s.model, np.random.default_rng(11), 2501
+    qs = np.stack([s.map.q_to_ours(sample_state(s.ref, rng)[0]) for _ in range(rows)])
+    vs, as_ = rng.standard_normal((2, rows, m.nv))
+    tau = m.rnea(qs, vs, as_)
+    translation, rotation = m.frame_placement(qs, m.link_names[-1])
+    for i in range(rows):
+        assert np.array_equal(tau[i], m.rnea(qs[i], vs[i], as_[i])), f"rnea row {i}"
+        t, r = m.frame_placement(qs[i], m.link_names[-1])
+        assert np.array_equal(translation[i], t) and np.array_equal(rotation[i], r), f"row {i}"
+
+
+def test_a_batch_names_its_first_bad_row():
+    """Every row from 5 300 on is bad, so the threads that hold rows past it when the first
+    error stops the batch meet bad rows too: the error names row 5 300, call after call."""
+    s = setup_of(PACKAGE_CASES[0])
+    m, rows = s.model, 20000
+    qs = np.tile(s.q_ours, (rows, 1))
+    zeros = np.zeros((rows, m.nv))
+    qs[5300:, 1] = np.inf
+    for _ in range(20):
+        with pytest.raises(sd.DynamicsError, match=rf"^row 5300: q\[1\] \({m.v_names[1]}\) is inf"):
+            m.rnea(qs, zeros, zeros)
+
+
 def test_a_batch_runs_with_the_gil_released():
     """While one thread computes a long batch, the main thread keeps running Python: the longest
     pause between its loop's iterations during the call is a small part of the call. A held GIL

@@ -1,15 +1,18 @@
 //! One kernel (a library function writing its results into output slices) run over one state,
-//! with the model's own workspace, or over N states split across
-//! `std::thread::available_parallelism()` scoped threads, each with a workspace of its own, the
-//! GIL released. The outputs are numpy arrays allocated once per call: one state's results
-//! have the per-state shape, N states' results `(N, *shape)`, row `i` being state `i`'s.
+//! with the model's own workspace, or over N states on `std::thread::available_parallelism()`
+//! (asked once per process) scoped threads, the GIL released: each thread has a workspace of
+//! its own and takes blocks of rows from a shared queue, reading each row's inputs in place in
+//! the arguments' buffers and writing its results in place in the outputs'. The outputs are
+//! numpy arrays allocated once per call: one state's results have the per-state shape, N
+//! states' results `(N, *shape)`, row `i` being state `i`'s.
 
 use crate::arrays::{states_of, Rows};
 use crate::errors::{error, from_library};
 use numpy::{PyArrayDyn, PyArrayMethods};
 use pyo3::prelude::*;
 use spatial_dynamics_core::{DynamicsError, Model, Workspace};
-use std::sync::Mutex;
+use std::slice::ChunksMut;
+use std::sync::{Mutex, MutexGuard, OnceLock};
 use std::thread;
 
 /// Runs `kernel` on the `inputs` (argument name, value, values per state) into outputs of the
@@ -59,7 +62,11 @@ where
     Ok(arrays)
 }
 
-/// The `n` states over scoped threads: the first error by row, if any, with its row.
+/// The `n` states over `std::thread::available_parallelism()` threads (the calling one among
+/// them), which take blocks of rows in order from a shared queue, so a thread slowed by another
+/// process on its core takes fewer of them. On an error no further block is taken; each thread
+/// stops at its first, and the one of the lowest row is returned: every block before it was
+/// taken earlier and is finished, so it is the batch's first error by row.
 fn in_parallel<const I: usize, const O: usize, K>(
     model: &Model,
     n: usize,
@@ -75,51 +82,106 @@ where
     if n == 0 {
         return Ok(());
     }
-    let threads = thread::available_parallelism()
-        .map_or(1, |t| t.get())
-        .min(n);
-    let per_thread = n.div_ceil(threads);
-    let count = |t: usize| per_thread.min(n.saturating_sub(t * per_thread));
-    // Each output cut into the threads' blocks of rows.
-    let mut blocks: Vec<_> = outs
+    let threads = cores().min(n);
+    let rows_per_block = block_rows(n, threads);
+    // Each output cut into blocks of `rows_per_block` rows (a state with no values has none:
+    // its blocks are empty slices).
+    let cuts = chunked(outs, sizes.map(|size| rows_per_block * size));
+    let queue = Mutex::new(Blocks {
+        cuts,
+        next_row: 0,
+        failed: false,
+    });
+    let work = || -> Result<(), (usize, DynamicsError)> {
+        let mut ws = Workspace::new(model);
+        while let Some((first, outputs)) = take(&queue, n, rows_per_block) {
+            let mut rows = chunked(outputs, sizes);
+            for row in first..(first + rows_per_block).min(n) {
+                let inputs: [&[f64]; I] =
+                    std::array::from_fn(|k| &ins[k][row * lens[k]..(row + 1) * lens[k]]);
+                let outputs = rows.each_mut().map(|r| r.next().unwrap_or_default());
+                if let Err(e) = kernel(&mut ws, inputs, outputs) {
+                    lock(&queue).failed = true;
+                    return Err((row, e));
+                }
+            }
+        }
+        Ok(())
+    };
+    let results = thread::scope(|scope| {
+        let handles: Vec<_> = (1..threads).map(|_| scope.spawn(work)).collect();
+        let mut results = vec![work()];
+        results.extend(
+            handles
+                .into_iter()
+                .map(|h| h.join().expect("a batch thread panicked")),
+        );
+        results
+    });
+    match results
+        .into_iter()
+        .filter_map(Result::err)
+        .min_by_key(|e| e.0)
+    {
+        Some(first) => Err(first),
+        None => Ok(()),
+    }
+}
+
+/// `std::thread::available_parallelism()`, asked once per process: on Linux it reads the
+/// cgroup's CPU quota from files, tens of microseconds a call.
+fn cores() -> usize {
+    static CORES: OnceLock<usize> = OnceLock::new();
+    *CORES.get_or_init(|| thread::available_parallelism().map_or(1, |t| t.get()))
+}
+
+/// Each slice cut into chunks of its `sizes` values (a size of zero: no chunk).
+fn chunked<'a, const O: usize>(
+    slices: [&'a mut [f64]; O],
+    sizes: [usize; O],
+) -> [ChunksMut<'a, f64>; O] {
+    let mut cut = slices
         .into_iter()
         .zip(sizes)
-        .map(|(out, size)| {
-            let mut cut = Vec::with_capacity(threads);
-            let mut rest = out;
-            for t in 0..threads {
-                let (block, tail) = rest.split_at_mut(count(t) * size);
-                cut.push(block);
-                rest = tail;
-            }
-            cut.into_iter()
-        })
-        .collect();
-    thread::scope(|scope| {
-        let mut handles = Vec::with_capacity(threads);
-        for t in 0..threads {
-            let (first, count) = (t * per_thread, count(t));
-            // Each output's block as rows of one state's values (a state with no values has
-            // no rows: it gets empty slices).
-            let mut rows: [std::slice::ChunksMut<f64>; O] = std::array::from_fn(|k| {
-                let block = blocks[k].next().expect("one block a thread");
-                block.chunks_mut(sizes[k].max(1))
-            });
-            handles.push(scope.spawn(move || {
-                let mut ws = Workspace::new(model);
-                for row in first..first + count {
-                    let inputs: [&[f64]; I] =
-                        std::array::from_fn(|k| &ins[k][row * lens[k]..(row + 1) * lens[k]]);
-                    let outputs = rows.each_mut().map(|r| r.next().unwrap_or_default());
-                    kernel(&mut ws, inputs, outputs).map_err(|e| (row, e))?;
-                }
-                Ok(())
-            }));
-        }
-        handles
-            .into_iter()
-            .map(|h| h.join().expect("a batch thread panicked"))
-            .collect::<Result<Vec<()>, _>>()
-            .map(|_| ())
-    })
+        .map(|(slice, size)| slice.chunks_mut(size.max(1)));
+    std::array::from_fn(|_| cut.next().expect("one chunking per slice"))
+}
+
+/// Rows a block holds: about 16 blocks a thread (for balance), at most 1024 rows (a few hundred
+/// microseconds of the cheapest kernels, so the queue's lock is taken rarely).
+fn block_rows(n: usize, threads: usize) -> usize {
+    n.div_ceil(16 * threads).clamp(1, 1024)
+}
+
+/// The blocks of rows not yet taken: each output's remaining blocks, the first row of the next,
+/// and whether a thread has failed (then none is handed out).
+struct Blocks<'a, const O: usize> {
+    cuts: [ChunksMut<'a, f64>; O],
+    next_row: usize,
+    failed: bool,
+}
+
+/// The next block: its first row and each output's slice of it; `None` when every block is
+/// taken or a thread has failed.
+fn take<'a, const O: usize>(
+    queue: &Mutex<Blocks<'a, O>>,
+    n: usize,
+    rows_per_block: usize,
+) -> Option<(usize, [&'a mut [f64]; O])> {
+    let mut blocks = lock(queue);
+    if blocks.failed || blocks.next_row >= n {
+        return None;
+    }
+    let first = blocks.next_row;
+    blocks.next_row += rows_per_block;
+    Some((
+        first,
+        blocks.cuts.each_mut().map(|c| c.next().unwrap_or_default()),
+    ))
+}
+
+/// The queue, whether or not another thread panicked holding it (its state stays consistent:
+/// each change is one assignment).
+fn lock<'q, 'a, const O: usize>(queue: &'q Mutex<Blocks<'a, O>>) -> MutexGuard<'q, Blocks<'a, O>> {
+    queue.lock().unwrap_or_else(|e| e.into_inner())
 }
