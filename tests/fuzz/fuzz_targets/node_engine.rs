@@ -431,7 +431,11 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 assert!(r.success && r.joint_names.len() == r.joint_types.len());
             }
             9 => {
-                if let Some(Ok((js, _))) = engine.simulation_tick(Instant::now()) {
+                // A tick run on time or up to 255 ms after it was due (dropped past the lag bound).
+                let lag = std::time::Duration::from_millis(u64::from(u.arbitrary::<u8>()?));
+                let now = Instant::now();
+                let due = now.checked_sub(lag).unwrap_or(now);
+                if let Some(Ok((js, _))) = engine.simulation_tick(due, now) {
                     assert!(js_finite(&js), "simulated joint_states not finite: {js:?}");
                 }
             }
