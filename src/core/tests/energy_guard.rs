@@ -87,15 +87,21 @@ fn the_guard_does_not_depend_on_where_the_potential_is_zero() {
     }
 }
 
-#[test]
-fn rk4_conserves_the_falling_arms_energy_and_passes_the_guard() {
-    // The default arm released upright falls, whips and spins (joint rates past 100 rad/s).
+/// The default arm upright at rest, a simulator to measure energies with, and its energy `E(0)`.
+fn falling_arm() -> (Model, Vec<f64>, Simulator, f64) {
     let model = load(DEFAULT_ARM_URDF);
     let q0 = model.neutral();
     let mut sim = Simulator::new(&model, SimConfig::default()).unwrap();
     let e0 = sim
         .energy(&model, &State::at_rest(&model, q0.clone()))
         .unwrap();
+    (model, q0, sim, e0)
+}
+
+#[test]
+fn rk4_conserves_the_falling_arms_energy_and_passes_the_guard() {
+    // The default arm released upright falls, whips and spins (joint rates past 100 rad/s).
+    let (model, q0, mut sim, e0) = falling_arm();
     let (end, err) = run(&model, Integrator::Rk4, 1e-3, 5000, &q0);
     assert!(err.is_none(), "rk4: {err:?}");
     let e = sim.energy(&model, &end).unwrap();
@@ -108,12 +114,7 @@ fn semi_implicit_euler_creates_energy_on_the_spinning_arm_and_is_stopped() {
     // arm the velocity-product (Coriolis) terms are taken explicitly, and once links spin fast the
     // energy drifts upward (even at 0.1 ms). The stop must name a real excess: the energy it
     // reports is far above E(0), which the exact flow conserves.
-    let model = load(DEFAULT_ARM_URDF);
-    let q0 = model.neutral();
-    let mut sim = Simulator::new(&model, SimConfig::default()).unwrap();
-    let e0 = sim
-        .energy(&model, &State::at_rest(&model, q0.clone()))
-        .unwrap();
+    let (model, q0, mut sim, e0) = falling_arm();
     let (end, err) = run(&model, Integrator::SemiImplicitEuler, 1e-3, 20_000, &q0);
     match err {
         Some(SimError::EnergyBlowUp { t, energy, bound }) => {

@@ -83,8 +83,9 @@ impl NodeState {
 
     /// `/diagnostics` at the node's time `now` (ns; stamped 0 while unknown): the counters
     /// ([`crate::node::health::Health::report`]), the clock in use and its time, and in simulate mode the
-    /// simulation's time, real-time factor, late publish ticks (more than one period late) and
-    /// state (an error status once it diverged).
+    /// simulation's time, real-time factor, late publish ticks (more than two periods after the
+    /// tick before), missed steps (ticks dropped as too late) and state (an error status once it
+    /// diverged).
     pub fn diagnostics(&mut self, now: Option<i64>) -> Outputs {
         let simulating = self.engine.simulated_time().is_some();
         let mut status = self
