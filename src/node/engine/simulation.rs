@@ -36,8 +36,9 @@ pub struct Simulation {
     measured_since: (Instant, f64),
     /// Simulated seconds per wall-clock second over the last report period.
     pub measured_rtf: f64,
-    /// Wall time of the last publish tick, and how many ticks came more than one period late
-    /// (more than two periods after the tick before): a whole step slot missed.
+    /// Wall time of the last publish tick that stepped, and how many stepping ticks came more
+    /// than one period late (more than two periods after the tick before): a whole step slot
+    /// missed. Paused, stopped or in lockstep the timer steps nothing and counts nothing.
     last_tick: Option<Instant>,
     late_ticks: u64,
     /// Steps dropped because their tick ran more than [`MAX_LAG_TICKS`] periods after it was
@@ -197,6 +198,11 @@ impl Engine {
         now: Instant,
     ) -> Option<Result<(JointState, Time), String>> {
         let sim = self.simulation.as_mut()?;
+        if sim.paused || sim.diverged.is_some() || sim.lockstep.is_some() {
+            // The timer does not step the simulation: its ticks are neither late nor on time.
+            sim.last_tick = None;
+            return None;
+        }
         let period = Duration::from_secs_f64(1.0 / sim.rate);
         if sim
             .last_tick
@@ -205,9 +211,6 @@ impl Engine {
             sim.late_ticks += 1;
         }
         sim.last_tick = Some(now);
-        if sim.paused || sim.diverged.is_some() || sim.lockstep.is_some() {
-            return None;
-        }
         let steps = ((sim.real_time_factor / sim.rate) / sim.sim.config.dt)
             .round()
             .max(1.0) as usize;

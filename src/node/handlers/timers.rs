@@ -310,6 +310,21 @@ mod tests {
         let t2 = t1 + period * 21 / 10;
         state.simulation_tick(t2, t2);
         assert_eq!(late(&mut state), "1", "2.1 periods: late");
+        // Paused, the timer steps nothing: a gap while paused, or up to the first tick after
+        // resuming, is no late tick.
+        state.engine.simulation_pause(true).unwrap();
+        let t3 = t2 + period * 5;
+        state.simulation_tick(t3, t3);
+        let t4 = t3 + period * 5;
+        state.simulation_tick(t4, t4);
+        state.engine.simulation_pause(false).unwrap();
+        let t5 = t4 + period * 5;
+        state.simulation_tick(t5, t5);
+        assert_eq!(
+            late(&mut state),
+            "1",
+            "ticks while paused and the first after"
+        );
     }
 
     /// A tick run more than `MAX_LAG_TICKS` periods after it was due does not step and counts
