@@ -5,7 +5,7 @@
 pub mod clock;
 mod frame_kinematics;
 mod linearize;
-mod requests;
+pub(crate) mod requests;
 pub(crate) mod simulation;
 
 use super::params::Settings;

@@ -32,7 +32,7 @@ state_request!(
 
 /// A response that answers a refused request: `success` false, the reason in `message`, every
 /// other field empty.
-pub(super) trait Refused: Default {
+pub(crate) trait Refused: Default {
     fn refused(message: String) -> Self;
 }
 
