@@ -126,84 +126,96 @@ impl Default for Settings {
     }
 }
 
+/// When a change of a parameter takes effect (see the module's documentation).
+#[derive(Clone, Copy)]
+enum Takes {
+    /// The model is rebuilt.
+    Model,
+    /// The node's clock and stamp policy change; neither the model nor the simulation does.
+    Time,
+    /// Read only when the simulation is built (at start, and from their values then whenever a
+    /// model parameter rebuilds the model): read-only, as rclcpp declares such parameters.
+    Start,
+    /// At once, each parameter in its own way (`method`, `command_joints`, `publish_clock`).
+    Own,
+}
+
+/// Every parameter, in declaration order, with when a change of it takes effect.
+const PARAMETERS: [(&str, Takes); 34] = {
+    use Takes::*;
+    [
+        ("robot_description", Model),
+        ("urdf_file", Model),
+        ("floating_base", Model),
+        ("ignore_mimic", Model),
+        ("locked_joints", Model),
+        ("root_link", Model),
+        ("tip_links", Model),
+        ("prune_massless", Model),
+        ("gravity", Model),
+        ("method", Own),
+        ("command_joints", Own),
+        ("use_sim_time", Time),
+        ("max_stamp_age", Time),
+        ("future_stamp_tolerance", Time),
+        ("mode", Start),
+        ("publish_rate", Start),
+        ("sim_dt", Start),
+        ("integrator", Start),
+        ("real_time_factor", Start),
+        ("publish_clock", Own),
+        ("command_timeout", Start),
+        ("command_interface", Start),
+        ("servo_kp", Start),
+        ("servo_kd", Start),
+        ("step_mode", Start),
+        ("steps_per_command", Start),
+        ("publish_tf", Start),
+        ("passive", Start),
+        ("initial_positions", Start),
+        ("ground_contacts", Start),
+        ("ground_height", Start),
+        ("ground_stiffness", Start),
+        ("ground_damping", Start),
+        ("ground_friction", Start),
+    ]
+};
+
+/// The names of the parameters that take effect as `takes` says (all of them for `None`), in
+/// declaration order; `N` must be their number (checked when compiling).
+const fn names<const N: usize>(takes: Option<Takes>) -> [&'static str; N] {
+    let mut out = [""; N];
+    let (mut i, mut found) = (0, 0);
+    while i < PARAMETERS.len() {
+        let (name, t) = PARAMETERS[i];
+        let wanted = match takes {
+            None => true,
+            Some(w) => w as u8 == t as u8,
+        };
+        if wanted {
+            assert!(found < N, "more parameters of this kind than N");
+            out[found] = name;
+            found += 1;
+        }
+        i += 1;
+    }
+    assert!(found == N, "fewer parameters of this kind than N");
+    out
+}
+
 /// The names of all parameters, in declaration order.
-pub const NAMES: [&str; 34] = [
-    "robot_description",
-    "urdf_file",
-    "floating_base",
-    "ignore_mimic",
-    "locked_joints",
-    "root_link",
-    "tip_links",
-    "prune_massless",
-    "gravity",
-    "method",
-    "command_joints",
-    "use_sim_time",
-    "max_stamp_age",
-    "future_stamp_tolerance",
-    "mode",
-    "publish_rate",
-    "sim_dt",
-    "integrator",
-    "real_time_factor",
-    "publish_clock",
-    "command_timeout",
-    "command_interface",
-    "servo_kp",
-    "servo_kd",
-    "step_mode",
-    "steps_per_command",
-    "publish_tf",
-    "passive",
-    "initial_positions",
-    "ground_contacts",
-    "ground_height",
-    "ground_stiffness",
-    "ground_damping",
-    "ground_friction",
-];
+pub const NAMES: [&str; 34] = names(None);
 
 /// Parameters read only when the simulation is built (at start, and from their values then
 /// whenever a model parameter rebuilds the model): read-only, as rclcpp declares such parameters.
-pub const START_PARAMETERS: [&str; 19] = [
-    "mode",
-    "publish_rate",
-    "sim_dt",
-    "integrator",
-    "real_time_factor",
-    "command_timeout",
-    "command_interface",
-    "servo_kp",
-    "servo_kd",
-    "step_mode",
-    "steps_per_command",
-    "publish_tf",
-    "passive",
-    "initial_positions",
-    "ground_contacts",
-    "ground_height",
-    "ground_stiffness",
-    "ground_damping",
-    "ground_friction",
-];
+pub const START_PARAMETERS: [&str; 19] = names(Some(Takes::Start));
 
 /// Parameters of the node's clock and stamp policy (a change touches neither the model nor the
 /// simulation).
-pub const TIME_PARAMETERS: [&str; 3] = ["use_sim_time", "max_stamp_age", "future_stamp_tolerance"];
+pub const TIME_PARAMETERS: [&str; 3] = names(Some(Takes::Time));
 
 /// Parameters that change the model (a change rebuilds it).
-pub const MODEL_PARAMETERS: [&str; 9] = [
-    "robot_description",
-    "urdf_file",
-    "floating_base",
-    "ignore_mimic",
-    "locked_joints",
-    "root_link",
-    "tip_links",
-    "prune_massless",
-    "gravity",
-];
+pub const MODEL_PARAMETERS: [&str; 9] = names(Some(Takes::Model));
 
 impl Settings {
     /// Each parameter's current value, for declaring it.
@@ -584,26 +596,16 @@ mod tests {
         assert_eq!(s.locked_joints, vec![("joint7".to_string(), 0.5)]);
         s.apply_arg("method", "rnea_columns").unwrap();
         assert_eq!(s.method, Some(ForwardDynamicsMethod::RneaColumns));
-        assert!(s
-            .apply_arg("method", "magic")
-            .unwrap_err()
-            .contains("unknown forward-dynamics method 'magic'"));
-        assert!(s
-            .apply_arg("gravity", "[1, 2]")
-            .unwrap_err()
-            .contains("three finite numbers"));
-        assert!(s
-            .apply_arg("floating_base", "yes please")
-            .unwrap_err()
-            .contains("must be a bool"));
-        assert!(s
-            .apply_arg("locked_joints", "['j=x']")
-            .unwrap_err()
-            .contains("NAME=POSITION"));
-        assert!(s
-            .apply_arg("nonsense", "1")
-            .unwrap_err()
-            .contains("unknown parameter 'nonsense'"));
+        for (name, value, why) in [
+            ("method", "magic", "unknown forward-dynamics method 'magic'"),
+            ("gravity", "[1, 2]", "three finite numbers"),
+            ("floating_base", "yes please", "must be a bool"),
+            ("locked_joints", "['j=x']", "NAME=POSITION"),
+            ("nonsense", "1", "unknown parameter 'nonsense'"),
+        ] {
+            let err = s.apply_arg(name, value).unwrap_err();
+            assert!(err.contains(why), "{name}:={value}: {err}");
+        }
     }
 
     #[test]

@@ -8,7 +8,7 @@
 //! quantity over those of the coordinate.
 
 use crate::sd_model;
-use crate::status::{guard, input, output, write_row_major};
+use crate::status::{guard, output, state_inputs, write_row_major};
 use crate::workspace::{checked, sd_workspace};
 use spatial_dynamics_core::algorithms::{aba_derivatives, rnea_derivatives};
 use spatial_dynamics_core::Externals;
@@ -31,8 +31,8 @@ pub unsafe extern "C" fn sd_rnea_derivatives(
 ) -> c_int {
     guard("sd_rnea_derivatives", || {
         let (model, ws, _) = checked(model, workspace)?;
-        let (nq, nv) = (model.nq(), model.nv());
-        let (q, v, a) = (input(q, nq, "q")?, input(v, nv, "v")?, input(a, nv, "a")?);
+        let [q, v, a] = state_inputs(model, q, v, (a, "a"))?;
+        let nv = model.nv();
         let dtau_dq = output(dtau_dq, nv * nv, "dtau_dq")?;
         let dtau_dv = output(dtau_dv, nv * nv, "dtau_dv")?;
         let m = output(m, nv * nv, "m")?;
@@ -62,12 +62,8 @@ pub unsafe extern "C" fn sd_aba_derivatives(
 ) -> c_int {
     guard("sd_aba_derivatives", || {
         let (model, ws, _) = checked(model, workspace)?;
-        let (nq, nv) = (model.nq(), model.nv());
-        let (q, v, tau) = (
-            input(q, nq, "q")?,
-            input(v, nv, "v")?,
-            input(tau, nv, "tau")?,
-        );
+        let [q, v, tau] = state_inputs(model, q, v, (tau, "tau"))?;
+        let nv = model.nv();
         let ddq_dq = output(ddq_dq, nv * nv, "ddq_dq")?;
         let ddq_dv = output(ddq_dv, nv * nv, "ddq_dv")?;
         let minv = output(minv, nv * nv, "minv")?;

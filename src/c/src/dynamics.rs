@@ -8,7 +8,7 @@
 //! base frame); accelerations in rad/s² or m/s².
 
 use crate::sd_model;
-use crate::status::{guard, input, output, write, write_row_major};
+use crate::status::{guard, input, output, state_inputs, write, write_row_major};
 use crate::workspace::{checked, sd_workspace};
 use spatial_dynamics_core::algorithms::{crba, forward_dynamics, gravity, rnea};
 use spatial_dynamics_core::Externals;
@@ -30,9 +30,8 @@ pub unsafe extern "C" fn sd_rnea(
 ) -> c_int {
     guard("sd_rnea", || {
         let (model, ws, _) = checked(model, workspace)?;
-        let (nq, nv) = (model.nq(), model.nv());
-        let (q, v, a) = (input(q, nq, "q")?, input(v, nv, "v")?, input(a, nv, "a")?);
-        let tau = output(tau, nv, "tau")?;
+        let [q, v, a] = state_inputs(model, q, v, (a, "a"))?;
+        let tau = output(tau, model.nv(), "tau")?;
         write(tau, rnea(model, ws, q, v, a)?);
         Ok(())
     })
@@ -73,13 +72,8 @@ pub unsafe extern "C" fn sd_forward_dynamics(
 ) -> c_int {
     guard("sd_forward_dynamics", || {
         let (model, ws, made) = checked(model, workspace)?;
-        let (nq, nv) = (model.nq(), model.nv());
-        let (q, v, tau) = (
-            input(q, nq, "q")?,
-            input(v, nv, "v")?,
-            input(tau, nv, "tau")?,
-        );
-        let qdd = output(qdd, nv, "qdd")?;
+        let [q, v, tau] = state_inputs(model, q, v, (tau, "tau"))?;
+        let qdd = output(qdd, model.nv(), "qdd")?;
         write(
             qdd,
             forward_dynamics(model, ws, q, v, tau, made.method, &Externals::none())?,

@@ -1,7 +1,7 @@
 //! Return codes, the calling thread's last error message, and [`guard`]: the frame every entry
 //! point runs in, which turns a failure or a panic into a code and a message.
 
-use spatial_dynamics_core::{DynamicsError, ModelError};
+use spatial_dynamics_core::{DynamicsError, Model, ModelError};
 use std::cell::RefCell;
 use std::ffi::{c_char, c_int, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -145,6 +145,25 @@ pub(crate) unsafe fn input<'a>(
         (true, _) => Err(Failure::Usage(format!("{argument} is NULL"))),
         (false, _) => Ok(std::slice::from_raw_parts(pointer, len)),
     }
+}
+
+/// A state's input arrays: `q` (`nq` values), `v` and `x` (`nv` each; `x` named by `x_name`:
+/// `a` or `tau`), checked by [`input`] in that order.
+///
+/// # Safety
+/// As [`input`], for each array.
+pub(crate) unsafe fn state_inputs<'a>(
+    model: &Model,
+    q: *const f64,
+    v: *const f64,
+    (x, x_name): (*const f64, &str),
+) -> Result<[&'a [f64]; 3], Failure> {
+    let (nq, nv) = (model.nq(), model.nv());
+    Ok([
+        input(q, nq, "q")?,
+        input(v, nv, "v")?,
+        input(x, nv, x_name)?,
+    ])
 }
 
 /// An output array: a usage error naming the argument when it is NULL and `len > 0`.

@@ -33,6 +33,29 @@ struct Handles {
     library: Model,
 }
 
+/// An `extern "C"` function of a state: model, workspace, `q`, `v`, `a` or `tau`, one output.
+type StateFn = unsafe extern "C" fn(
+    *const sd_model,
+    *mut sd_workspace,
+    *const f64,
+    *const f64,
+    *const f64,
+    *mut f64,
+) -> c_int;
+
+/// An `sd_*_derivatives` function: model, workspace, `q`, `v`, `a` or `tau`, three `nv × nv`
+/// outputs.
+type DerivativesFn = unsafe extern "C" fn(
+    *const sd_model,
+    *mut sd_workspace,
+    *const f64,
+    *const f64,
+    *const f64,
+    *mut f64,
+    *mut f64,
+    *mut f64,
+) -> c_int;
+
 impl Handles {
     fn new(text: &str, floating_base: bool) -> Self {
         let options = sd_model_options {
@@ -68,6 +91,36 @@ impl Handles {
         let v = (0..nv).map(|i| 0.5 - 0.11 * i as f64).collect();
         let a = (0..nv).map(|i| -0.2 + 0.23 * i as f64).collect();
         (q, v, a)
+    }
+
+    /// `f` of this model and workspace at `q`, `v`, `x` into `out`: its status.
+    fn call(&self, f: StateFn, q: &[f64], v: &[f64], x: &[f64], out: &mut [f64]) -> c_int {
+        let (model, ws) = (self.model, self.ws);
+        unsafe {
+            f(
+                model,
+                ws,
+                q.as_ptr(),
+                v.as_ptr(),
+                x.as_ptr(),
+                out.as_mut_ptr(),
+            )
+        }
+    }
+
+    /// `f` of this model and workspace at `q`, `v`, `x` into the three `outs`: its status.
+    fn derivatives(
+        &self,
+        f: DerivativesFn,
+        q: &[f64],
+        v: &[f64],
+        x: &[f64],
+        outs: &mut [Vec<f64>; 3],
+    ) -> c_int {
+        let [d0, d1, d2] = outs;
+        let (q, v, x) = (q.as_ptr(), v.as_ptr(), x.as_ptr());
+        let outs = (d0.as_mut_ptr(), d1.as_mut_ptr(), d2.as_mut_ptr());
+        unsafe { f(self.model, self.ws, q, v, x, outs.0, outs.1, outs.2) }
     }
 }
 
@@ -111,19 +164,7 @@ fn answers_are_the_librarys() {
         let mut ws = Workspace::new(m);
         let (q, v, a) = h.state();
         let mut out = vec![f64::NAN; nv];
-        unsafe {
-            assert_eq!(
-                sd_rnea(
-                    h.model,
-                    h.ws,
-                    q.as_ptr(),
-                    v.as_ptr(),
-                    a.as_ptr(),
-                    out.as_mut_ptr()
-                ),
-                OK
-            )
-        };
+        assert_eq!(h.call(sd_rnea, &q, &v, &a, &mut out), OK);
         assert_eq!(out, rnea(m, &mut ws, &q, &v, &a).unwrap(), "{}", m.name());
         unsafe { assert_eq!(sd_gravity(h.model, h.ws, q.as_ptr(), out.as_mut_ptr()), OK) };
         assert_eq!(out, gravity(m, &mut ws, &q).unwrap(), "{}", m.name());
@@ -133,19 +174,7 @@ fn answers_are_the_librarys() {
             .method;
         let name = unsafe { CStr::from_ptr(sd_model_forward_dynamics_method(h.model)) };
         assert_eq!(name.to_str().unwrap(), method.name());
-        unsafe {
-            assert_eq!(
-                sd_forward_dynamics(
-                    h.model,
-                    h.ws,
-                    q.as_ptr(),
-                    v.as_ptr(),
-                    a.as_ptr(),
-                    out.as_mut_ptr()
-                ),
-                OK
-            )
-        };
+        assert_eq!(h.call(sd_forward_dynamics, &q, &v, &a, &mut out), OK);
         let expected =
             forward_dynamics(m, &mut ws, &q, &v, &a, method, &Externals::none()).unwrap();
         assert_eq!(out, expected, "{}", m.name());
@@ -212,18 +241,8 @@ fn an_output_may_be_an_input() {
     let (q, v, a) = h.state();
     let mut tau = vec![0.0; h.library.nv()];
     let mut in_place = a.clone();
+    assert_eq!(h.call(sd_rnea, &q, &v, &a, &mut tau), OK);
     unsafe {
-        assert_eq!(
-            sd_rnea(
-                h.model,
-                h.ws,
-                q.as_ptr(),
-                v.as_ptr(),
-                a.as_ptr(),
-                tau.as_mut_ptr()
-            ),
-            OK
-        );
         let a_ptr = in_place.as_mut_ptr();
         assert_eq!(
             sd_rnea(h.model, h.ws, q.as_ptr(), v.as_ptr(), a_ptr, a_ptr),
@@ -241,17 +260,7 @@ fn bad_input_gives_the_librarys_error_and_leaves_outputs() {
     let (mut q, v, a) = h.state();
     q[2] = f64::NAN;
     let mut out = vec![7.0; m.nv()];
-    let status = unsafe {
-        sd_rnea(
-            h.model,
-            h.ws,
-            q.as_ptr(),
-            v.as_ptr(),
-            a.as_ptr(),
-            out.as_mut_ptr(),
-        )
-    };
-    assert_eq!(status, INPUT);
+    assert_eq!(h.call(sd_rnea, &q, &v, &a, &mut out), INPUT);
     let expected = rnea(m, &mut ws, &q, &v, &a).unwrap_err().to_string();
     assert_eq!(last_error(), format!("sd_rnea: {expected}"));
     assert!(
@@ -440,74 +449,53 @@ fn null_pointers_are_refused_by_name() {
     let (q, v, a, null) = (q.as_ptr(), v.as_ptr(), a.as_ptr(), ptr::null::<f64>());
     let frame = CString::new(h.library.links()[1].name.as_str()).unwrap();
     let f = frame.as_ptr();
-    type Call<'a> = Box<dyn Fn() -> c_int + 'a>;
     let (model, ws) = (h.model as *const sd_model, h.ws);
-    let cases: Vec<(&str, Call)> = vec![
-        (
-            "sd_rnea: model is NULL",
-            Box::new(|| unsafe { sd_rnea(ptr::null(), ws, q, v, a, o) }),
-        ),
-        (
-            "sd_rnea: workspace is NULL",
-            Box::new(|| unsafe { sd_rnea(model, ptr::null_mut(), q, v, a, o) }),
-        ),
-        (
-            "sd_rnea: q is NULL",
-            Box::new(|| unsafe { sd_rnea(model, ws, null, v, a, o) }),
-        ),
-        (
-            "sd_rnea: v is NULL",
-            Box::new(|| unsafe { sd_rnea(model, ws, q, null, a, o) }),
-        ),
-        (
-            "sd_rnea: a is NULL",
-            Box::new(|| unsafe { sd_rnea(model, ws, q, v, null, o) }),
-        ),
-        (
-            "sd_rnea: tau is NULL",
-            Box::new(|| unsafe { sd_rnea(model, ws, q, v, a, n) }),
-        ),
-        (
-            "sd_gravity: q is NULL",
-            Box::new(|| unsafe { sd_gravity(model, ws, null, o) }),
-        ),
-        (
-            "sd_gravity: g is NULL",
-            Box::new(|| unsafe { sd_gravity(model, ws, q, n) }),
-        ),
-        (
-            "sd_forward_dynamics: tau is NULL",
-            Box::new(|| unsafe { sd_forward_dynamics(model, ws, q, v, null, o) }),
-        ),
-        (
-            "sd_forward_dynamics: qdd is NULL",
-            Box::new(|| unsafe { sd_forward_dynamics(model, ws, q, v, a, n) }),
-        ),
-        (
-            "sd_mass_matrix: q is NULL",
-            Box::new(|| unsafe { sd_mass_matrix(model, ws, null, o) }),
-        ),
-        (
-            "sd_mass_matrix: m is NULL",
-            Box::new(|| unsafe { sd_mass_matrix(model, ws, q, n) }),
-        ),
-        (
-            "sd_frame_jacobian: frame is NULL",
-            Box::new(|| unsafe { sd_frame_jacobian(model, ws, q, ptr::null(), 0, o) }),
-        ),
-        (
-            "sd_frame_jacobian: j is NULL",
-            Box::new(|| unsafe { sd_frame_jacobian(model, ws, q, f, 0, n) }),
-        ),
-        (
-            "sd_frame_jacobian: q is NULL",
-            Box::new(|| unsafe { sd_frame_jacobian(model, ws, null, f, 0, o) }),
-        ),
-    ];
-    for (expected, call) in cases {
-        assert_eq!(call(), USAGE, "{expected}");
-        assert_eq!(last_error(), expected);
+    // The call is refused with USAGE and the message names the function and the pointer.
+    macro_rules! refused {
+        ($expected:literal, $call:expr) => {
+            assert_eq!(unsafe { $call }, USAGE, $expected);
+            assert_eq!(last_error(), $expected);
+        };
     }
+    refused!(
+        "sd_rnea: model is NULL",
+        sd_rnea(ptr::null(), ws, q, v, a, o)
+    );
+    refused!(
+        "sd_rnea: workspace is NULL",
+        sd_rnea(model, ptr::null_mut(), q, v, a, o)
+    );
+    refused!("sd_rnea: q is NULL", sd_rnea(model, ws, null, v, a, o));
+    refused!("sd_rnea: v is NULL", sd_rnea(model, ws, q, null, a, o));
+    refused!("sd_rnea: a is NULL", sd_rnea(model, ws, q, v, null, o));
+    refused!("sd_rnea: tau is NULL", sd_rnea(model, ws, q, v, a, n));
+    refused!("sd_gravity: q is NULL", sd_gravity(model, ws, null, o));
+    refused!("sd_gravity: g is NULL", sd_gravity(model, ws, q, n));
+    refused!(
+        "sd_forward_dynamics: tau is NULL",
+        sd_forward_dynamics(model, ws, q, v, null, o)
+    );
+    refused!(
+        "sd_forward_dynamics: qdd is NULL",
+        sd_forward_dynamics(model, ws, q, v, a, n)
+    );
+    refused!(
+        "sd_mass_matrix: q is NULL",
+        sd_mass_matrix(model, ws, null, o)
+    );
+    refused!("sd_mass_matrix: m is NULL", sd_mass_matrix(model, ws, q, n));
+    refused!(
+        "sd_frame_jacobian: frame is NULL",
+        sd_frame_jacobian(model, ws, q, ptr::null(), 0, o)
+    );
+    refused!(
+        "sd_frame_jacobian: j is NULL",
+        sd_frame_jacobian(model, ws, q, f, 0, n)
+    );
+    refused!(
+        "sd_frame_jacobian: q is NULL",
+        sd_frame_jacobian(model, ws, null, f, 0, o)
+    );
     assert!(out.iter().all(|&x| x == 0.0));
     unsafe {
         assert!(sd_model_from_urdf_string(ptr::null(), ptr::null()).is_null());
@@ -533,51 +521,29 @@ fn a_workspace_of_another_model_is_refused() {
     let (q, v, a) = arm.state();
     let mut out = vec![7.0; arm.library.nv() * arm.library.nv()];
     let o = out.as_mut_ptr();
+    let (q, v, a) = (q.as_ptr(), v.as_ptr(), a.as_ptr());
     let frame = CString::new(arm.library.links()[1].name.as_str()).unwrap();
+    let (model, ws) = (twin.model as *const sd_model, arm.ws);
     unsafe {
         let statuses = [
-            (
-                "sd_rnea",
-                sd_rnea(twin.model, arm.ws, q.as_ptr(), v.as_ptr(), a.as_ptr(), o),
-            ),
-            ("sd_gravity", sd_gravity(twin.model, arm.ws, q.as_ptr(), o)),
+            ("sd_rnea", sd_rnea(model, ws, q, v, a, o)),
+            ("sd_gravity", sd_gravity(model, ws, q, o)),
             (
                 "sd_forward_dynamics",
-                sd_forward_dynamics(twin.model, arm.ws, q.as_ptr(), v.as_ptr(), a.as_ptr(), o),
+                sd_forward_dynamics(model, ws, q, v, a, o),
             ),
-            (
-                "sd_mass_matrix",
-                sd_mass_matrix(twin.model, arm.ws, q.as_ptr(), o),
-            ),
+            ("sd_mass_matrix", sd_mass_matrix(model, ws, q, o)),
             (
                 "sd_rnea_derivatives",
-                sd_rnea_derivatives(
-                    twin.model,
-                    arm.ws,
-                    q.as_ptr(),
-                    v.as_ptr(),
-                    a.as_ptr(),
-                    o,
-                    o,
-                    o,
-                ),
+                sd_rnea_derivatives(model, ws, q, v, a, o, o, o),
             ),
             (
                 "sd_aba_derivatives",
-                sd_aba_derivatives(
-                    twin.model,
-                    arm.ws,
-                    q.as_ptr(),
-                    v.as_ptr(),
-                    a.as_ptr(),
-                    o,
-                    o,
-                    o,
-                ),
+                sd_aba_derivatives(model, ws, q, v, a, o, o, o),
             ),
             (
                 "sd_frame_jacobian",
-                sd_frame_jacobian(twin.model, arm.ws, q.as_ptr(), frame.as_ptr(), 0, o),
+                sd_frame_jacobian(model, ws, q, frame.as_ptr(), 0, o),
             ),
         ];
         for (function, status) in statuses {
@@ -588,7 +554,7 @@ fn a_workspace_of_another_model_is_refused() {
             "{}",
             last_error()
         );
-        assert_eq!(sd_gravity(arm.model, arm.ws, q.as_ptr(), o), OK);
+        assert_eq!(sd_gravity(arm.model, arm.ws, q, o), OK);
     }
     assert!(out[arm.library.nv()..].iter().all(|&x| x == 7.0));
 }
@@ -637,19 +603,7 @@ fn derivatives_are_the_library_s_row_major() {
             vec![f64::NAN; nv * nv],
             vec![f64::NAN; nv * nv],
         ];
-        let [d0, d1, d2] = &mut outs;
-        let status = unsafe {
-            sd_rnea_derivatives(
-                h.model,
-                h.ws,
-                q.as_ptr(),
-                v.as_ptr(),
-                a.as_ptr(),
-                d0.as_mut_ptr(),
-                d1.as_mut_ptr(),
-                d2.as_mut_ptr(),
-            )
-        };
+        let status = h.derivatives(sd_rnea_derivatives, &q, &v, &a, &mut outs);
         assert_eq!(status, OK, "{}", m.name());
         let d = rnea_derivatives(m, &mut ws, &q, &v, &a).unwrap();
         let expected = [
@@ -661,19 +615,7 @@ fn derivatives_are_the_library_s_row_major() {
         // The effort that the acceleration `a` needs, so that forward dynamics is well away from
         // anything singular.
         let tau = rnea(m, &mut ws, &q, &v, &a).unwrap().to_vec();
-        let [d0, d1, d2] = &mut outs;
-        let status = unsafe {
-            sd_aba_derivatives(
-                h.model,
-                h.ws,
-                q.as_ptr(),
-                v.as_ptr(),
-                tau.as_ptr(),
-                d0.as_mut_ptr(),
-                d1.as_mut_ptr(),
-                d2.as_mut_ptr(),
-            )
-        };
+        let status = h.derivatives(sd_aba_derivatives, &q, &v, &tau, &mut outs);
         assert_eq!(status, OK, "{}", m.name());
         let d = aba_derivatives(m, &mut ws, &q, &v, &tau, &Externals::none()).unwrap();
         let expected = [row_major(d.ddq_dq), row_major(d.ddq_dv), row_major(d.minv)];
@@ -691,18 +633,18 @@ fn derivatives_refuse_bad_input_and_null_outputs_untouched() {
     let o = out.as_mut_ptr();
     let (q, v, a) = (q.as_ptr(), v.as_ptr(), a.as_ptr());
     unsafe {
-        assert_eq!(sd_rnea_derivatives(h.model, h.ws, q, v, a, o, o, o), INPUT);
-        let message = last_error();
-        assert!(
-            message.starts_with("sd_rnea_derivatives: ") && message.contains("q[2]"),
-            "{message}"
-        );
-        assert_eq!(sd_aba_derivatives(h.model, h.ws, q, v, a, o, o, o), INPUT);
-        let message = last_error();
-        assert!(
-            message.starts_with("sd_aba_derivatives: ") && message.contains("q[2]"),
-            "{message}"
-        );
+        let functions: [(&str, DerivativesFn); 2] = [
+            ("sd_rnea_derivatives", sd_rnea_derivatives),
+            ("sd_aba_derivatives", sd_aba_derivatives),
+        ];
+        for (function, f) in functions {
+            assert_eq!(f(h.model, h.ws, q, v, a, o, o, o), INPUT, "{function}");
+            let message = last_error();
+            assert!(
+                message.starts_with(&format!("{function}: ")) && message.contains("q[2]"),
+                "{message}"
+            );
+        }
         let n = ptr::null_mut();
         assert_eq!(sd_rnea_derivatives(h.model, h.ws, q, v, a, o, n, o), USAGE);
         assert_eq!(last_error(), "sd_rnea_derivatives: dtau_dv is NULL");

@@ -7,6 +7,7 @@
 //! pass over the tree ([`joint_jacobians`]) whatever the number of links; the accelerations from
 //! one pass along each link's support.
 
+use super::requests::{Refused, NOT_FINITE};
 use super::Engine;
 use crate::ros::msgs::{
     Accel, FrameKinematicsRequest, FrameKinematicsResponse, Point, Pose, Quaternion,
@@ -23,23 +24,14 @@ impl Engine {
     /// `~/frame_kinematics`.
     pub fn frame_kinematics(&mut self, req: &FrameKinematicsRequest) -> FrameKinematicsResponse {
         self.frame_kinematics_of(req)
-            .unwrap_or_else(|message| FrameKinematicsResponse {
-                message,
-                ..Default::default()
-            })
+            .unwrap_or_else(FrameKinematicsResponse::refused)
     }
 
     fn frame_kinematics_of(
         &mut self,
         req: &FrameKinematicsRequest,
     ) -> Result<FrameKinematicsResponse, String> {
-        self.read_state(
-            &req.name,
-            &req.position,
-            &req.velocity,
-            Some(&req.base_pose),
-            Some(&req.base_twist),
-        )?;
+        self.read_request_state(req)?;
         self.read_acceleration(&req.acceleration, &req.base_accel)?;
         let reference = match req.reference.as_str() {
             "" => ReferenceFrame::LocalWorldAligned,
@@ -123,9 +115,7 @@ impl Engine {
             .chain(center_of_mass_jacobian.iter().copied())
             .all(f64::is_finite)
         {
-            return Err(
-                "the result was not finite: the state is too extreme to compute with".into(),
-            );
+            return Err(NOT_FINITE.into());
         }
         Ok(FrameKinematicsResponse {
             success: true,

@@ -7,6 +7,7 @@
 //! that hold the state still. Every matrix is answered row-major over the velocity coordinates
 //! in answer order: a floating base's six first, then the joints as the request named them.
 
+use super::requests::{Refused, NOT_FINITE};
 use super::Engine;
 use crate::ros::msgs::{LinearizeRequest, LinearizeResponse};
 use nalgebra::DMatrix;
@@ -17,20 +18,11 @@ impl Engine {
     /// `~/linearize`.
     pub fn linearize(&mut self, req: &LinearizeRequest) -> LinearizeResponse {
         self.linearize_of(req)
-            .unwrap_or_else(|message| LinearizeResponse {
-                message,
-                ..Default::default()
-            })
+            .unwrap_or_else(LinearizeResponse::refused)
     }
 
     fn linearize_of(&mut self, req: &LinearizeRequest) -> Result<LinearizeResponse, String> {
-        self.read_state(
-            &req.name,
-            &req.position,
-            &req.velocity,
-            Some(&req.base_pose),
-            Some(&req.base_twist),
-        )?;
+        self.read_request_state(req)?;
         if req.effort.is_empty() {
             // ID(q, v, 0) is the bias C(q, v).
             let tau = bias(
@@ -94,9 +86,7 @@ impl Engine {
             .chain([&response.ddq_dq, &response.ddq_dv, &response.minv].iter())
             .all(|x| x.iter().all(|x| x.is_finite()))
         {
-            return Err(
-                "the result was not finite: the state is too extreme to compute with".into(),
-            );
+            return Err(NOT_FINITE.into());
         }
         Ok(response)
     }

@@ -5,6 +5,7 @@
 pub mod clock;
 mod frame_kinematics;
 mod linearize;
+pub(crate) mod requests;
 pub(crate) mod simulation;
 
 use super::params::Settings;
@@ -13,6 +14,7 @@ use crate::joint_states::dynamics::JointStateDynamics;
 use crate::joint_states::joint_map::{JointMap, Target};
 use crate::joint_states::residual::{read_effort, Lagged};
 use crate::ros::msgs::*;
+use requests::Refused;
 use simulation::Simulation;
 use spatial_dynamics_core::algorithms::kinematics::body_placements;
 use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
@@ -186,26 +188,15 @@ impl Engine {
 
     /// `~/inverse_dynamics`.
     pub fn inverse_dynamics(&mut self, req: &InverseDynamicsRequest) -> InverseDynamicsResponse {
-        let result = self
-            .read_state(
-                &req.name,
-                &req.position,
-                &req.velocity,
-                Some(&req.base_pose),
-                Some(&req.base_twist),
-            )
-            .and_then(|_| {
-                self.read_acceleration(&req.acceleration, &req.base_accel)?;
-                let n = self.external_wrenches(&req.external_wrenches)?;
-                let ext = Externals {
-                    wrenches: (n > 0).then_some(self.wrenches.as_slice()),
-                    ..Default::default()
-                };
-                let tau = rnea_with(&self.model, &mut self.ws, &self.q, &self.v, &self.a, &ext)
-                    .map_err(|e| e.to_string())?;
-                self.tau.copy_from_slice(tau);
-                Ok(())
-            });
+        let result = self.read_request_state(req).and_then(|_| {
+            self.read_acceleration(&req.acceleration, &req.base_accel)?;
+            let n = self.external_wrenches(&req.external_wrenches)?;
+            let ext = externals(&self.wrenches, n);
+            let tau = rnea_with(&self.model, &mut self.ws, &self.q, &self.v, &self.a, &ext)
+                .map_err(|e| e.to_string())?;
+            self.tau.copy_from_slice(tau);
+            Ok(())
+        });
         match result {
             Ok(()) => {
                 self.map.gather(&self.tau, Target::Rate, &mut self.out);
@@ -217,48 +208,34 @@ impl Engine {
                     base_wrench: base_wrench(self.map.base(), &self.tau),
                 }
             }
-            Err(message) => InverseDynamicsResponse {
-                message,
-                ..Default::default()
-            },
+            Err(message) => InverseDynamicsResponse::refused(message),
         }
     }
 
     /// `~/forward_dynamics`.
     pub fn forward_dynamics(&mut self, req: &ForwardDynamicsRequest) -> ForwardDynamicsResponse {
-        let result = self
-            .read_state(
-                &req.name,
-                &req.position,
-                &req.velocity,
-                Some(&req.base_pose),
-                Some(&req.base_twist),
+        let result = self.read_request_state(req).and_then(|_| {
+            let method = if req.method.is_empty() {
+                self.method
+            } else {
+                req.method.parse()?
+            };
+            self.read_efforts(&req.effort, &req.base_wrench)?;
+            let n = self.external_wrenches(&req.external_wrenches)?;
+            let ext = externals(&self.wrenches, n);
+            let qdd = forward_dynamics(
+                &self.model,
+                &mut self.ws,
+                &self.q,
+                &self.v,
+                &self.tau,
+                method,
+                &ext,
             )
-            .and_then(|_| {
-                let method = if req.method.is_empty() {
-                    self.method
-                } else {
-                    req.method.parse()?
-                };
-                self.read_efforts(&req.effort, &req.base_wrench)?;
-                let n = self.external_wrenches(&req.external_wrenches)?;
-                let ext = Externals {
-                    wrenches: (n > 0).then_some(self.wrenches.as_slice()),
-                    ..Default::default()
-                };
-                let qdd = forward_dynamics(
-                    &self.model,
-                    &mut self.ws,
-                    &self.q,
-                    &self.v,
-                    &self.tau,
-                    method,
-                    &ext,
-                )
-                .map_err(|e| e.to_string())?;
-                self.a.copy_from_slice(qdd);
-                Ok(())
-            });
+            .map_err(|e| e.to_string())?;
+            self.a.copy_from_slice(qdd);
+            Ok(())
+        });
         match result {
             Ok(()) => {
                 self.map.gather(&self.a, Target::Rate, &mut self.out);
@@ -274,10 +251,7 @@ impl Engine {
                     base_accel,
                 }
             }
-            Err(message) => ForwardDynamicsResponse {
-                message,
-                ..Default::default()
-            },
+            Err(message) => ForwardDynamicsResponse::refused(message),
         }
     }
 
@@ -287,21 +261,13 @@ impl Engine {
         if let Err(message) =
             self.read_state(&req.name, &req.position, &[], Some(&req.base_pose), None)
         {
-            return MassMatrixResponse {
-                message,
-                ..Default::default()
-            };
+            return MassMatrixResponse::refused(message);
         }
         // Rows and columns: the base's six coordinates, then the joints in the request's order.
         let (index, _) = self.velocity_columns();
         let h = match crba(&self.model, &mut self.ws, &self.q) {
             Ok(h) => h,
-            Err(e) => {
-                return MassMatrixResponse {
-                    message: e.to_string(),
-                    ..Default::default()
-                }
-            }
+            Err(e) => return MassMatrixResponse::refused(e.to_string()),
         };
         let matrix = linearize::permuted(h, &index, &index);
         MassMatrixResponse {
@@ -731,6 +697,15 @@ impl Engine {
             self.wrenches[body] += link.x_body_link.transpose_apply_force(&in_link);
         }
         Ok(wrenches.len())
+    }
+}
+
+/// The external forces of a request whose `n` wrenches [`Engine::external_wrenches`] turned
+/// into the body-frame `wrenches`: none when it gave none.
+fn externals(wrenches: &[Force], n: usize) -> Externals<'_> {
+    Externals {
+        wrenches: (n > 0).then_some(wrenches),
+        ..Default::default()
     }
 }
 

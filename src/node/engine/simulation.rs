@@ -10,6 +10,7 @@
 //! diverging integration stops the simulation (the last finite state stays, nothing non-finite
 //! is published) and says when and why.
 
+use super::requests::Refused;
 use super::Engine;
 use crate::joint_states::joint_map::Target;
 use crate::node::params::{parse_passive, Settings};
@@ -370,22 +371,12 @@ impl Engine {
     /// `~/reset`: a given state; clears the command and any divergence.
     pub fn simulation_reset(&mut self, req: &ResetRequest) -> ResetResponse {
         if self.simulation.is_none() {
-            return ResetResponse {
-                success: false,
-                message: "the node is not in simulate mode (parameter mode)".into(),
-            };
+            return ResetResponse::refused(
+                "the node is not in simulate mode (parameter mode)".into(),
+            );
         }
-        if let Err(message) = self.read_state(
-            &req.name,
-            &req.position,
-            &req.velocity,
-            Some(&req.base_pose),
-            Some(&req.base_twist),
-        ) {
-            return ResetResponse {
-                success: false,
-                message,
-            };
+        if let Err(message) = self.read_request_state(req) {
+            return ResetResponse::refused(message);
         }
         let sim = self.simulation.as_mut().expect("checked above");
         sim.state.q.copy_from_slice(&self.q);

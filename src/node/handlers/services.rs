@@ -4,15 +4,16 @@
 
 use super::finite::Finite;
 use super::{NodeState, Outputs};
+use crate::node::engine::requests::Refused;
 use crate::ros::msgs::*;
 use std::time::Instant;
 
-/// `response`, or the refusal `refused` builds when a number in it is not finite.
-fn finite_or<R: Finite>(response: R, refused: impl FnOnce(String) -> R) -> R {
+/// `response`, or a refusal when a number in it is not finite.
+fn finite_or_refused<R: Finite + Refused>(response: R) -> R {
     if response.all_finite() {
         response
     } else {
-        refused("the result was not finite".into())
+        R::refused("the result was not finite".into())
     }
 }
 
@@ -22,12 +23,7 @@ impl NodeState {
         &mut self,
         request: &InverseDynamicsRequest,
     ) -> InverseDynamicsResponse {
-        finite_or(self.engine.inverse_dynamics(request), |message| {
-            InverseDynamicsResponse {
-                message,
-                ..Default::default()
-            }
-        })
+        finite_or_refused(self.engine.inverse_dynamics(request))
     }
 
     /// `~/forward_dynamics`: q̈ = FD(q, q̇, τ, external wrenches).
@@ -35,22 +31,12 @@ impl NodeState {
         &mut self,
         request: &ForwardDynamicsRequest,
     ) -> ForwardDynamicsResponse {
-        finite_or(self.engine.forward_dynamics(request), |message| {
-            ForwardDynamicsResponse {
-                message,
-                ..Default::default()
-            }
-        })
+        finite_or_refused(self.engine.forward_dynamics(request))
     }
 
     /// `~/mass_matrix`: H(q), row-major.
     pub fn mass_matrix(&mut self, request: &MassMatrixRequest) -> MassMatrixResponse {
-        finite_or(self.engine.mass_matrix(request), |message| {
-            MassMatrixResponse {
-                message,
-                ..Default::default()
-            }
-        })
+        finite_or_refused(self.engine.mass_matrix(request))
     }
 
     /// `~/frame_kinematics`.
@@ -217,16 +203,12 @@ mod tests {
             matrix: vec![1.0],
             ..Default::default()
         };
-        let refuse = |message| MassMatrixResponse {
-            message,
-            ..Default::default()
-        };
-        assert_eq!(finite_or(good.clone(), refuse), good);
+        assert_eq!(finite_or_refused(good.clone()), good);
         let bad = MassMatrixResponse {
             matrix: vec![f64::INFINITY],
             ..good
         };
-        let answer = finite_or(bad, refuse);
+        let answer = finite_or_refused(bad);
         assert!(!answer.success && answer.matrix.is_empty());
         assert_eq!(answer.message, "the result was not finite");
     }

@@ -291,16 +291,19 @@ mod tests {
         assert!(!status.values.iter().any(|v| v.key == "simulated time (s)"));
     }
 
+    /// The value of the diagnostics entry `key` (the node's clock at 0).
+    fn diagnostic(state: &mut NodeState, key: &str) -> String {
+        let status = &state.diagnostics(Some(0)).diagnostics.unwrap().status[0];
+        let found = status.values.iter().find(|v| v.key == key);
+        found.unwrap_or_else(|| panic!("no {key}")).value.clone()
+    }
+
     /// A tick more than two periods after the one before is late; jitter within that is not.
     #[test]
     fn diagnostics_count_late_publish_ticks() {
         let mut state = falling(false);
         let period = state.engine.simulation_period().expect("simulate mode");
-        let late = |state: &mut NodeState| {
-            let status = &state.diagnostics(Some(0)).diagnostics.unwrap().status[0];
-            let found = status.values.iter().find(|v| v.key == "late publish ticks");
-            found.expect("late publish ticks").value.clone()
-        };
+        let late = |state: &mut NodeState| diagnostic(state, "late publish ticks");
         let t0 = Instant::now();
         state.simulation_tick(t0, t0);
         assert_eq!(late(&mut state), "0");
@@ -335,11 +338,7 @@ mod tests {
         use crate::node::engine::simulation::MAX_LAG_TICKS;
         let mut state = falling(false);
         let period = state.engine.simulation_period().expect("simulate mode");
-        let missed = |state: &mut NodeState| {
-            let status = &state.diagnostics(Some(0)).diagnostics.unwrap().status[0];
-            let found = status.values.iter().find(|v| v.key == "missed steps");
-            found.expect("missed steps").value.clone()
-        };
+        let missed = |state: &mut NodeState| diagnostic(state, "missed steps");
         let due = Instant::now();
         let within = state.simulation_tick(due, due + period * (MAX_LAG_TICKS - 1));
         assert!(

@@ -15,7 +15,7 @@ use spatial_dynamics_core::algorithms::{
     frame_jacobian, frame_placement, gravity, rnea, rnea_derivatives, ForwardDynamicsMethod,
     ReferenceFrame,
 };
-use spatial_dynamics_core::{urdf, Externals, ModelOptions, Workspace};
+use spatial_dynamics_core::{urdf, DynamicsError, Externals, ModelOptions, Workspace};
 use std::path::PathBuf;
 use std::sync::Mutex;
 use std::time::Duration;
@@ -43,6 +43,55 @@ impl Model {
             model,
             method,
         }
+    }
+
+    /// [`run`] with this model and the workspace of its single-state calls.
+    fn run<'py, const I: usize, const O: usize, K>(
+        &self,
+        py: Python<'py>,
+        inputs: [(&str, &Bound<'py, PyAny>, usize); I],
+        outputs: [&[usize]; O],
+        kernel: K,
+    ) -> PyResult<[Array<'py>; O]>
+    where
+        K: Fn(&mut Workspace, [&[f64]; I], [&mut [f64]; O]) -> Result<(), DynamicsError> + Sync,
+    {
+        run(py, &self.model, &self.workspace, inputs, outputs, kernel)
+    }
+
+    /// Three `(nv, nv)` matrices of the state `(q, v, x)` (`x` as its name and value; `nv`
+    /// values each), `(N, nv, nv)` for N states: `kernel` gives them, they are written
+    /// row-major.
+    fn derivatives<'py, K>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        v: &Bound<'py, PyAny>,
+        (x_name, x): (&str, &Bound<'py, PyAny>),
+        kernel: K,
+    ) -> PyResult<(Array<'py>, Array<'py>, Array<'py>)>
+    where
+        K: for<'w> Fn(
+                &'w mut Workspace,
+                &[f64],
+                &[f64],
+                &[f64],
+            ) -> Result<[&'w DMatrix<f64>; 3], DynamicsError>
+            + Sync,
+    {
+        let (nq, nv) = (self.model.nq(), self.model.nv());
+        let [d0, d1, d2] = self.run(
+            py,
+            [("q", q, nq), ("v", v, nv), (x_name, x, nv)],
+            [&[nv, nv]; 3],
+            |ws, [q, v, x], outs| {
+                for (out, matrix) in outs.into_iter().zip(kernel(ws, q, v, x)?) {
+                    row_major(out, matrix);
+                }
+                Ok(())
+            },
+        )?;
+        Ok((d0, d1, d2))
     }
 
     fn options(floating_base: bool, ignore_mimic: bool) -> ModelOptions {
@@ -155,10 +204,8 @@ impl Model {
         a: &Bound<'py, PyAny>,
     ) -> PyResult<Array<'py>> {
         let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
-        let [tau] = run(
+        let [tau] = self.run(
             py,
-            m,
-            &self.workspace,
             [("q", q, nq), ("v", v, nv), ("a", a, nv)],
             [&[nv]],
             |ws, [q, v, a], [tau]| {
@@ -173,17 +220,10 @@ impl Model {
     /// `(N, nv)`.
     fn gravity<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<Array<'py>> {
         let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
-        let [g] = run(
-            py,
-            m,
-            &self.workspace,
-            [("q", q, nq)],
-            [&[nv]],
-            |ws, [q], [g]| {
-                g.copy_from_slice(gravity(m, ws, q)?);
-                Ok(())
-            },
-        )?;
+        let [g] = self.run(py, [("q", q, nq)], [&[nv]], |ws, [q], [g]| {
+            g.copy_from_slice(gravity(m, ws, q)?);
+            Ok(())
+        })?;
         Ok(g)
     }
 
@@ -203,10 +243,8 @@ impl Model {
             Some(name) => name.parse().map_err(error)?,
         };
         let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
-        let [qdd] = run(
+        let [qdd] = self.run(
             py,
-            m,
-            &self.workspace,
             [("q", q, nq), ("v", v, nv), ("tau", tau, nv)],
             [&[nv]],
             |ws, [q, v, tau], [qdd]| {
@@ -228,17 +266,10 @@ impl Model {
     /// The joint-space mass matrix `M(q)` (symmetric): `(nv, nv)`, or `(N, nv, nv)`.
     fn mass_matrix<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<Array<'py>> {
         let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
-        let [mass] = run(
-            py,
-            m,
-            &self.workspace,
-            [("q", q, nq)],
-            [&[nv, nv]],
-            |ws, [q], [out]| {
-                row_major(out, crba(m, ws, q)?);
-                Ok(())
-            },
-        )?;
+        let [mass] = self.run(py, [("q", q, nq)], [&[nv, nv]], |ws, [q], [out]| {
+            row_major(out, crba(m, ws, q)?);
+            Ok(())
+        })?;
         Ok(mass)
     }
 
@@ -254,10 +285,8 @@ impl Model {
     ) -> PyResult<(Array<'py>, Array<'py>)> {
         let (m, nq) = (&self.model, self.model.nq());
         let frame = find_frame(m, frame).map_err(from_library)?;
-        let [translation, rotation] = run(
+        let [translation, rotation] = self.run(
             py,
-            m,
-            &self.workspace,
             [("q", q, nq)],
             [&[3], &[3, 3]],
             |ws, [q], [translation, rotation]| {
@@ -287,17 +316,10 @@ impl Model {
         let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
         let frame = find_frame(m, frame).map_err(from_library)?;
         let reference = reference_frame(reference)?;
-        let [j] = run(
-            py,
-            m,
-            &self.workspace,
-            [("q", q, nq)],
-            [&[6, nv]],
-            |ws, [q], [j]| {
-                row_major(j, frame_jacobian(m, ws, q, &frame, reference)?);
-                Ok(())
-            },
-        )?;
+        let [j] = self.run(py, [("q", q, nq)], [&[6, nv]], |ws, [q], [j]| {
+            row_major(j, frame_jacobian(m, ws, q, &frame, reference)?);
+            Ok(())
+        })?;
         Ok(j)
     }
 
@@ -310,10 +332,8 @@ impl Model {
         q: &Bound<'py, PyAny>,
     ) -> PyResult<(Py<PyAny>, Array<'py>, Array<'py>)> {
         let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
-        let [mass, com, j] = run(
+        let [mass, com, j] = self.run(
             py,
-            m,
-            &self.workspace,
             [("q", q, nq)],
             [&[], &[3], &[3, nv]],
             |ws, [q], [mass, com, j]| {
@@ -343,22 +363,11 @@ impl Model {
         v: &Bound<'py, PyAny>,
         a: &Bound<'py, PyAny>,
     ) -> PyResult<(Array<'py>, Array<'py>, Array<'py>)> {
-        let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
-        let [dq, dv, mass] = run(
-            py,
-            m,
-            &self.workspace,
-            [("q", q, nq), ("v", v, nv), ("a", a, nv)],
-            [&[nv, nv], &[nv, nv], &[nv, nv]],
-            |ws, [q, v, a], [dq, dv, mass]| {
-                let d = rnea_derivatives(m, ws, q, v, a)?;
-                row_major(dq, d.dtau_dq);
-                row_major(dv, d.dtau_dv);
-                row_major(mass, d.mass_matrix);
-                Ok(())
-            },
-        )?;
-        Ok((dq, dv, mass))
+        let m = &self.model;
+        self.derivatives(py, q, v, ("a", a), |ws, q, v, a| {
+            let d = rnea_derivatives(m, ws, q, v, a)?;
+            Ok([d.dtau_dq, d.dtau_dv, d.mass_matrix])
+        })
     }
 
     /// The derivatives of forward dynamics at `(q, v, tau)`: `(ddq_dq, ddq_dv, Minv)`, each
@@ -371,21 +380,10 @@ impl Model {
         v: &Bound<'py, PyAny>,
         tau: &Bound<'py, PyAny>,
     ) -> PyResult<(Array<'py>, Array<'py>, Array<'py>)> {
-        let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
-        let [dq, dv, minv] = run(
-            py,
-            m,
-            &self.workspace,
-            [("q", q, nq), ("v", v, nv), ("tau", tau, nv)],
-            [&[nv, nv], &[nv, nv], &[nv, nv]],
-            |ws, [q, v, tau], [dq, dv, minv]| {
-                let d = aba_derivatives(m, ws, q, v, tau, &Externals::none())?;
-                row_major(dq, d.ddq_dq);
-                row_major(dv, d.ddq_dv);
-                row_major(minv, d.minv);
-                Ok(())
-            },
-        )?;
-        Ok((dq, dv, minv))
+        let m = &self.model;
+        self.derivatives(py, q, v, ("tau", tau), |ws, q, v, tau| {
+            let d = aba_derivatives(m, ws, q, v, tau, &Externals::none())?;
+            Ok([d.ddq_dq, d.ddq_dv, d.minv])
+        })
     }
 }

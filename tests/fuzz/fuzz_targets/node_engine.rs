@@ -76,6 +76,15 @@ fn numbers(u: &mut Unstructured, names: usize) -> Result<Vec<f64>> {
     (0..len).map(|_| number(u)).collect()
 }
 
+/// `K` arrays of numbers for `names` names (of right and wrong lengths), drawn in order.
+fn arrays<const K: usize>(u: &mut Unstructured, names: usize) -> Result<[Vec<f64>; K]> {
+    let mut arrays: [Vec<f64>; K] = std::array::from_fn(|_| Vec::new());
+    for array in &mut arrays {
+        *array = numbers(u, names)?;
+    }
+    Ok(arrays)
+}
+
 fn vector(u: &mut Unstructured) -> Result<Vector3> {
     Ok(Vector3 {
         x: number(u)?,
@@ -111,11 +120,15 @@ fn pose(u: &mut Unstructured) -> Result<Pose> {
     })
 }
 
-fn twist(u: &mut Unstructured) -> Result<Twist> {
-    Ok(Twist {
-        linear: vector(u)?,
-        angular: vector(u)?,
-    })
+/// A message of two vectors (`Twist { linear, angular }`, `Wrench { force, torque }`), each
+/// drawn by [`vector`] in the order named.
+macro_rules! two_vectors {
+    ($u:expr, $message:ident { $first:ident, $second:ident }) => {
+        $message {
+            $first: vector($u)?,
+            $second: vector($u)?,
+        }
+    };
 }
 
 /// Names to build messages from: the model's coordinates (usually all of them, shuffled), joints
@@ -165,6 +178,16 @@ impl Vocabulary {
         Ok(names)
     }
 
+    /// Names (as [`Self::names`]) and `K` arrays of numbers for them, drawn in order.
+    fn named<const K: usize>(
+        &self,
+        u: &mut Unstructured,
+    ) -> Result<(Vec<String>, [Vec<f64>; K])> {
+        let names = self.names(u)?;
+        let values = arrays(u, names.len())?;
+        Ok((names, values))
+    }
+
     fn link(&self, u: &mut Unstructured) -> Result<String> {
         if u.ratio(1u8, 8)? {
             u.arbitrary()
@@ -188,10 +211,7 @@ fn wrenches(u: &mut Unstructured, vocabulary: &Vocabulary) -> Result<Vec<LinkWre
             Ok(LinkWrench {
                 link,
                 frame,
-                wrench: Wrench {
-                    force: vector(u)?,
-                    torque: vector(u)?,
-                },
+                wrench: two_vectors!(u, Wrench { force, torque }),
             })
         })
         .collect()
@@ -278,18 +298,17 @@ fn run(u: &mut Unstructured) -> Result<()> {
         match u.int_in_range(0u8..=15)? {
             0 => {
                 let names = vocabulary.names(u)?;
+                let nanosec = u.int_in_range(0u32..=999_999_999)?;
+                let [position, velocity, effort] = arrays(u, names.len())?;
                 let js = JointState {
                     header: Header {
-                        stamp: Time {
-                            sec: 0,
-                            nanosec: u.int_in_range(0u32..=999_999_999)?,
-                        },
+                        stamp: Time { sec: 0, nanosec },
                         frame_id: String::new(),
                     },
-                    position: numbers(u, names.len())?,
-                    velocity: numbers(u, names.len())?,
-                    effort: numbers(u, names.len())?,
                     name: names,
+                    position,
+                    velocity,
+                    effort,
                 };
                 let stamp = js.header.stamp.clone();
                 topic("joint_states", engine.joint_states(&js, stamp), |a| {
@@ -306,10 +325,10 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 });
             }
             1 => {
-                let names = vocabulary.names(u)?;
+                let (names, [effort]) = vocabulary.named(u)?;
                 let js = JointState {
-                    effort: numbers(u, names.len())?,
                     name: names,
+                    effort,
                     ..Default::default()
                 };
                 topic("effort_command", engine.set_effort_command(&js), |_| true);
@@ -325,10 +344,11 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 let names = vocabulary.names(u)?;
                 let points = (0..u.int_in_range(0u8..=2)?)
                     .map(|_| {
+                        let [positions, velocities, accelerations] = arrays(u, names.len())?;
                         Ok(JointTrajectoryPoint {
-                            positions: numbers(u, names.len())?,
-                            velocities: numbers(u, names.len())?,
-                            accelerations: numbers(u, names.len())?,
+                            positions,
+                            velocities,
+                            accelerations,
                             ..Default::default()
                         })
                     })
@@ -345,23 +365,20 @@ fn run(u: &mut Unstructured) -> Result<()> {
             4 => {
                 let mut odom = Odometry::default();
                 odom.pose.pose = pose(u)?;
-                odom.twist.twist = twist(u)?;
+                odom.twist.twist = two_vectors!(u, Twist { linear, angular });
                 topic("base_state", engine.set_base_state(&odom), |_| true);
             }
             5 => {
-                let names = vocabulary.names(u)?;
+                let (names, [position, velocity, acceleration]) = vocabulary.named(u)?;
                 let req = InverseDynamicsRequest {
-                    position: numbers(u, names.len())?,
-                    velocity: numbers(u, names.len())?,
-                    acceleration: numbers(u, names.len())?,
                     name: names,
+                    position,
+                    velocity,
+                    acceleration,
                     external_wrenches: wrenches(u, &vocabulary)?,
                     base_pose: pose(u)?,
-                    base_twist: twist(u)?,
-                    base_accel: Accel {
-                        linear: vector(u)?,
-                        angular: vector(u)?,
-                    },
+                    base_twist: two_vectors!(u, Twist { linear, angular }),
+                    base_accel: two_vectors!(u, Accel { linear, angular }),
                 };
                 let r = engine.inverse_dynamics(&req);
                 let w = &r.base_wrench;
@@ -378,22 +395,19 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 );
             }
             6 => {
-                let names = vocabulary.names(u)?;
+                let (names, [position, velocity, effort]) = vocabulary.named(u)?;
                 let req = ForwardDynamicsRequest {
-                    position: numbers(u, names.len())?,
-                    velocity: numbers(u, names.len())?,
-                    effort: numbers(u, names.len())?,
                     name: names,
+                    position,
+                    velocity,
+                    effort,
                     external_wrenches: wrenches(u, &vocabulary)?,
                     method: u
                         .choose(&["", "aba", "crba", "rnea_columns", "ABA", "magic"])?
                         .to_string(),
                     base_pose: pose(u)?,
-                    base_twist: twist(u)?,
-                    base_wrench: Wrench {
-                        force: vector(u)?,
-                        torque: vector(u)?,
-                    },
+                    base_twist: two_vectors!(u, Twist { linear, angular }),
+                    base_wrench: two_vectors!(u, Wrench { force, torque }),
                 };
                 let r = engine.forward_dynamics(&req);
                 let b = &r.base_accel;
@@ -410,10 +424,10 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 );
             }
             7 => {
-                let names = vocabulary.names(u)?;
+                let (names, [position]) = vocabulary.named(u)?;
                 let req = MassMatrixRequest {
-                    position: numbers(u, names.len())?,
                     name: names,
+                    position,
                     base_pose: pose(u)?,
                 };
                 let r = engine.mass_matrix(&req);
@@ -449,13 +463,13 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 }
             }
             11 => {
-                let names = vocabulary.names(u)?;
+                let (names, [position, velocity]) = vocabulary.named(u)?;
                 let req = ResetRequest {
-                    position: numbers(u, names.len())?,
-                    velocity: numbers(u, names.len())?,
                     name: names,
+                    position,
+                    velocity,
                     base_pose: pose(u)?,
-                    base_twist: twist(u)?,
+                    base_twist: two_vectors!(u, Twist { linear, angular }),
                 };
                 let r = engine.simulation_reset(&req);
                 assert!(r.success || !r.message.is_empty());
@@ -465,17 +479,15 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 let links = (0..u.int_in_range(0u8..=3)?)
                     .map(|_| vocabulary.link(u))
                     .collect::<Result<Vec<_>>>()?;
+                let [position, velocity, acceleration] = arrays(u, names.len())?;
                 let req = FrameKinematicsRequest {
-                    position: numbers(u, names.len())?,
-                    velocity: numbers(u, names.len())?,
-                    acceleration: numbers(u, names.len())?,
                     name: names,
+                    position,
+                    velocity,
+                    acceleration,
                     base_pose: pose(u)?,
-                    base_twist: twist(u)?,
-                    base_accel: Accel {
-                        linear: vector(u)?,
-                        angular: vector(u)?,
-                    },
+                    base_twist: two_vectors!(u, Twist { linear, angular }),
+                    base_accel: two_vectors!(u, Accel { linear, angular }),
                     links,
                     reference: u
                         .choose(&["", "world", "local", "local_world_aligned", "LOCAL"])?
@@ -510,23 +522,20 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 }
             }
             13 => {
-                let names = vocabulary.names(u)?;
+                let (names, [position, velocity, effort]) = vocabulary.named(u)?;
                 let req = LinearizeRequest {
-                    position: numbers(u, names.len())?,
-                    velocity: numbers(u, names.len())?,
-                    effort: numbers(u, names.len())?,
                     name: names,
+                    position,
+                    velocity,
+                    effort,
                     dt: if u.arbitrary()? {
                         number(u)?
                     } else {
                         *u.choose(&[0.0, 1e-3, 0.05])?
                     },
                     base_pose: pose(u)?,
-                    base_twist: twist(u)?,
-                    base_wrench: Wrench {
-                        force: vector(u)?,
-                        torque: vector(u)?,
-                    },
+                    base_twist: two_vectors!(u, Twist { linear, angular }),
+                    base_wrench: two_vectors!(u, Wrench { force, torque }),
                 };
                 let r = engine.linearize(&req);
                 service(
@@ -543,12 +552,12 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 }
             }
             14 => {
-                let names = vocabulary.names(u)?;
+                let (names, [position, velocity, effort]) = vocabulary.named(u)?;
                 let js = JointState {
-                    position: numbers(u, names.len())?,
-                    velocity: numbers(u, names.len())?,
-                    effort: numbers(u, names.len())?,
                     name: names,
+                    position,
+                    velocity,
+                    effort,
                     ..Default::default()
                 };
                 topic("joint_commands", engine.set_joint_commands(&js), |_| true);
