@@ -99,6 +99,9 @@ fn check_quaternion(joint: &str, quat: &[f64]) -> Result<(), DynamicsError> {
 /// A velocity-like vector (`v`, `a`, `τ`) has `nv` finite values.
 pub(crate) fn check_v(model: &Model, vector: &'static str, x: &[f64]) -> Result<(), DynamicsError> {
     check_len(vector, model.nv, x.len())?;
+    if all_finite(x) {
+        return Ok(());
+    }
     match x.iter().position(|x| !x.is_finite()) {
         Some(index) => Err(DynamicsError::NonFinite {
             vector,
@@ -164,6 +167,9 @@ pub(crate) fn check_result(
     quantity: &'static str,
     x: &[f64],
 ) -> Result<(), DynamicsError> {
+    if all_finite(x) {
+        return Ok(());
+    }
     match x.iter().position(|x| !x.is_finite()) {
         Some(index) => Err(DynamicsError::NonFiniteResult {
             quantity,
