@@ -29,7 +29,6 @@ use super::validate::{check_inverse_inputs, check_result};
 use super::Externals;
 use crate::error::DynamicsError;
 use crate::model::{Body, Model, MotionSubspace};
-use crate::plan::Plan;
 use crate::spatial::Motion;
 use crate::Workspace;
 
@@ -76,20 +75,32 @@ pub(crate) fn rnea_passes(
     // reading it back from `ws` just after writing it would load across the stores that wrote
     // it, which the processor cannot forward (a stall per body).
     let mut last = (Motion::zero(), Motion::zero());
-    for (i, body) in model.bodies.iter().enumerate() {
-        let (s, c) = (&ws.s[i], body.joint.coords);
+    let Workspace {
+        plan,
+        s,
+        x_up,
+        q_joint,
+        v: v_body,
+        a: a_body,
+        f,
+        ..
+    } = ws;
+    let joints = model.bodies.iter().zip(s.iter()).zip(&plan.s_axes);
+    let ups = x_up.iter().zip(&plan.up_shapes).zip(q_joint.iter());
+    for (i, (((body, s), axes), ((x_up, &shape), q_joint))) in joints.zip(ups).enumerate() {
+        let c = body.joint.coords;
         let (v_parent, a_parent) = match body.parent {
             Some(p) if p + 1 == i => last,
-            Some(p) => (ws.v[p], ws.a[p]),
+            Some(p) => (v_body[p], a_body[p]),
             None => (ext.root_velocity, a_root),
         };
-        let (v_up, a_up) = with_up_transform!(ws, i, |x| (
+        let (v_up, a_up) = with_up_transform!(shape: shape, x_up: x_up, |x| (
             x.apply_motion(&v_parent),
             x.apply_motion(&a_parent)
         ));
         // v_i = ⁱX_λ(i) v_λ(i) + v_J,   v_J = S_i q̇_i   (RBDA Table 5.1; handout 13)
         // a_i = ⁱX_λ(i) a_λ(i) + S_i q̈_i + c_J + v_i × v_J   (RBDA Table 5.1; handout 14)
-        let (v_i, a_i) = match unit_axis(&ws.plan, s, i) {
+        let (v_i, a_i) = match unit_axis(s, axes) {
             Some((j, sign)) => {
                 // S_i = σ e_j: q̇_i and q̈_i scaled by σ μ (μ a mimic follower's multiplier)
                 let k = sign * c.scale;
@@ -98,7 +109,7 @@ pub(crate) fn rnea_passes(
                 along_axis(j, rate, accel, v_up, a_up)
             }
             None => {
-                let q_joint = &ws.q_joint[i][..body.joint.kind.nq()];
+                let q_joint = &q_joint[..body.joint.kind.nq()];
                 joint_motion(body, s, q_joint, v, a, v_up, a_up)
             }
         };
@@ -109,9 +120,9 @@ pub(crate) fn rnea_passes(
         if let Some(w) = ext.wrenches {
             f_i -= w[i];
         }
-        ws.v[i] = v_i;
-        ws.a[i] = a_i;
-        ws.f[i] = f_i;
+        v_body[i] = v_i;
+        a_body[i] = a_i;
+        f[i] = f_i;
         last = (v_i, a_i);
     }
     inward_pass(model, ws);
@@ -120,36 +131,47 @@ pub(crate) fn rnea_passes(
 /// The inward pass on the body forces `ws.f` (eqs. 15–16): `τ_i = S_iᵀ f_i`,
 /// `f_λ += ⁱX_λᵀ f_i`. Writes `ws.tau`; leaves in `ws.f` each joint's transmitted force.
 pub(crate) fn inward_pass(model: &Model, ws: &mut Workspace) {
-    ws.tau.as_mut_slice().fill(0.0);
-    for (i, body) in model.bodies.iter().enumerate().rev() {
-        let c = body.joint.coords;
+    let Workspace {
+        plan,
+        s,
+        x_up,
+        f,
+        tau,
+        ..
+    } = ws;
+    tau.as_mut_slice().fill(0.0);
+    let joints = model.bodies.iter().zip(s.iter()).zip(&plan.s_axes);
+    let ups = x_up.iter().zip(&plan.up_shapes);
+    for (i, (((body, s), axes), (x_up, &shape))) in joints.zip(ups).enumerate().rev() {
+        let (c, f_i) = (body.joint.coords, f[i]);
         // τ_i = S_iᵀ f_i   (RBDA Table 5.1; handout 16); a mimic follower's μ S_iᵀ f_i is added
         // to its leader's τ
-        match unit_axis(&ws.plan, &ws.s[i], i) {
+        match unit_axis(s, axes) {
             // S_i = σ e_j: S_iᵀ f_i is σ times component j of f_i
-            Some((j, sign)) => ws.tau[c.v_index] += (sign * c.scale) * ws.f[i].component(j),
+            Some((j, sign)) => tau[c.v_index] += (sign * c.scale) * f_i.component(j),
             None => {
-                for k in 0..ws.s[i].nv {
-                    ws.tau[c.v_index + k] += c.scale * ws.s[i].project(k, &ws.f[i]);
+                for k in 0..s.nv {
+                    tau[c.v_index + k] += c.scale * s.project(k, &f_i);
                 }
             }
         }
         if let Some(p) = body.parent {
             // f_λ(i) = f_λ(i) + λ(i)X*_i f_i   (RBDA Table 5.1; handout 15)
-            let f_parent = with_up_transform!(ws, i, |x| x.transpose_apply_force(&ws.f[i]));
-            ws.f[p] += f_parent;
+            let f_parent = with_up_transform!(shape: shape, x_up: x_up, |x| x
+                .transpose_apply_force(&f_i));
+            f[p] += f_parent;
         }
     }
 }
 
 /// `Some((j, σ))` when body `i`'s `S_i` is the one signed unit vector `σ e_j` of `[ω; v]` (`j`
 /// in `0..6`, angular first): a revolute or prismatic joint along a coordinate axis
-/// ([`Plan::s_axes`]), a joint kind without `c_J`. The passes then read and write one
+/// ([`Plan::s_axes`](crate::plan::Plan::s_axes)), a joint kind without `c_J`. The passes then read and write one
 /// component where `S_i` would be applied ([`along_axis`]).
 #[inline(always)]
-fn unit_axis(plan: &Plan, s: &MotionSubspace, i: usize) -> Option<(usize, f64)> {
+fn unit_axis(s: &MotionSubspace, axes: &[Option<(usize, f64)>; 6]) -> Option<(usize, f64)> {
     if s.nv == 1 {
-        plan.s_axes[i][0]
+        axes[0]
     } else {
         None
     }

@@ -15,6 +15,12 @@ pub(crate) fn check_q(model: &Model, ws: &Workspace, q: &[f64]) -> Result<(), Dy
         let index = q.iter().position(|x| !x.is_finite()).unwrap_or(0);
         return Err(non_finite_q(model, q, index));
     }
+    check_quaternions(model, q)
+}
+
+/// Every floating joint's quaternion in `q` (of `nq` finite values) is not (near) zero.
+#[inline]
+fn check_quaternions(model: &Model, q: &[f64]) -> Result<(), DynamicsError> {
     if model.nq == model.nv {
         // No floating joint: it is the only one with more position than velocity coordinates.
         return Ok(());
@@ -140,6 +146,14 @@ pub(crate) fn check_inverse_inputs(
     a: &[f64],
     ext: &Externals<'_>,
 ) -> Result<(), DynamicsError> {
+    // The common case in one pass: every length right and every value finite. Otherwise the
+    // checks one by one, which name the first bad vector and value.
+    let lengths = q.len() == model.nq && v.len() == model.nv && a.len() == model.nv;
+    if lengths && all_finite(q) & all_finite(v) & all_finite(a) {
+        ws.check(model)?;
+        check_quaternions(model, q)?;
+        return check_externals(model, ext);
+    }
     check_q(model, ws, q)?;
     check_v(model, "v", v)?;
     check_v(model, "a", a)?;
@@ -181,6 +195,7 @@ pub(crate) fn check_result(
 
 /// True when every value is finite, without a branch per value: `x · 0` is zero for a finite
 /// `x` and NaN otherwise, summed in four independent lanes (which vectorise).
+#[inline]
 pub(crate) fn all_finite(values: &[f64]) -> bool {
     let mut lanes = [0.0f64; 4];
     let chunks = values.chunks_exact(4);
