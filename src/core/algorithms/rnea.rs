@@ -22,7 +22,9 @@
 //!
 //! `ⁱX_λ` acts in the cheapest form its joint allows (`kinematics::with_up_transform`): a turn
 //! about the joint axis after a translation costs 24 flops a vector where a general transform
-//! costs 42.
+//! costs 42. A joint whose `S_i` is one signed unit vector `σ e_j` of `[ω; v]` (a revolute or
+//! prismatic joint along a coordinate axis) has `S_i q̇_i`, `S_i q̈_i` and `S_iᵀ f_i` as one
+//! component and `v_i ×̂ S_i q̇_i` as four products, two for a slide (`along_axis`).
 
 use super::kinematics::{update_joints, with_up_transform};
 use super::validate::{check_inverse_inputs, check_result};
