@@ -22,13 +22,15 @@
 //!
 //! `ⁱX_λ` acts in the cheapest form its joint allows (`kinematics::with_up_transform`): a turn
 //! about the joint axis after a translation costs 24 flops a vector where a general transform
-//! costs 42.
+//! costs 42. A joint whose `S_i` is one signed unit vector `σ e_j` of `[ω; v]` (a revolute or
+//! prismatic joint along a coordinate axis) has `S_i q̇_i`, `S_i q̈_i` and `S_iᵀ f_i` as one
+//! component and `v_i ×̂ S_i q̇_i` as four products, two for a slide (`along_axis`).
 
 use super::kinematics::{update_joints, with_up_transform};
 use super::validate::{check_inverse_inputs, check_result};
 use super::Externals;
 use crate::error::DynamicsError;
-use crate::model::Model;
+use crate::model::{Body, Model, MotionSubspace};
 use crate::spatial::Motion;
 use crate::Workspace;
 
@@ -75,40 +77,44 @@ pub(crate) fn rnea_passes(
     // reading it back from `ws` just after writing it would load across the stores that wrote
     // it, which the processor cannot forward (a stall per body).
     let mut last = (Motion::zero(), Motion::zero());
-    for (i, body) in model.bodies.iter().enumerate() {
-        let (s, c) = (&ws.s[i], body.joint.coords);
-        let nv = s.nv;
+    let Workspace {
+        plan,
+        s,
+        x_up,
+        q_joint,
+        v: v_body,
+        a: a_body,
+        f,
+        ..
+    } = ws;
+    let joints = model.bodies.iter().zip(s.iter()).zip(&plan.s_axes);
+    let ups = x_up.iter().zip(&plan.up_shapes).zip(q_joint.iter());
+    for (i, (((body, s), axes), ((x_up, &shape), q_joint))) in joints.zip(ups).enumerate() {
+        let c = body.joint.coords;
         let (v_parent, a_parent) = match body.parent {
             Some(p) if p + 1 == i => last,
-            Some(p) => (ws.v[p], ws.a[p]),
+            Some(p) => (v_body[p], a_body[p]),
             None => (ext.root_velocity, a_root),
         };
-        // v_J = S_i q̇_i, c_J   (RBDA Table 5.1's jcalc; a mimic follower's q̇_i = μ q̇_leader)
-        let (v_joint, c_joint) = match v {
-            Some(v) => {
-                let rates = &v[c.v_index..c.v_index + nv];
-                let q_joint = &ws.q_joint[i][..body.joint.kind.nq()];
-                (
-                    s.apply(rates, c.scale),
-                    body.joint.kind.bias(q_joint, rates),
-                )
-            }
-            None => (Motion::zero(), None),
-        };
-        let (v_up, a_up) = with_up_transform!(ws, i, |x| (
+        let (v_up, a_up) = with_up_transform!(shape: shape, x_up: x_up, |x| (
             x.apply_motion(&v_parent),
             x.apply_motion(&a_parent)
         ));
-        // v_i = ⁱX_λ(i) v_λ(i) + v_J   (RBDA Table 5.1; handout 13)
-        let v_i = v_up + v_joint;
+        // v_i = ⁱX_λ(i) v_λ(i) + v_J,   v_J = S_i q̇_i   (RBDA Table 5.1; handout 13)
         // a_i = ⁱX_λ(i) a_λ(i) + S_i q̈_i + c_J + v_i × v_J   (RBDA Table 5.1; handout 14)
-        let mut a_i = a_up + v_i.cross_motion(&v_joint);
-        if let Some(c_joint) = c_joint {
-            a_i += c_joint;
-        }
-        if let Some(a) = a {
-            a_i += s.apply(&a[c.v_index..c.v_index + nv], c.scale);
-        }
+        let (v_i, a_i) = match unit_axis(s, axes) {
+            Some((j, sign)) => {
+                // S_i = σ e_j: q̇_i and q̈_i scaled by σ μ (μ a mimic follower's multiplier)
+                let k = sign * c.scale;
+                let rate = v.map_or(0.0, |v| k * v[c.v_index]);
+                let accel = a.map_or(0.0, |a| k * a[c.v_index]);
+                along_axis(j, rate, accel, v_up, a_up)
+            }
+            None => {
+                let q_joint = &q_joint[..body.joint.kind.nq()];
+                joint_motion(body, s, q_joint, v, a, v_up, a_up)
+            }
+        };
         // f_i = I_i a_i + v_i ×* I_i v_i − ⁱX*_0 f^x_i   (RBDA Table 5.1; handout 15): f^x_i is
         // given in body i's frame, so it is subtracted as it is
         let inertia = &body.inertia;
@@ -116,9 +122,9 @@ pub(crate) fn rnea_passes(
         if let Some(w) = ext.wrenches {
             f_i -= w[i];
         }
-        ws.v[i] = v_i;
-        ws.a[i] = a_i;
-        ws.f[i] = f_i;
+        v_body[i] = v_i;
+        a_body[i] = a_i;
+        f[i] = f_i;
         last = (v_i, a_i);
     }
     inward_pass(model, ws);
@@ -127,18 +133,113 @@ pub(crate) fn rnea_passes(
 /// The inward pass on the body forces `ws.f` (eqs. 15–16): `τ_i = S_iᵀ f_i`,
 /// `f_λ += ⁱX_λᵀ f_i`. Writes `ws.tau`; leaves in `ws.f` each joint's transmitted force.
 pub(crate) fn inward_pass(model: &Model, ws: &mut Workspace) {
-    ws.tau.as_mut_slice().fill(0.0);
-    for (i, body) in model.bodies.iter().enumerate().rev() {
-        let c = body.joint.coords;
+    let Workspace {
+        plan,
+        s,
+        x_up,
+        f,
+        tau,
+        ..
+    } = ws;
+    tau.as_mut_slice().fill(0.0);
+    let joints = model.bodies.iter().zip(s.iter()).zip(&plan.s_axes);
+    let ups = x_up.iter().zip(&plan.up_shapes);
+    for (i, (((body, s), axes), (x_up, &shape))) in joints.zip(ups).enumerate().rev() {
+        let (c, f_i) = (body.joint.coords, f[i]);
         // τ_i = S_iᵀ f_i   (RBDA Table 5.1; handout 16); a mimic follower's μ S_iᵀ f_i is added
         // to its leader's τ
-        for k in 0..ws.s[i].nv {
-            ws.tau[c.v_index + k] += c.scale * ws.s[i].project(k, &ws.f[i]);
+        match unit_axis(s, axes) {
+            // S_i = σ e_j: S_iᵀ f_i is σ times component j of f_i
+            Some((j, sign)) => tau[c.v_index] += (sign * c.scale) * f_i.component(j),
+            None => {
+                for k in 0..s.nv {
+                    tau[c.v_index + k] += c.scale * s.project(k, &f_i);
+                }
+            }
         }
         if let Some(p) = body.parent {
             // f_λ(i) = f_λ(i) + λ(i)X*_i f_i   (RBDA Table 5.1; handout 15)
-            let f_parent = with_up_transform!(ws, i, |x| x.transpose_apply_force(&ws.f[i]));
-            ws.f[p] += f_parent;
+            let f_parent = with_up_transform!(shape: shape, x_up: x_up, |x| x
+                .transpose_apply_force(&f_i));
+            f[p] += f_parent;
         }
+    }
+}
+
+/// `Some((j, σ))` when body `i`'s `S_i` is the one signed unit vector `σ e_j` of `[ω; v]` (`j`
+/// in `0..6`, angular first): a revolute or prismatic joint along a coordinate axis
+/// ([`Plan::s_axes`](crate::plan::Plan::s_axes)), a joint kind without `c_J`. The passes then read and write one
+/// component where `S_i` would be applied ([`along_axis`]).
+#[inline(always)]
+fn unit_axis(s: &MotionSubspace, axes: &[Option<(usize, f64)>; 6]) -> Option<(usize, f64)> {
+    if s.nv == 1 {
+        axes[0]
+    } else {
+        None
+    }
+}
+
+/// `v_i = v_up + S q̇` and `a_i = a_up + v_i ×̂ S q̇ + S q̈ + c_J` for a joint of any kind
+/// (`v_up = ⁱX_λ v_λ`, `a_up = ⁱX_λ a_λ`, body `i` coordinates); `None` for `v` or `a` means
+/// zero. `q_joint` holds the joint's own coordinates.
+#[inline(always)]
+fn joint_motion(
+    body: &Body,
+    s: &MotionSubspace,
+    q_joint: &[f64],
+    v: Option<&[f64]>,
+    a: Option<&[f64]>,
+    v_up: Motion,
+    a_up: Motion,
+) -> (Motion, Motion) {
+    let (c, nv) = (body.joint.coords, s.nv);
+    // v_J = S_i q̇_i, c_J   (RBDA Table 5.1's jcalc; a mimic follower's q̇_i = μ q̇_leader)
+    let (v_joint, c_joint) = match v {
+        Some(v) => {
+            let rates = &v[c.v_index..c.v_index + nv];
+            (
+                s.apply(rates, c.scale),
+                body.joint.kind.bias(q_joint, rates),
+            )
+        }
+        None => (Motion::zero(), None),
+    };
+    let v_i = v_up + v_joint;
+    let mut a_i = a_up + v_i.cross_motion(&v_joint);
+    if let Some(c_joint) = c_joint {
+        a_i += c_joint;
+    }
+    if let Some(a) = a {
+        a_i += s.apply(&a[c.v_index..c.v_index + nv], c.scale);
+    }
+    (v_i, a_i)
+}
+
+/// [`joint_motion`] for `S = σ e_j` ([`unit_axis`]) given `rate = σ μ q̇` and `accel = σ μ q̈`:
+/// `v_i = v_up + rate e_j`, `a_i = a_up + rate (v_i ×̂ e_j) + accel e_j`, the cross product with
+/// a unit vector four products (two for a slide, [`Motion::add_cross_axis`]) where the general
+/// form takes 18. One copy for each `j`, so that the components are known at compile time.
+#[inline(always)]
+fn along_axis(j: usize, rate: f64, accel: f64, v_up: Motion, a_up: Motion) -> (Motion, Motion) {
+    #[inline(always)]
+    fn along<const J: usize>(
+        rate: f64,
+        accel: f64,
+        v_up: Motion,
+        a_up: Motion,
+    ) -> (Motion, Motion) {
+        let (mut v_i, mut a_i) = (v_up, a_up);
+        v_i.add_along(J, rate);
+        a_i.add_cross_axis(&v_i, J, rate);
+        a_i.add_along(J, accel);
+        (v_i, a_i)
+    }
+    match j {
+        0 => along::<0>(rate, accel, v_up, a_up),
+        1 => along::<1>(rate, accel, v_up, a_up),
+        2 => along::<2>(rate, accel, v_up, a_up),
+        3 => along::<3>(rate, accel, v_up, a_up),
+        4 => along::<4>(rate, accel, v_up, a_up),
+        _ => along::<5>(rate, accel, v_up, a_up),
     }
 }

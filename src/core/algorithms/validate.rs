@@ -15,6 +15,12 @@ pub(crate) fn check_q(model: &Model, ws: &Workspace, q: &[f64]) -> Result<(), Dy
         let index = q.iter().position(|x| !x.is_finite()).unwrap_or(0);
         return Err(non_finite_q(model, q, index));
     }
+    check_quaternions(model, q)
+}
+
+/// Every floating joint's quaternion in `q` (of `nq` finite values) is not (near) zero.
+#[inline]
+fn check_quaternions(model: &Model, q: &[f64]) -> Result<(), DynamicsError> {
     if model.nq == model.nv {
         // No floating joint: it is the only one with more position than velocity coordinates.
         return Ok(());
@@ -99,6 +105,9 @@ fn check_quaternion(joint: &str, quat: &[f64]) -> Result<(), DynamicsError> {
 /// A velocity-like vector (`v`, `a`, `τ`) has `nv` finite values.
 pub(crate) fn check_v(model: &Model, vector: &'static str, x: &[f64]) -> Result<(), DynamicsError> {
     check_len(vector, model.nv, x.len())?;
+    if all_finite(x) {
+        return Ok(());
+    }
     match x.iter().position(|x| !x.is_finite()) {
         Some(index) => Err(DynamicsError::NonFinite {
             vector,
@@ -137,6 +146,14 @@ pub(crate) fn check_inverse_inputs(
     a: &[f64],
     ext: &Externals<'_>,
 ) -> Result<(), DynamicsError> {
+    // The common case in one pass: every length right and every value finite. Otherwise the
+    // checks one by one, which name the first bad vector and value.
+    let lengths = q.len() == model.nq && v.len() == model.nv && a.len() == model.nv;
+    if lengths && all_finite(q) & all_finite(v) & all_finite(a) {
+        ws.check(model)?;
+        check_quaternions(model, q)?;
+        return check_externals(model, ext);
+    }
     check_q(model, ws, q)?;
     check_v(model, "v", v)?;
     check_v(model, "a", a)?;
@@ -164,6 +181,9 @@ pub(crate) fn check_result(
     quantity: &'static str,
     x: &[f64],
 ) -> Result<(), DynamicsError> {
+    if all_finite(x) {
+        return Ok(());
+    }
     match x.iter().position(|x| !x.is_finite()) {
         Some(index) => Err(DynamicsError::NonFiniteResult {
             quantity,

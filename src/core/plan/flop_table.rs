@@ -167,17 +167,18 @@ mod tests {
 
     /// Per body of a revolute chain, RNEA costs what its passes do: the joint coordinate
     /// `scale · q + offset` (1 m + 1 a), jcalc (`σ q` and `spatial::sin_cos`, 1 + 27 m, 35 a;
-    /// each joint's placement has no rotation, so its turn is written as it is),
-    /// `S q̇`, `S q̈` (7 m + 6 a each), two transforms (a turn about the joint axis after a
-    /// translation, 14 m + 10 a), a spatial cross product
-    /// and three 6-vector sums outward (a revolute joint has no `c_J` to add), two inertia
-    /// products, a cross product and a sum for `f`, and inward a projection (scaled,
-    /// accumulated) and, below the root, a transform and a sum.
+    /// each joint's placement has no rotation, so its turn is written as it is), two
+    /// transforms (a turn about the joint axis after a translation, 14 m + 10 a), and as `S`
+    /// is a unit vector along the joint axis, `σ μ` and its products with `q̇` and `q̈`
+    /// (3 m), one component each of `v_i` and `a_i` added to (2 a) and `q̇ (v_i ×̂ e_j)` added
+    /// to `a_i` (4 m + 4 a; a revolute joint has no `c_J`), two inertia products, a cross
+    /// product and a sum for `f`, and inward `(σ μ) f_j` accumulated (2 m + 1 a) and, below the
+    /// root, a transform and a sum.
     #[test]
     fn rnea_per_body_on_a_chain() {
         let per_body = Flops::new(
-            1 + 28 + 7 + 7 + 28 + 18 + 48 + 18 + 7,
-            1 + 35 + 6 + 6 + 20 + 12 + 18 + 36 + 12 + 6 + 6,
+            1 + 28 + 28 + 3 + 4 + 48 + 18 + 2,
+            1 + 35 + 20 + 2 + 4 + 36 + 12 + 6 + 1,
         );
         let below_root = Flops::new(14, 16);
         // a_0 = −[0; g]: three subtractions from zero.

@@ -347,15 +347,26 @@ pub(crate) fn rnea_passes(model: &Model, with_v: bool, with_a: bool) -> Flops {
     let mut total = Flops::new(0, 3);
     for body in &model.bodies {
         let nv = body.joint.kind.nv() as u64;
-        // v_i = X v_λ + v_J;  a_i = X a_λ + v_i ×̂ v_J (+ c_J, planar only)
-        if with_v {
-            total += SUBSPACE_COLUMN * nv + bias_added(&body.joint.kind, Flops::default());
-        }
         let (transform, _, _) = up_transform(body);
-        total += transform + ADD6;
-        total += transform + CROSS6 + ADD6;
-        if with_a {
-            total += SUBSPACE_COLUMN * nv + ADD6;
+        match unit_axis(&body.joint.kind) {
+            // S = σ e_j: σ μ, its products with q̇ and q̈, one component of v_i and one of a_i
+            // added to, and rate · (v_i ×̂ e_j): four products, two for a slide
+            Some(j) => {
+                let rates = 1 + u64::from(with_v) + u64::from(with_a);
+                let cross = if j < 3 { 4 } else { 2 };
+                total += transform * 2 + Flops::new(rates + cross, 2 + cross);
+            }
+            // v_i = X v_λ + v_J;  a_i = X a_λ + v_i ×̂ v_J (+ c_J, planar only)
+            None => {
+                if with_v {
+                    total += SUBSPACE_COLUMN * nv + bias_added(&body.joint.kind, Flops::default());
+                }
+                total += transform + ADD6;
+                total += transform + CROSS6 + ADD6;
+                if with_a {
+                    total += SUBSPACE_COLUMN * nv + ADD6;
+                }
+            }
         }
         // f_i = I a_i + v_i ×* I v_i
         total += INERTIA_APPLY * 2 + CROSS6 + ADD6;
@@ -363,11 +374,25 @@ pub(crate) fn rnea_passes(model: &Model, with_v: bool, with_a: bool) -> Flops {
     total + inward_pass(model)
 }
 
+/// `j` when the joint's `S` is the one signed unit vector `σ e_j` of `[ω; v]` (a revolute or
+/// prismatic joint along a coordinate axis): the passes of `algorithms::rnea` then read and
+/// write one component.
+fn unit_axis(kind: &JointKind) -> Option<usize> {
+    match (kind.nv(), kind.subspace_axes()[0]) {
+        (1, Some((j, _))) => Some(j),
+        _ => None,
+    }
+}
+
 /// `inward_pass`: `τ_i = S_iᵀ f_i` (scaled, accumulated), `f_λ += Xᵀ f_i`.
 pub(crate) fn inward_pass(model: &Model) -> Flops {
     let mut total = Flops::default();
     for body in &model.bodies {
-        total += (DOT6 + Flops::new(1, 1)) * body.joint.kind.nv() as u64;
+        total += match unit_axis(&body.joint.kind) {
+            // τ += (σ μ) f_j
+            Some(_) => Flops::new(2, 1),
+            None => (DOT6 + Flops::new(1, 1)) * body.joint.kind.nv() as u64,
+        };
         if body.parent.is_some() {
             total += up_transform(body).0 + ADD6;
         }

@@ -53,12 +53,13 @@ macro_rules! spatial_vector_ops {
                     self.lin[j - 3]
                 }
             }
-            /// True when all six components are finite.
+            /// True when all six components are finite, without a branch per component: `x · 0`
+            /// is zero for a finite `x` and NaN otherwise, so the six products sum to zero
+            /// exactly when all are finite.
+            #[inline]
             pub fn is_finite(&self) -> bool {
-                self.ang
-                    .iter()
-                    .chain(self.lin.iter())
-                    .all(|x| x.is_finite())
+                let z = self.ang * 0.0 + self.lin * 0.0;
+                z.x + z.y + z.z == 0.0
             }
         }
         impl Add for $t {
@@ -122,11 +123,46 @@ impl Motion {
         )
     }
 
+    /// `self + x e_j`: `x` added to component `j` of `[ω; v]` (`0..3` angular, `3..6` linear).
+    #[inline(always)]
+    pub fn add_along(&mut self, j: usize, x: f64) {
+        if j < 3 {
+            self.ang[j] += x;
+        } else {
+            self.lin[j - 3] += x;
+        }
+    }
+
+    /// `self += w (m ×̂ e_j)`, the motion cross product with unit vector `j` of `[ω; v]`
+    /// scaled by `w`, computing only its nonzero components: for `j < 3`
+    /// `m ×̂ e_j = [m_ω × e_j; m_v × e_j]` (four), for `j = 3 + k` `[0; m_ω × e_k]` (two), where
+    /// `x × e_0 = (0, x_z, −x_y)`, `x × e_1 = (−x_z, 0, x_x)`, `x × e_2 = (x_y, −x_x, 0)`.
+    /// With `j` a constant the components are known at compile time.
+    #[inline(always)]
+    pub fn add_cross_axis(&mut self, m: &Motion, j: usize, w: f64) {
+        if j < 3 {
+            add_cross_unit(&mut self.ang, &m.ang, j, w);
+            add_cross_unit(&mut self.lin, &m.lin, j, w);
+        } else {
+            add_cross_unit(&mut self.lin, &m.ang, j - 3, w);
+        }
+    }
+
     /// The scalar product with a force, `mᵀ f` (power when `m` is a velocity; the handout's
     /// spatial transpose `m^S f`). Both must be expressed in the same frame.
     pub fn dot(&self, f: &Force) -> f64 {
         self.ang.dot(&f.ang) + self.lin.dot(&f.lin)
     }
+}
+
+/// `out += w (x × e_k)`: the two nonzero components of `x × e_k`, scaled by `w` (see
+/// [`Motion::add_cross_axis`]).
+#[inline(always)]
+fn add_cross_unit(out: &mut Vector3, x: &Vector3, k: usize, w: f64) {
+    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+    // e_k × e_i = e_j and e_j × e_k = e_i, so x × e_k = x_j e_i − x_i e_j.
+    out[i] += x[j] * w;
+    out[j] -= x[i] * w;
 }
 
 #[cfg(test)]
@@ -156,5 +192,49 @@ mod tests {
         // duality (v ×̂ m)·f = −m·(v ×* f).
         assert!(v.cross_motion(&v).to_vector().norm() < 1e-15);
         assert!((v.cross_motion(&m).dot(&f) + m.dot(&v.cross_force(&f))).abs() < 1e-13);
+    }
+
+    /// `a + w (v ×̂ e_j)` and `a + x e_j` equal the general forms with the unit vector written
+    /// out, for every `j`; the sums of the components left alone are unchanged.
+    #[test]
+    fn unit_axis_forms_match_the_general_ones() {
+        let v = Motion::new(Vector3::new(0.3, -1.2, 0.7), Vector3::new(2.0, 0.1, -0.4));
+        let a = Motion::new(Vector3::new(-0.5, 0.9, 1.1), Vector3::new(0.2, -0.3, 0.6));
+        let w = -1.7;
+        for j in 0..6 {
+            let mut e = Vector6::zeros();
+            e[j] = 1.0;
+            let unit = Motion::from_vector(&e);
+            let mut ours = a;
+            ours.add_cross_axis(&v, j, w);
+            let general = a + v.cross_motion(&(unit * w));
+            assert!(
+                (ours.to_vector() - general.to_vector()).amax() < 1e-15,
+                "j = {j}"
+            );
+            let mut moved = a;
+            moved.add_along(j, w);
+            assert_eq!(moved.to_vector(), (a + unit * w).to_vector(), "j = {j}");
+        }
+    }
+
+    #[test]
+    fn finiteness_sees_every_component() {
+        let finite = Motion::new(
+            Vector3::new(1e300, -2.0, 0.0),
+            Vector3::new(-0.0, 5.0, 1e-300),
+        );
+        assert!(finite.is_finite());
+        for k in 0..6 {
+            for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                let mut x = finite.to_vector();
+                x[k] = bad;
+                assert!(
+                    !Motion::from_vector(&x).is_finite(),
+                    "component {k} = {bad}"
+                );
+                assert!(!Force::from_vector(&x).is_finite(), "component {k} = {bad}");
+            }
+        }
     }
 }

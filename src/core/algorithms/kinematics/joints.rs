@@ -14,12 +14,21 @@ use crate::Workspace;
 /// is compiled once for each form.
 ///
 /// [`JointKind::up_shape`]: crate::model::JointKind::up_shape
+///
+/// `with_up_transform!(shape: s, x_up: x, |x| ...)` takes the form and the transform themselves,
+/// for a pass that has already borrowed them from the workspace.
 macro_rules! with_up_transform {
-    ($ws:expr, $i:expr, |$x:ident| $body:expr) => {{
+    ($ws:expr, $i:expr, |$x:ident| $body:expr) => {
+        $crate::algorithms::kinematics::with_up_transform!(
+            shape: $ws.plan.up_shapes[$i],
+            x_up: &$ws.x_up[$i],
+            |$x| $body
+        )
+    };
+    (shape: $shape:expr, x_up: $x_up:expr, |$x:ident| $body:expr) => {{
         use $crate::model::UpShape;
         use $crate::spatial::{AxisTransform, Translation};
-        let (shape, x_up): (UpShape, &$crate::spatial::Transform) =
-            ($ws.plan.up_shapes[$i], &$ws.x_up[$i]);
+        let (shape, x_up): (UpShape, &$crate::spatial::Transform) = ($shape, $x_up);
         match shape {
             UpShape::General => {
                 let $x = x_up;
