@@ -46,7 +46,7 @@ use crate::algorithms::validate::{all_finite, check_inverse_inputs, check_result
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model, MotionSubspace};
-use crate::spatial::{Force, Motion, Translation, Vector3};
+use crate::spatial::{Force, Inertia, Motion, Translation, Vector3};
 use crate::Workspace;
 use nalgebra::DMatrix;
 
@@ -110,7 +110,22 @@ pub(crate) fn derivative_passes(
     ext: &Externals<'_>,
 ) {
     forward_pass(model, ws, v, a, ext);
-    backward_pass(model, ws);
+    backward_pass(model, ws, Target::Matrices);
+}
+
+/// Both passes for forward dynamics' derivatives: `−∂τ/∂q` and `−∂τ/∂q̇` straight into the
+/// right-hand sides of `aba_derivatives`' solve, `ws.derivatives.rhs_rows` laid out as
+/// [`SolveRows`] says, which must already hold zeros there. `τ` and `H` are not computed (CRBA
+/// made `H` and `q̈` from `τ`).
+pub(crate) fn derivative_passes_into_rows(
+    model: &Model,
+    ws: &mut Workspace,
+    v: &[f64],
+    a: &[f64],
+    ext: &Externals<'_>,
+) {
+    forward_pass(model, ws, v, a, ext);
+    backward_pass(model, ws, Target::SolveRows);
 }
 
 /// A planar joint's columns act in series (translations fixed to the parent, the turn to the
@@ -175,9 +190,18 @@ fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64], ext: &E
     }
 }
 
-/// Backward pass: sums `I^C`, `B^C`, `F` over each subtree and fills `τ`, `∂τ/∂q`, `∂τ/∂q̇` and
-/// `H`, each entry from the row's and the column's bodies (one an ancestor of the other).
-fn backward_pass(model: &Model, ws: &mut Workspace) {
+/// Where the backward pass writes: the matrices of [`RneaDerivatives`] with `τ`, or the rows
+/// of [`SolveRows`].
+#[derive(Clone, Copy)]
+enum Target {
+    Matrices,
+    SolveRows,
+}
+
+/// Backward pass: sums `I^C`, `B^C`, `F` over each subtree and fills the entries of `∂τ/∂q`,
+/// `∂τ/∂q̇` (and of `τ` and `H` into [`Matrices`]), each from the row's and the column's bodies
+/// (one an ancestor of the other).
+fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
     let Workspace {
         s_world,
         ic,
@@ -194,30 +218,80 @@ fn backward_pass(model: &Model, ws: &mut Workspace) {
         b,
         dtau_dq,
         dtau_dv,
+        rhs_rows,
         ..
     } = derivatives;
-    // On the storage slices: one memset each, where nalgebra's `fill` walks index by index.
-    dtau_dq.as_mut_slice().fill(0.0);
-    dtau_dv.as_mut_slice().fill(0.0);
-    mass_matrix.as_mut_slice().fill(0.0);
-    tau.as_mut_slice().fill(0.0);
-    // Column-major storage: entry (r, c) of an `n × n` matrix at `c n + r`.
+    let parts = Parts {
+        s: s_world,
+        psi,
+        alpha,
+        beta,
+    };
     let n = tau.len();
-    let (dq, dv, h) = (
-        dtau_dq.as_mut_slice(),
-        dtau_dv.as_mut_slice(),
-        mass_matrix.as_mut_slice(),
-    );
+    match target {
+        Target::Matrices => {
+            // On the storage slices: one memset each, where nalgebra's `fill` walks index by
+            // index.
+            let mut out = Matrices {
+                dq: dtau_dq.as_mut_slice(),
+                dv: dtau_dv.as_mut_slice(),
+                h: mass_matrix.as_mut_slice(),
+                tau: tau.as_mut_slice(),
+                n,
+            };
+            out.dq.fill(0.0);
+            out.dv.fill(0.0);
+            out.h.fill(0.0);
+            out.tau.fill(0.0);
+            sweep(model, &parts, ic, b, f, &mut out);
+        }
+        Target::SolveRows => {
+            let mut out = SolveRows {
+                rows: &mut rhs_rows[..3 * n * n],
+                nv: n,
+            };
+            sweep(model, &parts, ic, b, f, &mut out);
+        }
+    }
+}
+
+/// The forward pass's per-body columns the backward pass reads.
+struct Parts<'a> {
+    s: &'a [MotionSubspace],
+    psi: &'a [[Motion; 6]],
+    alpha: &'a [[Motion; 6]],
+    beta: &'a [[Motion; 6]],
+}
+
+impl Parts<'_> {
+    #[inline(always)]
+    fn columns(&self, i: usize) -> Columns<'_> {
+        Columns::of(&self.s[i], &self.psi[i], &self.alpha[i], &self.beta[i])
+    }
+}
+
+/// The backward pass proper, into `out`: the loops of the module's equations, leaves inward.
+#[inline(always)]
+fn sweep<O: Entries>(
+    model: &Model,
+    parts: &Parts<'_>,
+    ic: &mut [Inertia],
+    b: &mut [VelocityProduct],
+    f: &mut [Force],
+    out: &mut O,
+) {
     let above =
         |i: usize| std::iter::successors(model.bodies[i].parent, |&j| model.bodies[j].parent);
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let ci = body.joint.coords.v_index;
         let series = in_series(&body.joint.kind);
-        let nvi = s_world[i].nv;
-        let own = Columns::of(&s_world[i], &psi[i], &alpha[i], &beta[i]);
+        let nvi = parts.s[i].nv;
+        let own = parts.columns(i);
         for (n_i, &s) in own.s.iter().enumerate() {
             let row = ci + n_i;
-            tau[row] += s.dot(&f[i]);
+            if O::TAU_AND_H {
+                out.tau(row, s.dot(&f[i]));
+            }
             // Row (i, n) against the columns of i and its ancestors: I^C_i S and B^C_iᵀ S.
             // Column (i, n) against the rows above it: the forces its motion adds to F_i.
             let r = RowVectors {
@@ -232,33 +306,45 @@ fn backward_pass(model: &Model, ws: &mut Workspace) {
             // and those before n on the right.
             let left = if series { n_i + 1 } else { nvi };
             for m in 0..left {
-                let at = (ci + m) * n + row;
-                dq[at] += r.left_q(own.alpha[m], own.psi[m]);
-                dv[at] += r.left_v(own.beta[m], own.s[m]);
-                h[at] += own.s[m].dot(&r.ic_s);
+                let col = ci + m;
+                out.add(
+                    row,
+                    col,
+                    r.left_q(own.alpha[m], own.psi[m]),
+                    r.left_v(own.beta[m], own.s[m]),
+                );
+                if O::TAU_AND_H {
+                    out.add_h(row, col, own.s[m].dot(&r.ic_s));
+                }
             }
             for m in 0..if series { n_i } else { 0 } {
-                let at = row * n + ci + m;
-                dq[at] += own.s[m].dot(&r.w_q);
-                dv[at] += own.s[m].dot(&r.w_v);
-                h[at] += own.s[m].dot(&r.ic_s);
+                let col = ci + m;
+                out.add(col, row, own.s[m].dot(&r.w_q), own.s[m].dot(&r.w_v));
+                if O::TAU_AND_H {
+                    out.add_h(col, row, own.s[m].dot(&r.ic_s));
+                }
             }
             // Each ancestor column (j, m): the left entry in row (i, n), the right one in
             // column (i, n), and H's two (equal) entries from one product. Entries add up: a
             // mimic follower's row and column are its leader's.
             for j in above(i) {
                 let cj = model.bodies[j].joint.coords.v_index;
-                let c = Columns::of(&s_world[j], &psi[j], &alpha[j], &beta[j]);
+                let c = parts.columns(j);
                 let columns = c.s.iter().zip(c.psi).zip(c.alpha.iter().zip(c.beta));
                 for (m, ((s_j, psi_j), (alpha_j, beta_j))) in columns.enumerate() {
-                    let (in_row, in_col) = ((cj + m) * n + row, row * n + cj + m);
-                    dq[in_row] += r.left_q(*alpha_j, *psi_j);
-                    dv[in_row] += r.left_v(*beta_j, *s_j);
-                    dq[in_col] += s_j.dot(&r.w_q);
-                    dv[in_col] += s_j.dot(&r.w_v);
-                    let h_ij = s_j.dot(&r.ic_s);
-                    h[in_row] += h_ij;
-                    h[in_col] += h_ij;
+                    let col = cj + m;
+                    out.add(
+                        row,
+                        col,
+                        r.left_q(*alpha_j, *psi_j),
+                        r.left_v(*beta_j, *s_j),
+                    );
+                    out.add(col, row, s_j.dot(&r.w_q), s_j.dot(&r.w_v));
+                    if O::TAU_AND_H {
+                        let h_ij = s_j.dot(&r.ic_s);
+                        out.add_h(row, col, h_ij);
+                        out.add_h(col, row, h_ij);
+                    }
                 }
             }
         }
@@ -269,6 +355,69 @@ fn backward_pass(model: &Model, ws: &mut Workspace) {
             f[p] += f_i;
         }
     }
+}
+
+/// The entries the backward pass produces, `(row, column)` in `v` order; each adds to what is
+/// there (a mimic follower's entries go to its leader's).
+trait Entries {
+    /// Whether `τ` and `H` are wanted (else [`tau`](Self::tau), [`add_h`](Self::add_h) are
+    /// not called, nor their products computed).
+    const TAU_AND_H: bool;
+    /// `∂τ_r/∂q_c += dq`, `∂τ_r/∂q̇_c += dv`.
+    fn add(&mut self, r: usize, c: usize, dq: f64, dv: f64);
+    /// `H_rc += h`.
+    fn add_h(&mut self, r: usize, c: usize, h: f64);
+    /// `τ_r += x`.
+    fn tau(&mut self, r: usize, x: f64);
+}
+
+/// The `n × n` column-major storage of `∂τ/∂q`, `∂τ/∂q̇`, `H` (entry `(r, c)` at `c n + r`)
+/// and `τ`.
+struct Matrices<'a> {
+    dq: &'a mut [f64],
+    dv: &'a mut [f64],
+    h: &'a mut [f64],
+    tau: &'a mut [f64],
+    n: usize,
+}
+
+impl Entries for Matrices<'_> {
+    const TAU_AND_H: bool = true;
+    #[inline(always)]
+    fn add(&mut self, r: usize, c: usize, dq: f64, dv: f64) {
+        let at = c * self.n + r;
+        self.dq[at] += dq;
+        self.dv[at] += dv;
+    }
+    #[inline(always)]
+    fn add_h(&mut self, r: usize, c: usize, h: f64) {
+        self.h[c * self.n + r] += h;
+    }
+    #[inline(always)]
+    fn tau(&mut self, r: usize, x: f64) {
+        self.tau[r] += x;
+    }
+}
+
+/// The right-hand sides `[1 | −∂τ/∂q | −∂τ/∂q̇]` of `aba_derivatives`' solve, row by row: `nv`
+/// rows of `3 nv` entries, `−∂τ_r/∂q_c` at `3 nv r + nv + c`, `−∂τ_r/∂q̇_c` `nv` further on.
+struct SolveRows<'a> {
+    rows: &'a mut [f64],
+    nv: usize,
+}
+
+impl Entries for SolveRows<'_> {
+    const TAU_AND_H: bool = false;
+    #[inline(always)]
+    fn add(&mut self, r: usize, c: usize, dq: f64, dv: f64) {
+        let at = 3 * self.nv * r + self.nv + c;
+        self.rows[at] -= dq;
+        self.rows[at + self.nv] -= dv;
+    }
+    #[inline(always)]
+    fn add_h(&mut self, _: usize, _: usize, _: f64) {}
+    #[inline(always)]
+    fn tau(&mut self, _: usize, _: f64) {}
 }
 
 /// One body's columns `S_k` with their `ψ_k`, `α_k`, `β_k`, cut to its degrees of freedom.
