@@ -137,7 +137,8 @@ pub(crate) fn ltl_solve_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, x:
 /// With `identity_first`, the first `n` columns of `B` are the identity (`k ≥ n`), and there:
 /// row `i` of `Y = L⁻ᵀ` is zero outside the columns `i` and `D(i)` (`Y_i` gathers `e_i` and the
 /// rows below `i`, each zero outside its own subtree's range), so the first pass updates only
-/// those; and `X = H⁻¹` is symmetric, its row `m` at columns `c ≥ m` needs only its ancestors'
+/// the columns from `i` on (one contiguous range: the zeros past `D(i)` cost less to recompute
+/// than a second sweep per group); and `X = H⁻¹` is symmetric, its row `m` at columns `c ≥ m` needs only its ancestors'
 /// rows at the same columns (`c ≥ m > a`), so the second pass computes only the upper triangle
 /// of that block (the entries below it are left as scratch, not `H⁻¹`).
 pub(crate) fn ltl_solve_rows(
@@ -153,21 +154,14 @@ pub(crate) fn ltl_solve_rows(
         let (head, tail) = w.split_at_mut((i + 1) * k);
         let row_i = &mut head[i * k..];
         let below = ancestors.below(i);
-        // The columns to update: i's subtree in the identity block and all after it, or all.
-        let segments = if identity_first {
-            [i..below.end, n..k]
-        } else {
-            [0..k, 0..0]
-        };
-        let inv = 1.0 / l[i + i * n];
-        for s in segments {
-            let (tail, columns) = (&*tail, s.clone());
-            let terms = below.clone().map(move |m| {
-                let row_m = &tail[(m - i - 1) * k..(m - i) * k];
-                (l[m + i * n], &row_m[columns.clone()])
-            });
-            subtract_combination_and_scale(&mut row_i[s], terms, inv);
-        }
+        // The columns to update: from i on with the identity first (columns before i are zero
+        // in every row of the sum, and those past i's subtree up to n as well), or all.
+        let columns = if identity_first { i..k } else { 0..k };
+        let terms = below.clone().map(|m| {
+            let row_m = &tail[(m - i - 1) * k..(m - i) * k];
+            (l[m + i * n], &row_m[columns.clone()])
+        });
+        subtract_combination_and_scale(&mut row_i[columns.clone()], terms, 1.0 / l[i + i * n]);
     }
     for m in 0..n {
         let (head, tail) = w.split_at_mut(m * k);

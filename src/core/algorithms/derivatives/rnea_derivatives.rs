@@ -230,20 +230,40 @@ fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
     let n = tau.len();
     match target {
         Target::Matrices => {
-            // On the storage slices: one memset each, where nalgebra's `fill` walks index by
-            // index.
-            let mut out = Matrices {
-                dq: dtau_dq.as_mut_slice(),
-                dv: dtau_dv.as_mut_slice(),
-                h: mass_matrix.as_mut_slice(),
-                tau: tau.as_mut_slice(),
-                n,
-            };
-            out.dq.fill(0.0);
-            out.dv.fill(0.0);
-            out.h.fill(0.0);
-            out.tau.fill(0.0);
-            sweep(model, &parts, ic, b, f, &mut out);
+            let (dq, dv, h) = (
+                dtau_dq.as_mut_slice(),
+                dtau_dv.as_mut_slice(),
+                mass_matrix.as_mut_slice(),
+            );
+            // `H` is zeroed outside the tree's pattern (other algorithms write it whole), on
+            // the storage slice: one memset, where nalgebra's `fill` walks index by index.
+            h.fill(0.0);
+            if model.has_mimic() {
+                // A mimic follower's entries add to its leader's: sums from zero.
+                dq.fill(0.0);
+                dv.fill(0.0);
+                tau.fill(0.0);
+                let mut out = Matrices::<false> {
+                    dq,
+                    dv,
+                    h,
+                    tau: tau.as_mut_slice(),
+                    n,
+                };
+                sweep(model, &parts, ic, b, f, &mut out);
+            } else {
+                // Every entry on the tree's pattern is written once; those off it are zero
+                // from the workspace's allocation on, as only this pass writes `∂τ/∂q`,
+                // `∂τ/∂q̇` (and a workspace serves one model).
+                let mut out = Matrices::<true> {
+                    dq,
+                    dv,
+                    h,
+                    tau: tau.as_mut_slice(),
+                    n,
+                };
+                sweep(model, &parts, ic, b, f, &mut out);
+            }
         }
         Target::SolveRows => {
             let mut out = SolveRows {
@@ -357,8 +377,9 @@ fn sweep<O: Entries>(
     }
 }
 
-/// The entries the backward pass produces, `(row, column)` in `v` order; each adds to what is
-/// there (a mimic follower's entries go to its leader's).
+/// The entries the backward pass produces, `(row, column)` in `v` order. A mimic follower's
+/// entries go to its leader's, so with mimic joints an entry can come more than once and the
+/// values add up; without, each entry of the tree's pattern comes once.
 trait Entries {
     /// Whether `τ` and `H` are wanted (else [`tau`](Self::tau), [`add_h`](Self::add_h) are
     /// not called, nor their products computed).
@@ -372,8 +393,9 @@ trait Entries {
 }
 
 /// The `n × n` column-major storage of `∂τ/∂q`, `∂τ/∂q̇`, `H` (entry `(r, c)` at `c n + r`)
-/// and `τ`.
-struct Matrices<'a> {
+/// and `τ`. With `ASSIGN` each entry is written once (no mimic joints) and stored as it
+/// comes; without, entries add to what is there.
+struct Matrices<'a, const ASSIGN: bool> {
     dq: &'a mut [f64],
     dv: &'a mut [f64],
     h: &'a mut [f64],
@@ -381,21 +403,31 @@ struct Matrices<'a> {
     n: usize,
 }
 
-impl Entries for Matrices<'_> {
+/// `*y = x` with `ASSIGN`, else `*y += x`.
+#[inline(always)]
+fn put<const ASSIGN: bool>(y: &mut f64, x: f64) {
+    if ASSIGN {
+        *y = x;
+    } else {
+        *y += x;
+    }
+}
+
+impl<const ASSIGN: bool> Entries for Matrices<'_, ASSIGN> {
     const TAU_AND_H: bool = true;
     #[inline(always)]
     fn add(&mut self, r: usize, c: usize, dq: f64, dv: f64) {
         let at = c * self.n + r;
-        self.dq[at] += dq;
-        self.dv[at] += dv;
+        put::<ASSIGN>(&mut self.dq[at], dq);
+        put::<ASSIGN>(&mut self.dv[at], dv);
     }
     #[inline(always)]
     fn add_h(&mut self, r: usize, c: usize, h: f64) {
-        self.h[c * self.n + r] += h;
+        put::<ASSIGN>(&mut self.h[c * self.n + r], h);
     }
     #[inline(always)]
     fn tau(&mut self, r: usize, x: f64) {
-        self.tau[r] += x;
+        put::<ASSIGN>(&mut self.tau[r], x);
     }
 }
 
