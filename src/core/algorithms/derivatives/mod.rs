@@ -63,6 +63,10 @@ pub(crate) struct DerivativeScratch {
     /// The right-hand sides `[1 | −∂τ/∂q | −∂τ/∂q̇]` of `aba_derivatives`' solve, row by row
     /// (`nv` rows of `3 nv`), then its solutions.
     pub(crate) rhs_rows: Vec<f64>,
+    /// Per body: its six columns are a floating joint's in halves, the first three purely
+    /// linear and the last three purely angular (a tree's root, whose aligned frame has its
+    /// origin: `S = diag(R, R)` up to the order of the halves).
+    pub(crate) halves: Vec<bool>,
 }
 
 impl DerivativeScratch {
@@ -81,6 +85,7 @@ impl DerivativeScratch {
             ddq_dv: square(),
             minv: square(),
             rhs_rows: vec![0.0; 3 * nv * nv],
+            halves: vec![false; n],
         }
     }
 }

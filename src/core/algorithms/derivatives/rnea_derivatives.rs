@@ -183,6 +183,7 @@ fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64], ext: &E
             f_i -= x.transpose_apply_force(&w[i]);
         }
         d.b[i] = VelocityProduct::new(&inertia, &v_i);
+        d.halves[i] = body.joint.kind == JointKind::Floating && in_halves(s);
         ws.ic[i] = inertia;
         ws.f[i] = f_i;
         ws.v_world[i] = v_i;
@@ -219,6 +220,7 @@ fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
         dtau_dq,
         dtau_dv,
         rhs_rows,
+        halves,
         ..
     } = derivatives;
     let parts = Parts {
@@ -226,6 +228,7 @@ fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
         psi,
         alpha,
         beta,
+        halves,
     };
     let n = tau.len();
     match target {
@@ -281,6 +284,7 @@ struct Parts<'a> {
     psi: &'a [[Motion; 6]],
     alpha: &'a [[Motion; 6]],
     beta: &'a [[Motion; 6]],
+    halves: &'a [bool],
 }
 
 impl Parts<'_> {
@@ -348,23 +352,11 @@ fn sweep<O: Entries>(
             // column (i, n), and H's two (equal) entries from one product. Entries add up: a
             // mimic follower's row and column are its leader's.
             for j in above(i) {
-                let cj = model.bodies[j].joint.coords.v_index;
-                let c = parts.columns(j);
-                let columns = c.s.iter().zip(c.psi).zip(c.alpha.iter().zip(c.beta));
-                for (m, ((s_j, psi_j), (alpha_j, beta_j))) in columns.enumerate() {
-                    let col = cj + m;
-                    out.add(
-                        row,
-                        col,
-                        r.left_q(*alpha_j, *psi_j),
-                        r.left_v(*beta_j, *s_j),
-                    );
-                    out.add(col, row, s_j.dot(&r.w_q), s_j.dot(&r.w_v));
-                    if O::TAU_AND_H {
-                        let h_ij = s_j.dot(&r.ic_s);
-                        out.add_h(row, col, h_ij);
-                        out.add_h(col, row, h_ij);
-                    }
+                let (cj, c) = (model.bodies[j].joint.coords.v_index, parts.columns(j));
+                if parts.halves[j] {
+                    columns_in_halves(row, cj, &c, &r, out);
+                } else {
+                    ancestor_columns(row, cj, &c, &r, out);
                 }
             }
         }
@@ -375,6 +367,87 @@ fn sweep<O: Entries>(
             f[p] += f_i;
         }
     }
+}
+
+/// The entries of row `(i, n)` (its vectors `r`) against the columns `c` of an ancestor
+/// joint from `v` index `cj` on, and of those columns against it: the left entry in the row,
+/// the right one in the column, and `H`'s two (equal) entries from one product. Entries add
+/// up: a mimic follower's row and column are its leader's.
+#[inline(always)]
+fn ancestor_columns<O: Entries>(
+    row: usize,
+    cj: usize,
+    c: &Columns<'_>,
+    r: &RowVectors,
+    out: &mut O,
+) {
+    let columns = c.s.iter().zip(c.psi).zip(c.alpha.iter().zip(c.beta));
+    for (m, ((s_j, psi_j), (alpha_j, beta_j))) in columns.enumerate() {
+        let col = cj + m;
+        out.add(
+            row,
+            col,
+            r.left_q(*alpha_j, *psi_j),
+            r.left_v(*beta_j, *s_j),
+        );
+        out.add(col, row, s_j.dot(&r.w_q), s_j.dot(&r.w_v));
+        if O::TAU_AND_H {
+            let h_ij = s_j.dot(&r.ic_s);
+            out.add_h(row, col, h_ij);
+            out.add_h(col, row, h_ij);
+        }
+    }
+}
+
+/// [`ancestor_columns`] for a floating joint's columns [`in_halves`]: a linear column
+/// `S = (0, s)` has `Sᵀ w = s · w_lin` and no angular part for `B^Cᵀ S` to meet, an angular
+/// one `S = (s, 0)` has `Sᵀ w = s · w_ang`; the same sums without their zero terms (3
+/// multiplications for each product with `S` instead of 6). `α`, `β`, `ψ` are general.
+#[inline(always)]
+fn columns_in_halves<O: Entries>(
+    row: usize,
+    cj: usize,
+    c: &Columns<'_>,
+    r: &RowVectors,
+    out: &mut O,
+) {
+    for m in 0..6 {
+        let (col, s) = (cj + m, c.s[m]);
+        let (left_v, w_q, w_v, h_ij) = if m < 3 {
+            let s = s.lin;
+            let left_v = c.beta[m].dot(&r.ic_s);
+            (
+                left_v,
+                s.dot(&r.w_q.lin),
+                s.dot(&r.w_v.lin),
+                s.dot(&r.ic_s.lin),
+            )
+        } else {
+            let s = s.ang;
+            let left_v = c.beta[m].dot(&r.ic_s) + r.bt_s.dot(&s);
+            (
+                left_v,
+                s.dot(&r.w_q.ang),
+                s.dot(&r.w_v.ang),
+                s.dot(&r.ic_s.ang),
+            )
+        };
+        out.add(row, col, r.left_q(c.alpha[m], c.psi[m]), left_v);
+        out.add(col, row, w_q, w_v);
+        if O::TAU_AND_H {
+            out.add_h(row, col, h_ij);
+            out.add_h(col, row, h_ij);
+        }
+    }
+}
+
+/// The six columns of a floating joint come in halves: the first three have no angular part,
+/// the last three no linear part (exactly: then dropping those parts drops only zero terms).
+fn in_halves(s: &MotionSubspace) -> bool {
+    let zero = |v: &Vector3| v.iter().all(|&x| x == 0.0);
+    s.nv == 6
+        && s.cols[..3].iter().all(|c| zero(&c.ang))
+        && s.cols[3..6].iter().all(|c| zero(&c.lin))
 }
 
 /// The entries the backward pass produces, `(row, column)` in `v` order. A mimic follower's
