@@ -400,9 +400,11 @@ fn ancestor_columns<O: Entries>(
 }
 
 /// [`ancestor_columns`] for a floating joint's columns [`in_halves`]: a linear column
-/// `S = (0, s)` has `Sᵀ w = s · w_lin` and no angular part for `B^Cᵀ S` to meet, an angular
-/// one `S = (s, 0)` has `Sᵀ w = s · w_ang`; the same sums without their zero terms (3
-/// multiplications for each product with `S` instead of 6). `α`, `β`, `ψ` are general.
+/// `S = (0, s)` has `Sᵀ w = s · w_lin`, and its `ψ`, `α`, `β` are linear too (`m × (0, s) =
+/// (0, m_ω × s)` for any motion `m`), so `I^C_i S_i` meets only their linear parts and
+/// `B^C_iᵀ S_i` (angular) none of them; an angular column `S = (s, 0)` has `Sᵀ w = s · w_ang`
+/// and general `ψ`, `α`, `β`. The same sums without their zero terms (3 multiplications for
+/// each product with a linear column's vectors, or with `S`, instead of 6).
 #[inline(always)]
 fn columns_in_halves<O: Entries>(
     row: usize,
@@ -413,26 +415,20 @@ fn columns_in_halves<O: Entries>(
 ) {
     for m in 0..6 {
         let (col, s) = (cj + m, c.s[m]);
-        let (left_v, w_q, w_v, h_ij) = if m < 3 {
-            let s = s.lin;
-            let left_v = c.beta[m].dot(&r.ic_s);
-            (
-                left_v,
-                s.dot(&r.w_q.lin),
-                s.dot(&r.w_v.lin),
-                s.dot(&r.ic_s.lin),
-            )
+        let (left_q, left_v, w_q, w_v, h_ij) = if m < 3 {
+            let (s, ic_s) = (s.lin, r.ic_s.lin);
+            let left_q = c.alpha[m].lin.dot(&ic_s);
+            let left_v = c.beta[m].lin.dot(&ic_s);
+            let (w_q, w_v) = (s.dot(&r.w_q.lin), s.dot(&r.w_v.lin));
+            (left_q, left_v, w_q, w_v, s.dot(&ic_s))
         } else {
             let s = s.ang;
+            let left_q = r.left_q(c.alpha[m], c.psi[m]);
             let left_v = c.beta[m].dot(&r.ic_s) + r.bt_s.dot(&s);
-            (
-                left_v,
-                s.dot(&r.w_q.ang),
-                s.dot(&r.w_v.ang),
-                s.dot(&r.ic_s.ang),
-            )
+            let (w_q, w_v) = (s.dot(&r.w_q.ang), s.dot(&r.w_v.ang));
+            (left_q, left_v, w_q, w_v, s.dot(&r.ic_s.ang))
         };
-        out.add(row, col, r.left_q(c.alpha[m], c.psi[m]), left_v);
+        out.add(row, col, left_q, left_v);
         out.add(col, row, w_q, w_v);
         if O::TAU_AND_H {
             out.add_h(row, col, h_ij);
