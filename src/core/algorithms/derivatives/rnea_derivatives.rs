@@ -183,7 +183,7 @@ fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64], ext: &E
             f_i -= x.transpose_apply_force(&w[i]);
         }
         d.b[i] = VelocityProduct::new(&inertia, &v_i);
-        d.halves[i] = body.joint.kind == JointKind::Floating && in_halves(s);
+        d.halves[i] = matches!(body.joint.kind, JointKind::Floating) && in_halves(s);
         ws.ic[i] = inertia;
         ws.f[i] = f_i;
         ws.v_world[i] = v_i;
