@@ -130,13 +130,15 @@ pub(crate) fn ltl_solve_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, x:
 /// L X = Y, root outward:    X_m = (Y_m − Σ_{a ∈ A(m)} L_ma X_a) / L_mm      (A(m): m's ancestors)
 /// ```
 ///
-/// Each row gathers its sum four rows at a time ([`subtract_combination`]), reading and
-/// writing its own entries once per four terms.
+/// Each row gathers its sum four rows at a time and divides in the last sweep
+/// ([`subtract_combination_and_scale`]), reading and writing its own entries once per four
+/// terms.
 ///
 /// With `identity_first`, the first `n` columns of `B` are the identity (`k ≥ n`), and there:
 /// row `i` of `Y = L⁻ᵀ` is zero outside the columns `i` and `D(i)` (`Y_i` gathers `e_i` and the
 /// rows below `i`, each zero outside its own subtree's range), so the first pass updates only
-/// those; and `X = H⁻¹` is symmetric, its row `m` at columns `c ≥ m` needs only its ancestors'
+/// the columns from `i` on (one contiguous range: the zeros past `D(i)` cost less to recompute
+/// than a second sweep per group); and `X = H⁻¹` is symmetric, its row `m` at columns `c ≥ m` needs only its ancestors'
 /// rows at the same columns (`c ≥ m > a`), so the second pass computes only the upper triangle
 /// of that block (the entries below it are left as scratch, not `H⁻¹`).
 pub(crate) fn ltl_solve_rows(
@@ -152,24 +154,14 @@ pub(crate) fn ltl_solve_rows(
         let (head, tail) = w.split_at_mut((i + 1) * k);
         let row_i = &mut head[i * k..];
         let below = ancestors.below(i);
-        // The columns to update: i's subtree in the identity block and all after it, or all.
-        let segments = if identity_first {
-            [i..below.end, n..k]
-        } else {
-            [0..k, 0..0]
-        };
-        for s in segments.clone() {
-            let (tail, columns) = (&*tail, s.clone());
-            let terms = below.clone().map(move |m| {
-                let row_m = &tail[(m - i - 1) * k..(m - i) * k];
-                (l[m + i * n], &row_m[columns.clone()])
-            });
-            subtract_combination(&mut row_i[s], terms);
-        }
-        let inv = 1.0 / l[i + i * n];
-        for s in segments {
-            row_i[s].iter_mut().for_each(|y| *y *= inv);
-        }
+        // The columns to update: from i on with the identity first (columns before i are zero
+        // in every row of the sum, and those past i's subtree up to n as well), or all.
+        let columns = if identity_first { i..k } else { 0..k };
+        let terms = below.clone().map(|m| {
+            let row_m = &tail[(m - i - 1) * k..(m - i) * k];
+            (l[m + i * n], &row_m[columns.clone()])
+        });
+        subtract_combination_and_scale(&mut row_i[columns.clone()], terms, 1.0 / l[i + i * n]);
     }
     for m in 0..n {
         let (head, tail) = w.split_at_mut(m * k);
@@ -179,56 +171,73 @@ pub(crate) fn ltl_solve_rows(
             .of(m)
             .iter()
             .map(|&a| (l[m + a * n], &head[a * k + first..(a + 1) * k]));
-        subtract_combination(row_m, terms);
-        let inv = 1.0 / l[m + m * n];
-        row_m.iter_mut().for_each(|x| *x *= inv);
+        subtract_combination_and_scale(row_m, terms, 1.0 / l[m + m * n]);
     }
 }
 
-/// `y −= Σ_t c_t x_t` over the terms `(c_t, x_t)` (each `x_t` as long as `y`), four terms per
-/// sweep over `y`: each entry of `y` is loaded and stored once per four products.
+/// `y ← (y − Σ_t c_t x_t) s` over the terms `(c_t, x_t)` (each `x_t` as long as `y`), four
+/// terms per sweep over `y`: each entry of `y` is loaded and stored once per four products, and
+/// the scaling is done in the last sweep.
 #[inline(always)]
-fn subtract_combination<'a>(y: &mut [f64], terms: impl Iterator<Item = (f64, &'a [f64])>) {
-    let mut group: [(f64, &[f64]); 4] = [(0.0, &[]); 4];
-    let mut len = 0;
-    for term in terms {
-        group[len] = term;
-        len += 1;
-        if len == 4 {
-            let [(a, p), (b, q), (c, r), (d, s)] = group;
-            let n = y.len();
-            let (p, q, r, s) = (&p[..n], &q[..n], &r[..n], &s[..n]);
-            for (j, y) in y.iter_mut().enumerate() {
-                *y -= (a * p[j] + b * q[j]) + (c * r[j] + d * s[j]);
-            }
-            len = 0;
-        }
-    }
+fn subtract_combination_and_scale<'a>(
+    y: &mut [f64],
+    terms: impl Iterator<Item = (f64, &'a [f64])>,
+    scale: f64,
+) {
+    let mut terms = terms.peekable();
     let n = y.len();
-    match group[..len] {
-        [(a, p), (b, q), (c, r)] => {
-            let (p, q, r) = (&p[..n], &q[..n], &r[..n]);
-            for (j, y) in y.iter_mut().enumerate() {
-                *y -= (a * p[j] + b * q[j]) + c * r[j];
+    while let Some(first) = terms.next() {
+        let mut group: [(f64, &[f64]); 4] = [first, (0.0, &[]), (0.0, &[]), (0.0, &[])];
+        let mut len = 1;
+        while len < 4 {
+            match terms.next() {
+                Some(term) => group[len] = term,
+                None => break,
             }
+            len += 1;
         }
-        [(a, p), (b, q)] => {
-            let (p, q) = (&p[..n], &q[..n]);
-            for (j, y) in y.iter_mut().enumerate() {
-                *y -= a * p[j] + b * q[j];
+        let last = terms.peek().is_none();
+        match group[..len] {
+            [(a, p), (b, q), (c, r), (d, s)] => {
+                let (p, q, r, s) = (&p[..n], &q[..n], &r[..n], &s[..n]);
+                let sum = |j: usize| (a * p[j] + b * q[j]) + (c * r[j] + d * s[j]);
+                if last {
+                    for (j, y) in y.iter_mut().enumerate() {
+                        *y = (*y - sum(j)) * scale;
+                    }
+                } else {
+                    for (j, y) in y.iter_mut().enumerate() {
+                        *y -= sum(j);
+                    }
+                }
             }
+            // Fewer than four terms: the last sweep.
+            [(a, p), (b, q), (c, r)] => {
+                let (p, q, r) = (&p[..n], &q[..n], &r[..n]);
+                for (j, y) in y.iter_mut().enumerate() {
+                    *y = (*y - ((a * p[j] + b * q[j]) + c * r[j])) * scale;
+                }
+            }
+            [(a, p), (b, q)] => {
+                let (p, q) = (&p[..n], &q[..n]);
+                for (j, y) in y.iter_mut().enumerate() {
+                    *y = (*y - (a * p[j] + b * q[j])) * scale;
+                }
+            }
+            [(a, p)] => {
+                let p = &p[..n];
+                for (y, p) in y.iter_mut().zip(p) {
+                    *y = (*y - a * p) * scale;
+                }
+            }
+            _ => {}
         }
-        [(a, p)] => axpy(y, -a, p),
-        _ => {}
+        if last {
+            return;
+        }
     }
-}
-
-/// `y += a x`, entry by entry.
-#[inline(always)]
-fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
-    for (y, x) in y.iter_mut().zip(x) {
-        *y += a * x;
-    }
+    // No terms at all.
+    y.iter_mut().for_each(|y| *y *= scale);
 }
 
 #[cfg(test)]

@@ -300,6 +300,47 @@ fn the_mass_matrix_is_crba_s_and_minv_inverts_it() {
     }
 }
 
+/// A workspace that has served other states and algorithms (forward dynamics by RNEA
+/// columns, which writes `H` whole; both derivatives at another state) gives exactly the
+/// derivatives a fresh one gives: sums restart from zero (mimic joints add entries up) and
+/// nothing is left from before off the tree's pattern.
+#[test]
+fn a_used_workspace_gives_a_fresh_one_s_derivatives() {
+    for (case, model) in models() {
+        let (s1, s2) = (state(&model, 21), state(&model, 22));
+        let mut used = Workspace::new(&model);
+        let none = Externals::none();
+        forward_dynamics(
+            &model,
+            &mut used,
+            &s1.q,
+            &s1.v,
+            &s1.a,
+            ForwardDynamicsMethod::RneaColumns,
+            &none,
+        )
+        .unwrap();
+        rnea_derivatives(&model, &mut used, &s1.q, &s1.v, &s1.a).unwrap();
+        aba_derivatives(&model, &mut used, &s1.q, &s1.v, &s1.a, &none).unwrap();
+        rnea_derivatives(&model, &mut used, &s1.q, &s1.v, &s1.a).unwrap();
+        let mut fresh = Workspace::new(&model);
+        let d = rnea_derivatives(&model, &mut used, &s2.q, &s2.v, &s2.a).unwrap();
+        let (dq, dv, h) = (d.dtau_dq.clone(), d.dtau_dv.clone(), d.mass_matrix.clone());
+        let tau = used.tau().to_vec();
+        let f = rnea_derivatives(&model, &mut fresh, &s2.q, &s2.v, &s2.a).unwrap();
+        assert_eq!(
+            (&dq, &dv, &h),
+            (f.dtau_dq, f.dtau_dv, f.mass_matrix),
+            "{case}"
+        );
+        assert_eq!(tau, fresh.tau(), "{case}: τ");
+        let d = aba_derivatives(&model, &mut used, &s2.q, &s2.v, &s2.a, &none).unwrap();
+        let (dq, dv, minv) = (d.ddq_dq.clone(), d.ddq_dv.clone(), d.minv.clone());
+        let f = aba_derivatives(&model, &mut fresh, &s2.q, &s2.v, &s2.a, &none).unwrap();
+        assert_eq!((&dq, &dv, &minv), (f.ddq_dq, f.ddq_dv, f.minv), "{case}");
+    }
+}
+
 #[test]
 fn derivatives_do_not_depend_on_how_far_a_rail_carries_the_robot() {
     let model = load(&pendulum_on_a_rail(8), ModelOptions::default());

@@ -10,7 +10,7 @@
 //! `q̈` comes from `H q̈ = τ − C` (`H` by CRBA, factored as `LᵀL` along the tree or by Cholesky
 //! with mimic joints); `H⁻¹` and both products with it from that factor, one solve per column.
 
-use super::rnea_derivatives::{check_matrix, derivative_passes};
+use super::rnea_derivatives::{check_matrix, derivative_passes_into_rows};
 use crate::algorithms::cholesky::cholesky_solve_rows;
 use crate::algorithms::forward_dynamics::crba_solve_on_joints;
 use crate::algorithms::kinematics::update_joints;
@@ -52,7 +52,8 @@ pub fn aba_derivatives<'w>(
     // The passes read q̈ while they write the workspace: lend it out (an empty vector holds no
     // allocation) and put it back.
     let qdd = std::mem::replace(&mut ws.qdd, DVector::zeros(0));
-    derivative_passes(model, ws, v, qdd.as_slice(), ext);
+    identity_and_zeros(&mut ws.derivatives.rhs_rows, model.nv);
+    derivative_passes_into_rows(model, ws, v, qdd.as_slice(), ext);
     ws.qdd = qdd;
     solve_with_factor(ws);
     let d = &ws.derivatives;
@@ -73,8 +74,20 @@ pub fn aba_derivatives<'w>(
     })
 }
 
+/// The right-hand sides `[1 | −∂τ/∂q | −∂τ/∂q̇]` before the passes add the derivatives: row
+/// `i` (of `3 nv` entries) is `e_iᵀ` then zeros.
+fn identity_and_zeros(rows: &mut [f64], nv: usize) {
+    let k = 3 * nv;
+    let rows = &mut rows[..k * nv];
+    rows.fill(0.0);
+    for i in 0..nv {
+        rows[i * k + i] = 1.0;
+    }
+}
+
 /// `H⁻¹` into `ws.derivatives.minv` and `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` into `ddq_dq`, `ddq_dv`,
-/// solving `H X = B` for `B = [1 | −∂τ/∂q | −∂τ/∂q̇]` with the factor `crba_solve_on_joints` left
+/// solving `H X = B` for `B = [1 | −∂τ/∂q | −∂τ/∂q̇]` (held row by row in
+/// `ws.derivatives.rhs_rows`, `nv` rows of `3 nv`) with the factor `crba_solve_on_joints` left
 /// in `ws.factor`. The `3 nv` right-hand sides go row by row (each step an update of whole rows):
 /// along the tree ([`ltl_solve_rows`]) over the non-zeros of `L`, `O(nv d)` per column for depth
 /// `d`, where a product with the dense `H⁻¹` costs `nv²`; with mimic joints through the dense
@@ -88,24 +101,6 @@ fn solve_with_factor(ws: &mut Workspace) {
     }
     let k = 3 * nv;
     let rows = &mut d.rhs_rows[..k * nv];
-    // Row i of B: e_iᵀ, then row i of −∂τ/∂q and of −∂τ/∂q̇ (column c of each, stored
-    // contiguously, gives entry c of every row).
-    for (i, row) in rows.chunks_exact_mut(k).enumerate() {
-        row[..nv].fill(0.0);
-        row[i] = 1.0;
-    }
-    for (c, (dq, dv)) in d
-        .dtau_dq
-        .as_slice()
-        .chunks_exact(nv)
-        .zip(d.dtau_dv.as_slice().chunks_exact(nv))
-        .enumerate()
-    {
-        for (row, (dq, dv)) in rows.chunks_exact_mut(k).zip(dq.iter().zip(dv)) {
-            row[nv + c] = -dq;
-            row[2 * nv + c] = -dv;
-        }
-    }
     match &plan.dof_ancestors {
         Some(ancestors) => ltl_solve_rows(ancestors, factor, rows, k, true),
         None => cholesky_solve_rows(factor, rows, k),

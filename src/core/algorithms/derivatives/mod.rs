@@ -50,9 +50,10 @@ pub(crate) struct DerivativeScratch {
     /// `B_i`, then its sum over the subtree `B^C_i`: the velocity-product matrix of the body
     /// forces (`∂f/∂v` through the velocity-dependent terms), in its sparse form.
     pub(crate) b: Vec<VelocityProduct>,
-    /// `∂τ/∂q` (nv × nv).
+    /// `∂τ/∂q` (nv × nv). Only `rnea_derivatives` writes it, and only on the tree's pattern
+    /// (row and column on one branch): the entries off it stay zero from allocation on.
     pub(crate) dtau_dq: DMatrix<f64>,
-    /// `∂τ/∂q̇` (nv × nv).
+    /// `∂τ/∂q̇` (nv × nv), written as `∂τ/∂q`.
     pub(crate) dtau_dv: DMatrix<f64>,
     /// `∂q̈/∂q` (nv × nv).
     pub(crate) ddq_dq: DMatrix<f64>,
@@ -61,8 +62,13 @@ pub(crate) struct DerivativeScratch {
     /// `H⁻¹ = ∂q̈/∂τ` (nv × nv).
     pub(crate) minv: DMatrix<f64>,
     /// The right-hand sides `[1 | −∂τ/∂q | −∂τ/∂q̇]` of `aba_derivatives`' solve, row by row
-    /// (`nv` rows of `3 nv`), then its solutions.
+    /// (`nv` rows of `3 nv`; the derivative passes write `−∂τ/∂q`, `−∂τ/∂q̇` there), then its
+    /// solutions.
     pub(crate) rhs_rows: Vec<f64>,
+    /// Per body: its six columns are a floating joint's in halves, the first three purely
+    /// linear and the last three purely angular (a tree's root, whose aligned frame has its
+    /// origin: `S = diag(R, R)` up to the order of the halves).
+    pub(crate) halves: Vec<bool>,
 }
 
 impl DerivativeScratch {
@@ -81,6 +87,7 @@ impl DerivativeScratch {
             ddq_dv: square(),
             minv: square(),
             rhs_rows: vec![0.0; 3 * nv * nv],
+            halves: vec![false; n],
         }
     }
 }

@@ -46,7 +46,7 @@ use crate::algorithms::validate::{all_finite, check_inverse_inputs, check_result
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model, MotionSubspace};
-use crate::spatial::{Force, Motion, Translation, Vector3};
+use crate::spatial::{Force, Inertia, Motion, Translation, Vector3};
 use crate::Workspace;
 use nalgebra::DMatrix;
 
@@ -110,7 +110,22 @@ pub(crate) fn derivative_passes(
     ext: &Externals<'_>,
 ) {
     forward_pass(model, ws, v, a, ext);
-    backward_pass(model, ws);
+    backward_pass(model, ws, Target::Matrices);
+}
+
+/// Both passes for forward dynamics' derivatives: `−∂τ/∂q` and `−∂τ/∂q̇` straight into the
+/// right-hand sides of `aba_derivatives`' solve, `ws.derivatives.rhs_rows` laid out as
+/// [`SolveRows`] says, which must already hold zeros there. `τ` and `H` are not computed (CRBA
+/// made `H` and `q̈` from `τ`).
+pub(crate) fn derivative_passes_into_rows(
+    model: &Model,
+    ws: &mut Workspace,
+    v: &[f64],
+    a: &[f64],
+    ext: &Externals<'_>,
+) {
+    forward_pass(model, ws, v, a, ext);
+    backward_pass(model, ws, Target::SolveRows);
 }
 
 /// A planar joint's columns act in series (translations fixed to the parent, the turn to the
@@ -168,6 +183,7 @@ fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64], ext: &E
             f_i -= x.transpose_apply_force(&w[i]);
         }
         d.b[i] = VelocityProduct::new(&inertia, &v_i);
+        d.halves[i] = matches!(body.joint.kind, JointKind::Floating) && in_halves(s);
         ws.ic[i] = inertia;
         ws.f[i] = f_i;
         ws.v_world[i] = v_i;
@@ -175,9 +191,18 @@ fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64], ext: &E
     }
 }
 
-/// Backward pass: sums `I^C`, `B^C`, `F` over each subtree and fills `τ`, `∂τ/∂q`, `∂τ/∂q̇` and
-/// `H`, each entry from the row's and the column's bodies (one an ancestor of the other).
-fn backward_pass(model: &Model, ws: &mut Workspace) {
+/// Where the backward pass writes: the matrices of [`RneaDerivatives`] with `τ`, or the rows
+/// of [`SolveRows`].
+#[derive(Clone, Copy)]
+enum Target {
+    Matrices,
+    SolveRows,
+}
+
+/// Backward pass: sums `I^C`, `B^C`, `F` over each subtree and fills the entries of `∂τ/∂q`,
+/// `∂τ/∂q̇` (and of `τ` and `H` into [`Matrices`]), each from the row's and the column's bodies
+/// (one an ancestor of the other).
+fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
     let Workspace {
         s_world,
         ic,
@@ -194,30 +219,103 @@ fn backward_pass(model: &Model, ws: &mut Workspace) {
         b,
         dtau_dq,
         dtau_dv,
+        rhs_rows,
+        halves,
         ..
     } = derivatives;
-    // On the storage slices: one memset each, where nalgebra's `fill` walks index by index.
-    dtau_dq.as_mut_slice().fill(0.0);
-    dtau_dv.as_mut_slice().fill(0.0);
-    mass_matrix.as_mut_slice().fill(0.0);
-    tau.as_mut_slice().fill(0.0);
-    // Column-major storage: entry (r, c) of an `n × n` matrix at `c n + r`.
+    let parts = Parts {
+        s: s_world,
+        psi,
+        alpha,
+        beta,
+        halves,
+    };
     let n = tau.len();
-    let (dq, dv, h) = (
-        dtau_dq.as_mut_slice(),
-        dtau_dv.as_mut_slice(),
-        mass_matrix.as_mut_slice(),
-    );
+    match target {
+        Target::Matrices => {
+            let (dq, dv, h) = (
+                dtau_dq.as_mut_slice(),
+                dtau_dv.as_mut_slice(),
+                mass_matrix.as_mut_slice(),
+            );
+            // `H` is zeroed outside the tree's pattern (other algorithms write it whole), on
+            // the storage slice: one memset, where nalgebra's `fill` walks index by index.
+            h.fill(0.0);
+            if model.has_mimic() {
+                // A mimic follower's entries add to its leader's: sums from zero.
+                dq.fill(0.0);
+                dv.fill(0.0);
+                tau.fill(0.0);
+                let mut out = Matrices::<false> {
+                    dq,
+                    dv,
+                    h,
+                    tau: tau.as_mut_slice(),
+                    n,
+                };
+                sweep(model, &parts, ic, b, f, &mut out);
+            } else {
+                // Every entry on the tree's pattern is written once; those off it are zero
+                // from the workspace's allocation on, as only this pass writes `∂τ/∂q`,
+                // `∂τ/∂q̇` (and a workspace serves one model).
+                let mut out = Matrices::<true> {
+                    dq,
+                    dv,
+                    h,
+                    tau: tau.as_mut_slice(),
+                    n,
+                };
+                sweep(model, &parts, ic, b, f, &mut out);
+            }
+        }
+        Target::SolveRows => {
+            let mut out = SolveRows {
+                rows: &mut rhs_rows[..3 * n * n],
+                nv: n,
+            };
+            sweep(model, &parts, ic, b, f, &mut out);
+        }
+    }
+}
+
+/// The forward pass's per-body columns the backward pass reads.
+struct Parts<'a> {
+    s: &'a [MotionSubspace],
+    psi: &'a [[Motion; 6]],
+    alpha: &'a [[Motion; 6]],
+    beta: &'a [[Motion; 6]],
+    halves: &'a [bool],
+}
+
+impl Parts<'_> {
+    #[inline(always)]
+    fn columns(&self, i: usize) -> Columns<'_> {
+        Columns::of(&self.s[i], &self.psi[i], &self.alpha[i], &self.beta[i])
+    }
+}
+
+/// The backward pass proper, into `out`: the loops of the module's equations, leaves inward.
+#[inline(always)]
+fn sweep<O: Entries>(
+    model: &Model,
+    parts: &Parts<'_>,
+    ic: &mut [Inertia],
+    b: &mut [VelocityProduct],
+    f: &mut [Force],
+    out: &mut O,
+) {
     let above =
         |i: usize| std::iter::successors(model.bodies[i].parent, |&j| model.bodies[j].parent);
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let ci = body.joint.coords.v_index;
         let series = in_series(&body.joint.kind);
-        let nvi = s_world[i].nv;
-        let own = Columns::of(&s_world[i], &psi[i], &alpha[i], &beta[i]);
+        let nvi = parts.s[i].nv;
+        let own = parts.columns(i);
         for (n_i, &s) in own.s.iter().enumerate() {
             let row = ci + n_i;
-            tau[row] += s.dot(&f[i]);
+            if O::TAU_AND_H {
+                out.tau(row, s.dot(&f[i]));
+            }
             // Row (i, n) against the columns of i and its ancestors: I^C_i S and B^C_iᵀ S.
             // Column (i, n) against the rows above it: the forces its motion adds to F_i.
             let r = RowVectors {
@@ -232,33 +330,33 @@ fn backward_pass(model: &Model, ws: &mut Workspace) {
             // and those before n on the right.
             let left = if series { n_i + 1 } else { nvi };
             for m in 0..left {
-                let at = (ci + m) * n + row;
-                dq[at] += r.left_q(own.alpha[m], own.psi[m]);
-                dv[at] += r.left_v(own.beta[m], own.s[m]);
-                h[at] += own.s[m].dot(&r.ic_s);
+                let col = ci + m;
+                out.add(
+                    row,
+                    col,
+                    r.left_q(own.alpha[m], own.psi[m]),
+                    r.left_v(own.beta[m], own.s[m]),
+                );
+                if O::TAU_AND_H {
+                    out.add_h(row, col, own.s[m].dot(&r.ic_s));
+                }
             }
             for m in 0..if series { n_i } else { 0 } {
-                let at = row * n + ci + m;
-                dq[at] += own.s[m].dot(&r.w_q);
-                dv[at] += own.s[m].dot(&r.w_v);
-                h[at] += own.s[m].dot(&r.ic_s);
+                let col = ci + m;
+                out.add(col, row, own.s[m].dot(&r.w_q), own.s[m].dot(&r.w_v));
+                if O::TAU_AND_H {
+                    out.add_h(col, row, own.s[m].dot(&r.ic_s));
+                }
             }
             // Each ancestor column (j, m): the left entry in row (i, n), the right one in
             // column (i, n), and H's two (equal) entries from one product. Entries add up: a
             // mimic follower's row and column are its leader's.
             for j in above(i) {
-                let cj = model.bodies[j].joint.coords.v_index;
-                let c = Columns::of(&s_world[j], &psi[j], &alpha[j], &beta[j]);
-                let columns = c.s.iter().zip(c.psi).zip(c.alpha.iter().zip(c.beta));
-                for (m, ((s_j, psi_j), (alpha_j, beta_j))) in columns.enumerate() {
-                    let (in_row, in_col) = ((cj + m) * n + row, row * n + cj + m);
-                    dq[in_row] += r.left_q(*alpha_j, *psi_j);
-                    dv[in_row] += r.left_v(*beta_j, *s_j);
-                    dq[in_col] += s_j.dot(&r.w_q);
-                    dv[in_col] += s_j.dot(&r.w_v);
-                    let h_ij = s_j.dot(&r.ic_s);
-                    h[in_row] += h_ij;
-                    h[in_col] += h_ij;
+                let (cj, c) = (model.bodies[j].joint.coords.v_index, parts.columns(j));
+                if parts.halves[j] {
+                    columns_in_halves(row, cj, &c, &r, out);
+                } else {
+                    ancestor_columns(row, cj, &c, &r, out);
                 }
             }
         }
@@ -269,6 +367,158 @@ fn backward_pass(model: &Model, ws: &mut Workspace) {
             f[p] += f_i;
         }
     }
+}
+
+/// The entries of row `(i, n)` (its vectors `r`) against the columns `c` of an ancestor
+/// joint from `v` index `cj` on, and of those columns against it: the left entry in the row,
+/// the right one in the column, and `H`'s two (equal) entries from one product. Entries add
+/// up: a mimic follower's row and column are its leader's.
+#[inline(always)]
+fn ancestor_columns<O: Entries>(
+    row: usize,
+    cj: usize,
+    c: &Columns<'_>,
+    r: &RowVectors,
+    out: &mut O,
+) {
+    let columns = c.s.iter().zip(c.psi).zip(c.alpha.iter().zip(c.beta));
+    for (m, ((s_j, psi_j), (alpha_j, beta_j))) in columns.enumerate() {
+        let col = cj + m;
+        out.add(
+            row,
+            col,
+            r.left_q(*alpha_j, *psi_j),
+            r.left_v(*beta_j, *s_j),
+        );
+        out.add(col, row, s_j.dot(&r.w_q), s_j.dot(&r.w_v));
+        if O::TAU_AND_H {
+            let h_ij = s_j.dot(&r.ic_s);
+            out.add_h(row, col, h_ij);
+            out.add_h(col, row, h_ij);
+        }
+    }
+}
+
+/// [`ancestor_columns`] for a floating joint's columns [`in_halves`]: a linear column
+/// `S = (0, s)` has `Sᵀ w = s · w_lin`, and its `ψ`, `α`, `β` are linear too (`m × (0, s) =
+/// (0, m_ω × s)` for any motion `m`), so `I^C_i S_i` meets only their linear parts and
+/// `B^C_iᵀ S_i` (angular) none of them; an angular column `S = (s, 0)` has `Sᵀ w = s · w_ang`
+/// and general `ψ`, `α`, `β`. The same sums without their zero terms (3 multiplications for
+/// each product with a linear column's vectors, or with `S`, instead of 6).
+#[inline(always)]
+fn columns_in_halves<O: Entries>(
+    row: usize,
+    cj: usize,
+    c: &Columns<'_>,
+    r: &RowVectors,
+    out: &mut O,
+) {
+    for m in 0..6 {
+        let (col, s) = (cj + m, c.s[m]);
+        let (left_q, left_v, w_q, w_v, h_ij) = if m < 3 {
+            let (s, ic_s) = (s.lin, r.ic_s.lin);
+            let left_q = c.alpha[m].lin.dot(&ic_s);
+            let left_v = c.beta[m].lin.dot(&ic_s);
+            let (w_q, w_v) = (s.dot(&r.w_q.lin), s.dot(&r.w_v.lin));
+            (left_q, left_v, w_q, w_v, s.dot(&ic_s))
+        } else {
+            let s = s.ang;
+            let left_q = r.left_q(c.alpha[m], c.psi[m]);
+            let left_v = c.beta[m].dot(&r.ic_s) + r.bt_s.dot(&s);
+            let (w_q, w_v) = (s.dot(&r.w_q.ang), s.dot(&r.w_v.ang));
+            (left_q, left_v, w_q, w_v, s.dot(&r.ic_s.ang))
+        };
+        out.add(row, col, left_q, left_v);
+        out.add(col, row, w_q, w_v);
+        if O::TAU_AND_H {
+            out.add_h(row, col, h_ij);
+            out.add_h(col, row, h_ij);
+        }
+    }
+}
+
+/// The six columns of a floating joint come in halves: the first three have no angular part,
+/// the last three no linear part (exactly: then dropping those parts drops only zero terms).
+fn in_halves(s: &MotionSubspace) -> bool {
+    let zero = |v: &Vector3| v.iter().all(|&x| x == 0.0);
+    s.nv == 6
+        && s.cols[..3].iter().all(|c| zero(&c.ang))
+        && s.cols[3..6].iter().all(|c| zero(&c.lin))
+}
+
+/// The entries the backward pass produces, `(row, column)` in `v` order. A mimic follower's
+/// entries go to its leader's, so with mimic joints an entry can come more than once and the
+/// values add up; without, each entry of the tree's pattern comes once.
+trait Entries {
+    /// Whether `τ` and `H` are wanted (else [`tau`](Self::tau), [`add_h`](Self::add_h) are
+    /// not called, nor their products computed).
+    const TAU_AND_H: bool;
+    /// `∂τ_r/∂q_c += dq`, `∂τ_r/∂q̇_c += dv`.
+    fn add(&mut self, r: usize, c: usize, dq: f64, dv: f64);
+    /// `H_rc += h`.
+    fn add_h(&mut self, r: usize, c: usize, h: f64);
+    /// `τ_r += x`.
+    fn tau(&mut self, r: usize, x: f64);
+}
+
+/// The `n × n` column-major storage of `∂τ/∂q`, `∂τ/∂q̇`, `H` (entry `(r, c)` at `c n + r`)
+/// and `τ`. With `ASSIGN` each entry is written once (no mimic joints) and stored as it
+/// comes; without, entries add to what is there.
+struct Matrices<'a, const ASSIGN: bool> {
+    dq: &'a mut [f64],
+    dv: &'a mut [f64],
+    h: &'a mut [f64],
+    tau: &'a mut [f64],
+    n: usize,
+}
+
+/// `*y = x` with `ASSIGN`, else `*y += x`.
+#[inline(always)]
+fn put<const ASSIGN: bool>(y: &mut f64, x: f64) {
+    if ASSIGN {
+        *y = x;
+    } else {
+        *y += x;
+    }
+}
+
+impl<const ASSIGN: bool> Entries for Matrices<'_, ASSIGN> {
+    const TAU_AND_H: bool = true;
+    #[inline(always)]
+    fn add(&mut self, r: usize, c: usize, dq: f64, dv: f64) {
+        let at = c * self.n + r;
+        put::<ASSIGN>(&mut self.dq[at], dq);
+        put::<ASSIGN>(&mut self.dv[at], dv);
+    }
+    #[inline(always)]
+    fn add_h(&mut self, r: usize, c: usize, h: f64) {
+        put::<ASSIGN>(&mut self.h[c * self.n + r], h);
+    }
+    #[inline(always)]
+    fn tau(&mut self, r: usize, x: f64) {
+        put::<ASSIGN>(&mut self.tau[r], x);
+    }
+}
+
+/// The right-hand sides `[1 | −∂τ/∂q | −∂τ/∂q̇]` of `aba_derivatives`' solve, row by row: `nv`
+/// rows of `3 nv` entries, `−∂τ_r/∂q_c` at `3 nv r + nv + c`, `−∂τ_r/∂q̇_c` `nv` further on.
+struct SolveRows<'a> {
+    rows: &'a mut [f64],
+    nv: usize,
+}
+
+impl Entries for SolveRows<'_> {
+    const TAU_AND_H: bool = false;
+    #[inline(always)]
+    fn add(&mut self, r: usize, c: usize, dq: f64, dv: f64) {
+        let at = 3 * self.nv * r + self.nv + c;
+        self.rows[at] -= dq;
+        self.rows[at + self.nv] -= dv;
+    }
+    #[inline(always)]
+    fn add_h(&mut self, _: usize, _: usize, _: f64) {}
+    #[inline(always)]
+    fn tau(&mut self, _: usize, _: f64) {}
 }
 
 /// One body's columns `S_k` with their `ψ_k`, `α_k`, `β_k`, cut to its degrees of freedom.
