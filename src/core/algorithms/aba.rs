@@ -40,8 +40,8 @@ use super::kinematics::{
 use super::validate::{check_forward_inputs, check_result};
 use super::{pivot_is_sound, Externals};
 use crate::error::DynamicsError;
-use crate::model::Model;
-use crate::spatial::{Force, Matrix6, Motion, Translation};
+use crate::model::{Body, JointKind, Model};
+use crate::spatial::{Force, Matrix3, Matrix6, Motion, Translation};
 use crate::Workspace;
 
 /// `q̈ = FD(q, q̇, τ)` into `ws.qdd()`.
@@ -124,43 +124,18 @@ pub(crate) fn articulated_pass(
     tau: &[f64],
 ) -> Result<(), DynamicsError> {
     for (i, body) in model.bodies.iter().enumerate().rev() {
-        // Work on body i's slots in place (each is a 6×6 or six 6-vectors: no copies).
-        let s = &ws.s_world[i];
-        let nv = s.nv;
-        let c = body.joint.coords;
-        let (u_cols, d_inv, u) = (&mut ws.u[i], &mut ws.d_inv[i], &mut ws.u_bias[i]);
-        // Only D's top-left nv × nv block is used.
-        let mut d = Matrix6::zeros();
-        for k in 0..nv {
-            // U_i = I^A_i S_i   (RBDA Table 7.1)
-            u_cols[k] = Force::from_vector(&(ws.ia[i] * s.cols[k].to_vector()));
-        }
-        for k in 0..nv {
-            for k2 in 0..nv {
-                d[(k2, k)] = s.project(k2, &u_cols[k]); // D_i = S_iᵀ U_i   (RBDA Table 7.1)
-            }
-            // u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
-            u[k] = tau[c.v_index + k] - s.project(k, &ws.pa[i]);
-        }
-        if let Err((k, pivot)) = invert_spd(&d, nv, &ws.ia[i], d_inv) {
+        let tau_i = &tau[body.joint.coords.v_index..];
+        let articulated = if ws.s_world[i].nv == 1 {
+            articulate_one_dof(ws, i, tau_i[0], body.parent.is_some())
+        } else if is_floating_root(body) {
+            articulate_floating_root(ws, i, tau_i)
+        } else {
+            articulate(ws, i, tau_i, body.parent.is_some())
+        };
+        if let Err((k, pivot)) = articulated {
             return Err(singular_pivot(model, i, k, pivot));
         }
         if let Some(p) = body.parent {
-            // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA
-            // Table 7.1; I^a and p^a overwrite I^A_i, p^A_i, which body i no longer needs).
-            for k in 0..nv {
-                let mut d_inv_u = 0.0;
-                let mut w = Force::zero();
-                for k2 in 0..nv {
-                    d_inv_u += d_inv[(k, k2)] * u[k2];
-                    w += u_cols[k2] * d_inv[(k, k2)];
-                }
-                // Σ_k U_k (D⁻¹ Uᵀ)_k: w is row k of D⁻¹ applied to U's columns.
-                ws.ia[i] -= u_cols[k].to_vector() * w.to_vector().transpose();
-                ws.pa[i] += u_cols[k] * d_inv_u;
-            }
-            let bias = Force::from_vector(&(ws.ia[i] * ws.c[i].to_vector()));
-            ws.pa[i] += bias;
             // I^A_λ(i) = I^A_λ(i) + λ(i)X*_i I^a ⁱX_λ(i),  p^A_λ(i) = p^A_λ(i) + λ(i)X*_i p^a
             // (RBDA Table 7.1): in world coordinates the transforms are the identity, xlt(r_i)
             // where body i anchors its own frame.
@@ -177,6 +152,138 @@ pub(crate) fn articulated_pass(
     Ok(())
 }
 
+/// Pass 2 at body `i` with a joint of any number of degrees of freedom: `U_i`, `D_i⁻¹`, `u_i`
+/// into `ws.u`, `ws.d_inv`, `ws.u_bias` and, below a parent (`has_parent`), `I^a`, `p^a` over
+/// `I^A_i`, `p^A_i` (which body `i` no longer needs). `tau` starts at the joint's first
+/// coordinate. `Err((k, pivot))` for a pivot of `D_i` that fails ([`invert_spd`]).
+fn articulate(
+    ws: &mut Workspace,
+    i: usize,
+    tau: &[f64],
+    has_parent: bool,
+) -> Result<(), (usize, f64)> {
+    // Work on body i's slots in place (each is a 6×6 or six 6-vectors: no copies).
+    let s = &ws.s_world[i];
+    let nv = s.nv;
+    let (u_cols, d_inv, u) = (&mut ws.u[i], &mut ws.d_inv[i], &mut ws.u_bias[i]);
+    // Only D's top-left nv × nv block is used.
+    let mut d = Matrix6::zeros();
+    for k in 0..nv {
+        // U_i = I^A_i S_i   (RBDA Table 7.1)
+        u_cols[k] = Force::from_vector(&(ws.ia[i] * s.cols[k].to_vector()));
+    }
+    for k in 0..nv {
+        for k2 in 0..nv {
+            d[(k2, k)] = s.project(k2, &u_cols[k]); // D_i = S_iᵀ U_i   (RBDA Table 7.1)
+        }
+        // u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
+        u[k] = tau[k] - s.project(k, &ws.pa[i]);
+    }
+    invert_spd(&d, nv, &ws.ia[i], d_inv)?;
+    if has_parent {
+        // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA
+        // Table 7.1).
+        for k in 0..nv {
+            let mut d_inv_u = 0.0;
+            let mut w = Force::zero();
+            for k2 in 0..nv {
+                d_inv_u += d_inv[(k, k2)] * u[k2];
+                w += u_cols[k2] * d_inv[(k, k2)];
+            }
+            // Σ_k U_k (D⁻¹ Uᵀ)_k: w is row k of D⁻¹ applied to U's columns.
+            ws.ia[i] -= u_cols[k].to_vector() * w.to_vector().transpose();
+            ws.pa[i] += u_cols[k] * d_inv_u;
+        }
+        let bias = Force::from_vector(&(ws.ia[i] * ws.c[i].to_vector()));
+        ws.pa[i] += bias;
+    }
+    Ok(())
+}
+
+/// [`articulate`] for a joint of one degree of freedom, where `U_i` is one column and `D_i` a
+/// scalar: `D⁻¹` is one division and `I^a = I^A_i − U_i (D_i⁻¹ U_i)ᵀ` one rank-1 update, in
+/// place.
+#[inline(always)]
+fn articulate_one_dof(
+    ws: &mut Workspace,
+    i: usize,
+    tau: f64,
+    has_parent: bool,
+) -> Result<(), (usize, f64)> {
+    let s = ws.s_world[i].cols[0].to_vector();
+    let ia = &mut ws.ia[i];
+    // U_i = I^A_i S_i,   D_i = S_iᵀ U_i,   u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
+    let u_col = *ia * s;
+    let d = s.dot(&u_col);
+    let u = tau - ws.s_world[i].cols[0].dot(&ws.pa[i]);
+    let d_inv = 1.0 / d;
+    (ws.u[i][0], ws.d_inv[i][(0, 0)], ws.u_bias[i][0]) = (Force::from_vector(&u_col), d_inv, u);
+    if !pivot_is_sound_for(d, ia) {
+        return Err((0, d));
+    }
+    if has_parent {
+        // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA
+        // Table 7.1).
+        let w = u_col * d_inv;
+        for (mut column, w_j) in ia.column_iter_mut().zip(w.iter()) {
+            column -= u_col * *w_j;
+        }
+        let bias = *ia * ws.c[i].to_vector() + u_col * (d_inv * u);
+        ws.pa[i] += Force::from_vector(&bias);
+    }
+    Ok(())
+}
+
+/// Whether body `i` hangs from the world by a floating joint: its `S_i` is then invertible,
+/// and in world axes orthonormal (`S_i = [0 R; R 0]` with `R = ⁰E_i` the body's rotation, the
+/// translations first as the joint's coordinates are), so that `S_i⁻¹ = S_iᵀ`.
+fn is_floating_root(body: &Body) -> bool {
+    body.parent.is_none() && body.joint.kind == JointKind::Floating
+}
+
+/// Pass 2 at a floating root ([`is_floating_root`]): `D_i⁻¹` and `u_i`, without `U_i`. With
+/// `S_i = [0 R; R 0]` and `I^A_i = [A B; Bᵀ C]` (world axes, angular rows first),
+/// `D_i = S_iᵀ I^A_i S_i = [Rᵀ C R  Rᵀ Bᵀ R; Rᵀ B R  Rᵀ A R]`: the articulated inertia turned
+/// into the body's axes, in the joint's coordinate order. A pivot of `D_i` that fails is the
+/// same as on the general path ([`articulate`]): its coordinate names the direction.
+fn articulate_floating_root(ws: &mut Workspace, i: usize, tau: &[f64]) -> Result<(), (usize, f64)> {
+    let s = &ws.s_world[i];
+    let ia = &ws.ia[i];
+    let r = Matrix3::from_columns(&[s.cols[3].ang, s.cols[4].ang, s.cols[5].ang]);
+    let turn = |block: nalgebra::Matrix3<f64>| r.tr_mul(&(block * r));
+    let mut d = Matrix6::zeros();
+    let lin_ang = turn(ia.fixed_view::<3, 3>(0, 3).transpose());
+    d.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&turn(ia.fixed_view::<3, 3>(3, 3).into_owned()));
+    d.fixed_view_mut::<3, 3>(0, 3).copy_from(&lin_ang);
+    d.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&lin_ang.transpose());
+    d.fixed_view_mut::<3, 3>(3, 3)
+        .copy_from(&turn(ia.fixed_view::<3, 3>(0, 0).into_owned()));
+    for k in 0..6 {
+        // u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
+        ws.u_bias[i][k] = tau[k] - s.project(k, &ws.pa[i]);
+    }
+    invert_spd(&d, 6, ia, &mut ws.d_inv[i])
+}
+
+/// Pass 3 at a floating root ([`is_floating_root`]) from `a' = a_0 + c_i`: as `U_i = I^A_i S_i`
+/// and `S_i` is invertible, `D_i⁻¹ U_iᵀ a' = S_i⁻¹ a'`, so
+/// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a') = D_i⁻¹ u_i − S_iᵀ a'` and `a_i = a' + S_i q̈_i = S_i D_i⁻¹ u_i`
+/// (the root's acceleration is its articulated inertia's answer to the forces alone).
+fn accelerate_floating_root(ws: &mut Workspace, i: usize, v_index: usize, a_prime: &Motion) {
+    let (s, d_inv, u) = (&ws.s_world[i], &ws.d_inv[i], &ws.u_bias[i]);
+    let y = d_inv * nalgebra::Vector6::from_column_slice(u);
+    let mut a_i = Motion::zero();
+    for (k, col) in s.cols.iter().enumerate() {
+        // (S_iᵀ a')_k, the plain product of the 6-vectors
+        let s_a = col.ang.dot(&a_prime.ang) + col.lin.dot(&a_prime.lin);
+        ws.qdd[v_index + k] = y[k] - s_a;
+        a_i += *col * y[k];
+    }
+    ws.a_world[i] = a_i;
+}
+
 /// Pass 3: accelerations, from the root outward.
 pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
     // a_0 = −a_g   (RBDA Table 7.1; plus the root's own acceleration)
@@ -187,6 +294,14 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
         let a_parent = motion_into_aligned(ws, i, body.parent.map_or(a_root, |p| ws.a_world[p]));
         // a' = ⁱX_λ(i) a_λ(i) + c_i   (RBDA Table 7.1; ⁱX_λ(i) as for v_i)
         let a_prime = a_parent + ws.c[i];
+        if nv == 1 {
+            accelerate_one_dof(ws, i, c.v_index, &a_prime);
+            continue;
+        }
+        if is_floating_root(body) {
+            accelerate_floating_root(ws, i, c.v_index, &a_prime);
+            continue;
+        }
         // q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),  a_i = a' + S_i q̈_i   (RBDA Table 7.1)
         let mut rhs = [0.0; 6];
         for k in 0..nv {
@@ -202,6 +317,15 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
     }
 }
 
+/// Pass 3 at body `i` with a joint of one degree of freedom, from `a' = ⁱX_λ(i) a_λ(i) + c_i`:
+/// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a')`, `a_i = a' + S_i q̈_i`   (RBDA Table 7.1), all scalars but `a`.
+#[inline(always)]
+fn accelerate_one_dof(ws: &mut Workspace, i: usize, v_index: usize, a_prime: &Motion) {
+    let qdd = ws.d_inv[i][(0, 0)] * (ws.u_bias[i][0] - a_prime.dot(&ws.u[i][0]));
+    ws.qdd[v_index] = qdd;
+    ws.a_world[i] = *a_prime + ws.s_world[i].cols[0] * qdd;
+}
+
 /// Writes into the top-left `nv × nv` block of `d_inv` the inverse of the symmetric positive
 /// definite top-left `nv × nv` block of `d` ([`spd_inverse`]; for one degree of freedom, one
 /// division), in place: false when a Cholesky pivot is not clearly positive relative to the
@@ -213,21 +337,18 @@ fn invert_spd(
     ia: &Matrix6,
     d_inv: &mut Matrix6,
 ) -> Result<(), (usize, f64)> {
-    // D's scale is that of the articulated inertia; a pivot within a few ulps of it is zero,
-    // and a subnormal one has no finite inverse (D⁻¹ would overflow). For a positive
-    // semi-definite `ia` the largest entry is on the diagonal (|a_jk| ≤ √(a_jj a_kk)).
-    let reference = 64.0 * ia.diagonal().amax();
-    let sound = |pivot: f64| pivot_is_sound(pivot, reference) && pivot >= f64::MIN_POSITIVE;
-    if nv == 1 {
-        let pivot = d[(0, 0)];
-        d_inv[(0, 0)] = 1.0 / pivot;
-        return if sound(pivot) {
-            Ok(())
-        } else {
-            Err((0, pivot))
-        };
-    }
+    let sound = |pivot: f64| pivot_is_sound_for(pivot, ia);
     spd_inverse(d, nv, sound, d_inv)
+}
+
+/// Whether a pivot of `D = Sᵀ I^A S` is sound: D's scale is that of the articulated inertia
+/// `ia`, so a pivot within a few ulps of it is zero, and a subnormal one has no finite inverse
+/// (D⁻¹ would overflow). For a positive semi-definite `ia` the largest entry is on the
+/// diagonal (|a_jk| ≤ √(a_jj a_kk)).
+#[inline(always)]
+fn pivot_is_sound_for(pivot: f64, ia: &Matrix6) -> bool {
+    let reference = 64.0 * ia.diagonal().amax();
+    pivot_is_sound(pivot, reference) && pivot >= f64::MIN_POSITIVE
 }
 
 /// The error for the failed pivot `k` (value `pivot`) of `D = Sᵀ I^A S` at body `i`: its body,
