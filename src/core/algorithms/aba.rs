@@ -32,7 +32,7 @@
 //! recursion cannot express: models with them are refused (use the `crba` or `rnea_columns`
 //! method).
 
-use super::cholesky::spd_inverse;
+use super::cholesky::{spd_inverse, spd_solve};
 use super::kinematics::{
     force_out_of_aligned, motion_into_aligned, update_aligned_placements, update_joints,
     update_world_axes, Anchors,
@@ -43,6 +43,7 @@ use crate::error::DynamicsError;
 use crate::model::{Body, JointKind, Model};
 use crate::spatial::{Force, Matrix3, Matrix6, Motion, Translation};
 use crate::Workspace;
+use nalgebra::Vector6;
 
 /// `q̈ = FD(q, q̇, τ)` into `ws.qdd()`.
 pub fn aba<'w>(
@@ -107,7 +108,7 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
             ws.c[i] += x.inverse_apply_motion(&c_joint);
         }
         // I^A_i = I_i   (RBDA Table 7.1), in world coordinates
-        ws.ia[i] = inertia.to_matrix();
+        inertia.write_matrix(&mut ws.ia[i]);
         // p^A_i = v_i ×* I_i v_i − ⁱX*_0 f^x_i   (RBDA Table 7.1): f^x_i is given in body i's
         // frame, carried into world coordinates by ⁱX_0ᵀ
         ws.pa[i] = v_i.cross_force(&inertia.apply(&v_i));
@@ -126,41 +127,42 @@ pub(crate) fn articulated_pass(
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let tau_i = &tau[body.joint.coords.v_index..];
         let articulated = if ws.s_world[i].nv == 1 {
-            articulate_one_dof(ws, i, tau_i[0], body.parent.is_some())
+            articulate_one_dof(ws, i, tau_i[0], body.parent)
         } else if is_floating_root(body) {
             articulate_floating_root(ws, i, tau_i)
         } else {
-            articulate(ws, i, tau_i, body.parent.is_some())
+            articulate(ws, i, tau_i, body.parent)
         };
         if let Err((k, pivot)) = articulated {
             return Err(singular_pivot(model, i, k, pivot));
-        }
-        if let Some(p) = body.parent {
-            // I^A_λ(i) = I^A_λ(i) + λ(i)X*_i I^a ⁱX_λ(i),  p^A_λ(i) = p^A_λ(i) + λ(i)X*_i p^a
-            // (RBDA Table 7.1): in world coordinates the transforms are the identity, xlt(r_i)
-            // where body i anchors its own frame.
-            if ws.plan.anchors[i] {
-                ws.ia[i] = Translation(ws.anchor_shift[i]).transpose_apply_matrix6(&ws.ia[i]);
-            }
-            let pa_i = force_out_of_aligned(ws, i, ws.pa[i]);
-            // The parent comes before the child: split so both can be borrowed.
-            let (before, from_i) = ws.ia.split_at_mut(i);
-            before[p] += from_i[0];
-            ws.pa[p] += pa_i;
         }
     }
     Ok(())
 }
 
+/// `I^A_λ(i) = I^A_λ(i) + λ(i)X*_i I^a ⁱX_λ(i)`, `p^A_λ(i) = p^A_λ(i) + λ(i)X*_i p^a` (RBDA Table
+/// 7.1) with `I^a`, `p^a` in body `i`'s slots of `ws.ia`, `ws.pa`, and `p` its parent: in world
+/// coordinates the transforms are the identity, `xlt(r_i)` where body `i` anchors its own frame.
+fn add_to_parent(ws: &mut Workspace, i: usize, p: usize) {
+    if ws.plan.anchors[i] {
+        ws.ia[i] = Translation(ws.anchor_shift[i]).transpose_apply_matrix6(&ws.ia[i]);
+    }
+    let pa_i = force_out_of_aligned(ws, i, ws.pa[i]);
+    // The parent comes before the child: split so both can be borrowed.
+    let (before, from_i) = ws.ia.split_at_mut(i);
+    before[p] += from_i[0];
+    ws.pa[p] += pa_i;
+}
+
 /// Pass 2 at body `i` with a joint of any number of degrees of freedom: `U_i`, `D_i⁻¹`, `u_i`
-/// into `ws.u`, `ws.d_inv`, `ws.u_bias` and, below a parent (`has_parent`), `I^a`, `p^a` over
-/// `I^A_i`, `p^A_i` (which body `i` no longer needs). `tau` starts at the joint's first
-/// coordinate. `Err((k, pivot))` for a pivot of `D_i` that fails ([`invert_spd`]).
+/// into `ws.u`, `ws.d_inv`, `ws.u_bias` and, below a parent, `I^a`, `p^a` over `I^A_i`, `p^A_i`
+/// (which body `i` no longer needs), added to the parent's ([`add_to_parent`]). `tau` starts at
+/// the joint's first coordinate. `Err((k, pivot))` for a pivot of `D_i` that fails ([`invert_spd`]).
 fn articulate(
     ws: &mut Workspace,
     i: usize,
     tau: &[f64],
-    has_parent: bool,
+    parent: Option<usize>,
 ) -> Result<(), (usize, f64)> {
     // Work on body i's slots in place (each is a 6×6 or six 6-vectors: no copies).
     let s = &ws.s_world[i];
@@ -180,7 +182,7 @@ fn articulate(
         u[k] = tau[k] - s.project(k, &ws.pa[i]);
     }
     invert_spd(&d, nv, &ws.ia[i], d_inv)?;
-    if has_parent {
+    if let Some(p) = parent {
         // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA
         // Table 7.1).
         for k in 0..nv {
@@ -196,22 +198,25 @@ fn articulate(
         }
         let bias = Force::from_vector(&(ws.ia[i] * ws.c[i].to_vector()));
         ws.pa[i] += bias;
+        add_to_parent(ws, i, p);
     }
     Ok(())
 }
 
 /// [`articulate`] for a joint of one degree of freedom, where `U_i` is one column and `D_i` a
-/// scalar: `D⁻¹` is one division and `I^a = I^A_i − U_i (D_i⁻¹ U_i)ᵀ` one rank-1 update, in
-/// place.
+/// scalar: `D⁻¹` is one division and `I^a = I^A_i − U_i w_iᵀ` (`w_i = D_i⁻¹ U_i`) a rank-1
+/// update. Where body `i` shares its parent's frame, each column of `I^a` is made, added to
+/// the parent's and multiplied into `I^a c_i` in one sweep ([`add_one_dof_to_parent`]);
+/// across an anchor `I^a` is made in place, then moved.
 #[inline(always)]
 fn articulate_one_dof(
     ws: &mut Workspace,
     i: usize,
     tau: f64,
-    has_parent: bool,
+    parent: Option<usize>,
 ) -> Result<(), (usize, f64)> {
     let s = ws.s_world[i].cols[0].to_vector();
-    let ia = &mut ws.ia[i];
+    let ia = &ws.ia[i];
     // U_i = I^A_i S_i,   D_i = S_iᵀ U_i,   u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
     let u_col = *ia * s;
     let d = s.dot(&u_col);
@@ -221,17 +226,56 @@ fn articulate_one_dof(
     if !pivot_is_sound_for(d, ia) {
         return Err((0, d));
     }
-    if has_parent {
-        // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA
-        // Table 7.1).
-        let w = u_col * d_inv;
+    let Some(p) = parent else {
+        return Ok(());
+    };
+    // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA Table 7.1)
+    let w = u_col * d_inv;
+    let joint_force = Force::from_vector(&(u_col * (d_inv * u)));
+    if ws.plan.anchors[i] {
+        let ia = &mut ws.ia[i];
         for (mut column, w_j) in ia.column_iter_mut().zip(w.iter()) {
             column -= u_col * *w_j;
         }
-        let bias = *ia * ws.c[i].to_vector() + u_col * (d_inv * u);
-        ws.pa[i] += Force::from_vector(&bias);
+        let bias = Force::from_vector(&(*ia * ws.c[i].to_vector()));
+        ws.pa[i] += bias + joint_force;
+        add_to_parent(ws, i, p);
+    } else {
+        let bias = add_one_dof_to_parent(ws, i, p, &u_col, &w);
+        ws.pa[i] += bias + joint_force;
+        let pa_i = ws.pa[i];
+        ws.pa[p] += pa_i;
     }
     Ok(())
+}
+
+/// `I^A_λ += I^a` and `I^a c_i` (returned) for `I^a = I^A_i − U_i w_iᵀ`, column by column:
+/// column `j` of `I^a` is made once, added to the parent's `I^A_λ` and taken `c_{i,j}` times
+/// into the product, and never stored (`ws.ia[i]` keeps `I^A_i`). For a body in its parent's
+/// aligned frame.
+#[inline(always)]
+fn add_one_dof_to_parent(
+    ws: &mut Workspace,
+    i: usize,
+    p: usize,
+    u_col: &Vector6<f64>,
+    w: &Vector6<f64>,
+) -> Force {
+    let c = ws.c[i].to_vector();
+    let (before, from_i) = ws.ia.split_at_mut(i);
+    let (parent, ia) = (&mut before[p], &from_i[0]);
+    let mut bias = Vector6::zeros();
+    for j in 0..6 {
+        let column = ia.column(j) - u_col * w[j];
+        let mut parent_column = parent.column_mut(j);
+        parent_column += column;
+        if j == 0 {
+            bias = column * c[0];
+        } else {
+            bias += column * c[j];
+        }
+    }
+    Force::from_vector(&bias)
 }
 
 /// Whether body `i` hangs from the world by a floating joint: its `S_i` is then invertible,
@@ -241,7 +285,8 @@ fn is_floating_root(body: &Body) -> bool {
     body.parent.is_none() && body.joint.kind == JointKind::Floating
 }
 
-/// Pass 2 at a floating root ([`is_floating_root`]): `D_i⁻¹` and `u_i`, without `U_i`. With
+/// Pass 2 at a floating root ([`is_floating_root`]): `D_i⁻¹ u_i` into `ws.u_bias[i]` (by a
+/// Cholesky solve, [`spd_solve`]), without `U_i`. With
 /// `S_i = [0 R; R 0]` and `I^A_i = [A B; Bᵀ C]` (world axes, angular rows first),
 /// `D_i = S_iᵀ I^A_i S_i = [Rᵀ C R  Rᵀ Bᵀ R; Rᵀ B R  Rᵀ A R]`: the articulated inertia turned
 /// into the body's axes, in the joint's coordinate order. A pivot of `D_i` that fails is the
@@ -260,20 +305,21 @@ fn articulate_floating_root(ws: &mut Workspace, i: usize, tau: &[f64]) -> Result
         .copy_from(&lin_ang.transpose());
     d.fixed_view_mut::<3, 3>(3, 3)
         .copy_from(&turn(ia.fixed_view::<3, 3>(0, 0).into_owned()));
-    for k in 0..6 {
+    let y = &mut ws.u_bias[i];
+    for (k, y_k) in y.iter_mut().enumerate() {
         // u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
-        ws.u_bias[i][k] = tau[k] - s.project(k, &ws.pa[i]);
+        *y_k = tau[k] - s.project(k, &ws.pa[i]);
     }
-    invert_spd(&d, 6, ia, &mut ws.d_inv[i])
+    spd_solve(&d, 6, |pivot| pivot_is_sound_for(pivot, ia), y)
 }
 
-/// Pass 3 at a floating root ([`is_floating_root`]) from `a' = a_0 + c_i`: as `U_i = I^A_i S_i`
+/// Pass 3 at a floating root ([`is_floating_root`]) from `a' = a_0 + c_i` and `D_i⁻¹ u_i` (in
+/// `ws.u_bias[i]`, [`articulate_floating_root`]): as `U_i = I^A_i S_i`
 /// and `S_i` is invertible, `D_i⁻¹ U_iᵀ a' = S_i⁻¹ a'`, so
 /// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a') = D_i⁻¹ u_i − S_iᵀ a'` and `a_i = a' + S_i q̈_i = S_i D_i⁻¹ u_i`
 /// (the root's acceleration is its articulated inertia's answer to the forces alone).
 fn accelerate_floating_root(ws: &mut Workspace, i: usize, v_index: usize, a_prime: &Motion) {
-    let (s, d_inv, u) = (&ws.s_world[i], &ws.d_inv[i], &ws.u_bias[i]);
-    let y = d_inv * nalgebra::Vector6::from_column_slice(u);
+    let (s, y) = (&ws.s_world[i], &ws.u_bias[i]);
     let mut a_i = Motion::zero();
     for (k, col) in s.cols.iter().enumerate() {
         // (S_iᵀ a')_k, the plain product of the 6-vectors

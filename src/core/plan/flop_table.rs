@@ -112,11 +112,11 @@ fn aba_one_dof(has_parent: bool) -> Flops {
 
 /// ABA's passes 2 and 3 at a floating root (`aba::articulate_floating_root`,
 /// `accelerate_floating_root`): `D = Sᵀ I^A S` as three 3×3 blocks turned by `Rᵀ · R` (two
-/// 3×3 products each), `D⁻¹` (its pivots checked against one scale); then `y = D⁻¹ u`,
-/// `q̈ = y − Sᵀ a'` and `a = S y` column by column.
+/// 3×3 products each), `y = D⁻¹ u` by a Cholesky solve (its pivots checked against one
+/// scale); then `q̈ = y − Sᵀ a'` and `a = S y` column by column.
 fn aba_floating_root() -> Flops {
-    let pass_2 = Flops::new(54, 36) * 3 + spd_inverse(6) + Flops::new(1, 0);
-    pass_2 + MAT6_VEC6 + (DOT6 + Flops::new(0, 1) + Flops::new(6, 6)) * 6
+    let pass_2 = Flops::new(54, 36) * 3 + spd_solve(6) + Flops::new(1, 0);
+    pass_2 + (DOT6 + Flops::new(0, 1) + Flops::new(6, 6)) * 6
 }
 
 /// ABA's passes 2 and 3 at any other joint (`aba::articulate`): `U`, `D`, `D⁻¹` (its pivots
