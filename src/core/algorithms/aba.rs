@@ -393,7 +393,9 @@ fn invert_spd(
 /// diagonal (|a_jk| ≤ √(a_jj a_kk)).
 #[inline(always)]
 fn pivot_is_sound_for(pivot: f64, ia: &Matrix6) -> bool {
-    let reference = 64.0 * ia.diagonal().amax();
+    // max |a_kk| by `f64::max` (one instruction per entry; a NaN entry leaves the pivot NaN).
+    let largest = (0..6).fold(0.0_f64, |m, k| m.max(ia[(k, k)].abs()));
+    let reference = 64.0 * largest;
     pivot_is_sound(pivot, reference) && pivot >= f64::MIN_POSITIVE
 }
 
