@@ -196,15 +196,17 @@ pub fn spd_solve(
     Ok(())
 }
 
-/// The factor `L` of `D = L Lᵀ` (its lower triangle, row by row) and the reciprocals
-/// `1 / L_jj` for the top-left `n × n` block of `d`, as [`spd_inverse`] states; `Err((j, pivot))`
-/// for the first pivot that fails `sound`.
+/// A small Cholesky factor: `L`'s lower triangle row by row, and the reciprocals `1 / L_jj`.
+type SmallFactor = ([[f64; 6]; 6], [f64; 6]);
+
+/// The factor `L` of `D = L Lᵀ` and the reciprocals `1 / L_jj` for the top-left `n × n` block of
+/// `d`, as [`spd_inverse`] states; `Err((j, pivot))` for the first pivot that fails `sound`.
 #[inline(always)]
 fn spd_factor(
     d: &Matrix6,
     n: usize,
     sound: impl Fn(f64) -> bool,
-) -> Result<([[f64; 6]; 6], [f64; 6]), (usize, f64)> {
+) -> Result<SmallFactor, (usize, f64)> {
     let mut l = [[0.0; 6]; 6]; // lower triangle, row by row
     let mut inv_diag = [0.0; 6]; // 1 / L_jj
     for j in 0..n {
