@@ -99,7 +99,6 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
         // v_i = ⁱX_λ(i) v_λ(i) + v_J   (RBDA Table 7.1): in world coordinates ⁱX_λ(i) is the
         // identity, xlt(r_i) where body i anchors a frame
         let v_i = v_parent + v_joint;
-        let inertia = x.transpose_apply_inertia(&body.inertia);
         ws.v_world[i] = v_i;
         // c_i = c_J + v_i × v_J   (RBDA Table 7.1), c_J carried into world coordinates
         ws.c[i] = v_i.cross_motion(&v_joint);
@@ -107,6 +106,12 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
         if let Some(c_joint) = body.joint.kind.bias(q_joint, rates) {
             ws.c[i] += x.inverse_apply_motion(&c_joint);
         }
+    }
+    // The inertias in a loop of their own: with the kinematics above in the same loop, the
+    // processor's registers overflow to the stack.
+    for (i, body) in model.bodies.iter().enumerate() {
+        let (x, v_i) = (&ws.x_aligned[i], ws.v_world[i]);
+        let inertia = x.transpose_apply_inertia(&body.inertia);
         // I^A_i = I_i   (RBDA Table 7.1), in world coordinates
         inertia.write_matrix(&mut ws.ia[i]);
         // p^A_i = v_i ×* I_i v_i − ⁱX*_0 f^x_i   (RBDA Table 7.1): f^x_i is given in body i's
