@@ -28,7 +28,10 @@
 //! a' = xlt(r_i) a_λ + c_i,   q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),   a_i = a' + S_i q̈_i
 //! ```
 //! (`c_i` in the world frame: the world-frame `S` moves with the body, `d(⁰X_i S_i)/dt =
-//! v_i ×̂ ⁰X_i S_i + ⁰X_i S̊_i`.) Mimic joints tie coordinates across bodies, which the
+//! v_i ×̂ ⁰X_i S_i + ⁰X_i S̊_i`.) Passes 2 and 3 take these equations in one of three forms by
+//! joint: one degree of freedom (`D_i` a scalar, `articulate_one_dof`), a floating root
+//! (`S_i` invertible: `q̈_i = D_i⁻¹ u_i − S_i⁻¹ a'`, `articulate_floating_root`), any other
+//! (`articulate`). Mimic joints tie coordinates across bodies, which the
 //! recursion cannot express: models with them are refused (use the `crba` or `rnea_columns`
 //! method).
 
@@ -284,8 +287,9 @@ fn add_one_dof_to_parent(
 }
 
 /// Whether body `i` hangs from the world by a floating joint: its `S_i` is then invertible,
-/// and in world axes orthonormal (`S_i = [0 R; R 0]` with `R = ⁰E_i` the body's rotation, the
-/// translations first as the joint's coordinates are), so that `S_i⁻¹ = S_iᵀ`.
+/// and in world axes orthonormal (`S_i = [0 R; R 0]`, `R`'s columns the body's axes in world
+/// coordinates, the translations first as the joint's coordinates are), so that
+/// `S_i⁻¹ = S_iᵀ`.
 fn is_floating_root(body: &Body) -> bool {
     body.parent.is_none() && body.joint.kind == JointKind::Floating
 }
@@ -300,7 +304,7 @@ fn articulate_floating_root(ws: &mut Workspace, i: usize, tau: &[f64]) -> Result
     let s = &ws.s_world[i];
     let ia = &ws.ia[i];
     let r = Matrix3::from_columns(&[s.cols[3].ang, s.cols[4].ang, s.cols[5].ang]);
-    let turn = |block: nalgebra::Matrix3<f64>| r.tr_mul(&(block * r));
+    let turn = |block: Matrix3| r.tr_mul(&(block * r));
     let mut d = Matrix6::zeros();
     let lin_ang = turn(ia.fixed_view::<3, 3>(0, 3).transpose());
     d.fixed_view_mut::<3, 3>(0, 0)
@@ -378,10 +382,10 @@ fn accelerate_one_dof(ws: &mut Workspace, i: usize, v_index: usize, a_prime: &Mo
 }
 
 /// Writes into the top-left `nv × nv` block of `d_inv` the inverse of the symmetric positive
-/// definite top-left `nv × nv` block of `d` ([`spd_inverse`]; for one degree of freedom, one
-/// division), in place: false when a Cholesky pivot is not clearly positive relative to the
-/// scale of the articulated inertia `ia`: then `Err((k, pivot))`, the pivot's row `k` in the
-/// joint's coordinates and its value.
+/// definite top-left `nv × nv` block of `d` ([`spd_inverse`]); when a Cholesky pivot is not
+/// clearly positive relative to the scale of the articulated inertia `ia`
+/// ([`pivot_is_sound_for`]), `Err((k, pivot))`: the pivot's row `k` in the joint's coordinates
+/// and its value.
 fn invert_spd(
     d: &Matrix6,
     nv: usize,
