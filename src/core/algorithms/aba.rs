@@ -28,11 +28,14 @@
 //! a' = xlt(r_i) a_λ + c_i,   q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),   a_i = a' + S_i q̈_i
 //! ```
 //! (`c_i` in the world frame: the world-frame `S` moves with the body, `d(⁰X_i S_i)/dt =
-//! v_i ×̂ ⁰X_i S_i + ⁰X_i S̊_i`.) Mimic joints tie coordinates across bodies, which the
+//! v_i ×̂ ⁰X_i S_i + ⁰X_i S̊_i`.) Passes 2 and 3 take these equations in one of three forms by
+//! joint: one degree of freedom (`D_i` a scalar, `articulate_one_dof`), a floating root
+//! (`S_i` invertible: `q̈_i = D_i⁻¹ u_i − S_i⁻¹ a'`, `articulate_floating_root`), any other
+//! (`articulate`). Mimic joints tie coordinates across bodies, which the
 //! recursion cannot express: models with them are refused (use the `crba` or `rnea_columns`
 //! method).
 
-use super::cholesky::spd_inverse;
+use super::cholesky::{spd_inverse, spd_solve};
 use super::kinematics::{
     force_out_of_aligned, motion_into_aligned, update_aligned_placements, update_joints,
     update_world_axes, Anchors,
@@ -40,9 +43,10 @@ use super::kinematics::{
 use super::validate::{check_forward_inputs, check_result};
 use super::{pivot_is_sound, Externals};
 use crate::error::DynamicsError;
-use crate::model::Model;
-use crate::spatial::{Force, Matrix6, Motion, Translation};
+use crate::model::{Body, JointKind, Model};
+use crate::spatial::{Force, Matrix3, Matrix6, Motion, Translation};
 use crate::Workspace;
+use nalgebra::Vector6;
 
 /// `q̈ = FD(q, q̇, τ)` into `ws.qdd()`.
 pub fn aba<'w>(
@@ -98,7 +102,6 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
         // v_i = ⁱX_λ(i) v_λ(i) + v_J   (RBDA Table 7.1): in world coordinates ⁱX_λ(i) is the
         // identity, xlt(r_i) where body i anchors a frame
         let v_i = v_parent + v_joint;
-        let inertia = x.transpose_apply_inertia(&body.inertia);
         ws.v_world[i] = v_i;
         // c_i = c_J + v_i × v_J   (RBDA Table 7.1), c_J carried into world coordinates
         ws.c[i] = v_i.cross_motion(&v_joint);
@@ -106,8 +109,14 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
         if let Some(c_joint) = body.joint.kind.bias(q_joint, rates) {
             ws.c[i] += x.inverse_apply_motion(&c_joint);
         }
+    }
+    // The inertias in a loop of their own: with the kinematics above in the same loop, the
+    // processor's registers overflow to the stack.
+    for (i, body) in model.bodies.iter().enumerate() {
+        let (x, v_i) = (&ws.x_aligned[i], ws.v_world[i]);
+        let inertia = x.transpose_apply_inertia(&body.inertia);
         // I^A_i = I_i   (RBDA Table 7.1), in world coordinates
-        ws.ia[i] = inertia.to_matrix();
+        inertia.write_matrix(&mut ws.ia[i]);
         // p^A_i = v_i ×* I_i v_i − ⁱX*_0 f^x_i   (RBDA Table 7.1): f^x_i is given in body i's
         // frame, carried into world coordinates by ⁱX_0ᵀ
         ws.pa[i] = v_i.cross_force(&inertia.apply(&v_i));
@@ -124,57 +133,210 @@ pub(crate) fn articulated_pass(
     tau: &[f64],
 ) -> Result<(), DynamicsError> {
     for (i, body) in model.bodies.iter().enumerate().rev() {
-        // Work on body i's slots in place (each is a 6×6 or six 6-vectors: no copies).
-        let s = &ws.s_world[i];
-        let nv = s.nv;
-        let c = body.joint.coords;
-        let (u_cols, d_inv, u) = (&mut ws.u[i], &mut ws.d_inv[i], &mut ws.u_bias[i]);
-        // Only D's top-left nv × nv block is used.
-        let mut d = Matrix6::zeros();
-        for k in 0..nv {
-            // U_i = I^A_i S_i   (RBDA Table 7.1)
-            u_cols[k] = Force::from_vector(&(ws.ia[i] * s.cols[k].to_vector()));
-        }
-        for k in 0..nv {
-            for k2 in 0..nv {
-                d[(k2, k)] = s.project(k2, &u_cols[k]); // D_i = S_iᵀ U_i   (RBDA Table 7.1)
-            }
-            // u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
-            u[k] = tau[c.v_index + k] - s.project(k, &ws.pa[i]);
-        }
-        if let Err((k, pivot)) = invert_spd(&d, nv, &ws.ia[i], d_inv) {
+        let tau_i = &tau[body.joint.coords.v_index..];
+        let articulated = if ws.s_world[i].nv == 1 {
+            articulate_one_dof(ws, i, tau_i[0], body.parent)
+        } else if is_floating_root(body) {
+            articulate_floating_root(ws, i, tau_i)
+        } else {
+            articulate(ws, i, tau_i, body.parent)
+        };
+        if let Err((k, pivot)) = articulated {
             return Err(singular_pivot(model, i, k, pivot));
-        }
-        if let Some(p) = body.parent {
-            // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA
-            // Table 7.1; I^a and p^a overwrite I^A_i, p^A_i, which body i no longer needs).
-            for k in 0..nv {
-                let mut d_inv_u = 0.0;
-                let mut w = Force::zero();
-                for k2 in 0..nv {
-                    d_inv_u += d_inv[(k, k2)] * u[k2];
-                    w += u_cols[k2] * d_inv[(k, k2)];
-                }
-                // Σ_k U_k (D⁻¹ Uᵀ)_k: w is row k of D⁻¹ applied to U's columns.
-                ws.ia[i] -= u_cols[k].to_vector() * w.to_vector().transpose();
-                ws.pa[i] += u_cols[k] * d_inv_u;
-            }
-            let bias = Force::from_vector(&(ws.ia[i] * ws.c[i].to_vector()));
-            ws.pa[i] += bias;
-            // I^A_λ(i) = I^A_λ(i) + λ(i)X*_i I^a ⁱX_λ(i),  p^A_λ(i) = p^A_λ(i) + λ(i)X*_i p^a
-            // (RBDA Table 7.1): in world coordinates the transforms are the identity, xlt(r_i)
-            // where body i anchors its own frame.
-            if ws.plan.anchors[i] {
-                ws.ia[i] = Translation(ws.anchor_shift[i]).transpose_apply_matrix6(&ws.ia[i]);
-            }
-            let pa_i = force_out_of_aligned(ws, i, ws.pa[i]);
-            // The parent comes before the child: split so both can be borrowed.
-            let (before, from_i) = ws.ia.split_at_mut(i);
-            before[p] += from_i[0];
-            ws.pa[p] += pa_i;
         }
     }
     Ok(())
+}
+
+/// `I^A_λ(i) = I^A_λ(i) + λ(i)X*_i I^a ⁱX_λ(i)`, `p^A_λ(i) = p^A_λ(i) + λ(i)X*_i p^a` (RBDA Table
+/// 7.1) with `I^a`, `p^a` in body `i`'s slots of `ws.ia`, `ws.pa`, and `p` its parent: in world
+/// coordinates the transforms are the identity, `xlt(r_i)` where body `i` anchors its own frame.
+fn add_to_parent(ws: &mut Workspace, i: usize, p: usize) {
+    if ws.plan.anchors[i] {
+        ws.ia[i] = Translation(ws.anchor_shift[i]).transpose_apply_matrix6(&ws.ia[i]);
+    }
+    let pa_i = force_out_of_aligned(ws, i, ws.pa[i]);
+    // The parent comes before the child: split so both can be borrowed.
+    let (before, from_i) = ws.ia.split_at_mut(i);
+    before[p] += from_i[0];
+    ws.pa[p] += pa_i;
+}
+
+/// Pass 2 at body `i` with a joint of any number of degrees of freedom: `U_i`, `D_i⁻¹`, `u_i`
+/// into `ws.u`, `ws.d_inv`, `ws.u_bias` and, below a parent, `I^a`, `p^a` over `I^A_i`, `p^A_i`
+/// (which body `i` no longer needs), added to the parent's ([`add_to_parent`]). `tau` starts at
+/// the joint's first coordinate. `Err((k, pivot))` for a pivot of `D_i` that fails ([`invert_spd`]).
+fn articulate(
+    ws: &mut Workspace,
+    i: usize,
+    tau: &[f64],
+    parent: Option<usize>,
+) -> Result<(), (usize, f64)> {
+    // Work on body i's slots in place (each is a 6×6 or six 6-vectors: no copies).
+    let s = &ws.s_world[i];
+    let nv = s.nv;
+    let (u_cols, d_inv, u) = (&mut ws.u[i], &mut ws.d_inv[i], &mut ws.u_bias[i]);
+    // Only D's top-left nv × nv block is used.
+    let mut d = Matrix6::zeros();
+    for k in 0..nv {
+        // U_i = I^A_i S_i   (RBDA Table 7.1)
+        u_cols[k] = Force::from_vector(&(ws.ia[i] * s.cols[k].to_vector()));
+    }
+    for k in 0..nv {
+        for k2 in 0..nv {
+            d[(k2, k)] = s.project(k2, &u_cols[k]); // D_i = S_iᵀ U_i   (RBDA Table 7.1)
+        }
+        // u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
+        u[k] = tau[k] - s.project(k, &ws.pa[i]);
+    }
+    invert_spd(&d, nv, &ws.ia[i], d_inv)?;
+    if let Some(p) = parent {
+        // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA
+        // Table 7.1).
+        for k in 0..nv {
+            let mut d_inv_u = 0.0;
+            let mut w = Force::zero();
+            for k2 in 0..nv {
+                d_inv_u += d_inv[(k, k2)] * u[k2];
+                w += u_cols[k2] * d_inv[(k, k2)];
+            }
+            // Σ_k U_k (D⁻¹ Uᵀ)_k: w is row k of D⁻¹ applied to U's columns.
+            ws.ia[i] -= u_cols[k].to_vector() * w.to_vector().transpose();
+            ws.pa[i] += u_cols[k] * d_inv_u;
+        }
+        let bias = Force::from_vector(&(ws.ia[i] * ws.c[i].to_vector()));
+        ws.pa[i] += bias;
+        add_to_parent(ws, i, p);
+    }
+    Ok(())
+}
+
+/// [`articulate`] for a joint of one degree of freedom, where `U_i` is one column and `D_i` a
+/// scalar: `D⁻¹` is one division and `I^a = I^A_i − U_i w_iᵀ` (`w_i = D_i⁻¹ U_i`) a rank-1
+/// update. Where body `i` shares its parent's frame, each column of `I^a` is made, added to
+/// the parent's and multiplied into `I^a c_i` in one sweep ([`add_one_dof_to_parent`]);
+/// across an anchor `I^a` is made in place, then moved.
+#[inline(always)]
+fn articulate_one_dof(
+    ws: &mut Workspace,
+    i: usize,
+    tau: f64,
+    parent: Option<usize>,
+) -> Result<(), (usize, f64)> {
+    let s = ws.s_world[i].cols[0].to_vector();
+    let ia = &ws.ia[i];
+    // U_i = I^A_i S_i,   D_i = S_iᵀ U_i,   u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
+    let u_col = *ia * s;
+    let d = s.dot(&u_col);
+    let u = tau - ws.s_world[i].cols[0].dot(&ws.pa[i]);
+    let d_inv = 1.0 / d;
+    (ws.u[i][0], ws.d_inv[i][(0, 0)], ws.u_bias[i][0]) = (Force::from_vector(&u_col), d_inv, u);
+    if !pivot_is_sound_for(d, ia) {
+        return Err((0, d));
+    }
+    let Some(p) = parent else {
+        return Ok(());
+    };
+    // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA Table 7.1)
+    let w = u_col * d_inv;
+    let joint_force = Force::from_vector(&(u_col * (d_inv * u)));
+    if ws.plan.anchors[i] {
+        let ia = &mut ws.ia[i];
+        for (mut column, w_j) in ia.column_iter_mut().zip(w.iter()) {
+            column -= u_col * *w_j;
+        }
+        let bias = Force::from_vector(&(*ia * ws.c[i].to_vector()));
+        ws.pa[i] += bias + joint_force;
+        add_to_parent(ws, i, p);
+    } else {
+        let bias = add_one_dof_to_parent(ws, i, p, &u_col, &w);
+        ws.pa[i] += bias + joint_force;
+        let pa_i = ws.pa[i];
+        ws.pa[p] += pa_i;
+    }
+    Ok(())
+}
+
+/// `I^A_λ += I^a` and `I^a c_i` (returned) for `I^a = I^A_i − U_i w_iᵀ`, column by column:
+/// column `j` of `I^a` is made once, added to the parent's `I^A_λ` and taken `c_{i,j}` times
+/// into the product, and never stored (`ws.ia[i]` keeps `I^A_i`). For a body in its parent's
+/// aligned frame.
+#[inline(always)]
+fn add_one_dof_to_parent(
+    ws: &mut Workspace,
+    i: usize,
+    p: usize,
+    u_col: &Vector6<f64>,
+    w: &Vector6<f64>,
+) -> Force {
+    let c = ws.c[i].to_vector();
+    let (before, from_i) = ws.ia.split_at_mut(i);
+    let (parent, ia) = (&mut before[p], &from_i[0]);
+    let mut bias = Vector6::zeros();
+    for j in 0..6 {
+        let column = ia.column(j) - u_col * w[j];
+        let mut parent_column = parent.column_mut(j);
+        parent_column += column;
+        if j == 0 {
+            bias = column * c[0];
+        } else {
+            bias += column * c[j];
+        }
+    }
+    Force::from_vector(&bias)
+}
+
+/// Whether body `i` hangs from the world by a floating joint: its `S_i` is then invertible,
+/// and in world axes orthonormal (`S_i = [0 R; R 0]`, `R`'s columns the body's axes in world
+/// coordinates, the translations first as the joint's coordinates are), so that
+/// `S_i⁻¹ = S_iᵀ`.
+fn is_floating_root(body: &Body) -> bool {
+    body.parent.is_none() && body.joint.kind == JointKind::Floating
+}
+
+/// Pass 2 at a floating root ([`is_floating_root`]): `D_i⁻¹ u_i` into `ws.u_bias[i]` (by a
+/// Cholesky solve, [`spd_solve`]), without `U_i`. With
+/// `S_i = [0 R; R 0]` and `I^A_i = [A B; Bᵀ C]` (world axes, angular rows first),
+/// `D_i = S_iᵀ I^A_i S_i = [Rᵀ C R  Rᵀ Bᵀ R; Rᵀ B R  Rᵀ A R]`: the articulated inertia turned
+/// into the body's axes, in the joint's coordinate order. A pivot of `D_i` that fails is the
+/// same as on the general path ([`articulate`]): its coordinate names the direction.
+fn articulate_floating_root(ws: &mut Workspace, i: usize, tau: &[f64]) -> Result<(), (usize, f64)> {
+    let s = &ws.s_world[i];
+    let ia = &ws.ia[i];
+    let r = Matrix3::from_columns(&[s.cols[3].ang, s.cols[4].ang, s.cols[5].ang]);
+    let turn = |block: Matrix3| r.tr_mul(&(block * r));
+    let mut d = Matrix6::zeros();
+    let lin_ang = turn(ia.fixed_view::<3, 3>(0, 3).transpose());
+    d.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&turn(ia.fixed_view::<3, 3>(3, 3).into_owned()));
+    d.fixed_view_mut::<3, 3>(0, 3).copy_from(&lin_ang);
+    d.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&lin_ang.transpose());
+    d.fixed_view_mut::<3, 3>(3, 3)
+        .copy_from(&turn(ia.fixed_view::<3, 3>(0, 0).into_owned()));
+    let y = &mut ws.u_bias[i];
+    for (k, y_k) in y.iter_mut().enumerate() {
+        // u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
+        *y_k = tau[k] - s.project(k, &ws.pa[i]);
+    }
+    spd_solve(&d, 6, |pivot| pivot_is_sound_for(pivot, ia), y)
+}
+
+/// Pass 3 at a floating root ([`is_floating_root`]) from `a' = a_0 + c_i` and `D_i⁻¹ u_i` (in
+/// `ws.u_bias[i]`, [`articulate_floating_root`]): as `U_i = I^A_i S_i`
+/// and `S_i` is invertible, `D_i⁻¹ U_iᵀ a' = S_i⁻¹ a'`, so
+/// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a') = D_i⁻¹ u_i − S_iᵀ a'` and `a_i = a' + S_i q̈_i = S_i D_i⁻¹ u_i`
+/// (the root's acceleration is its articulated inertia's answer to the forces alone).
+fn accelerate_floating_root(ws: &mut Workspace, i: usize, v_index: usize, a_prime: &Motion) {
+    let (s, y) = (&ws.s_world[i], &ws.u_bias[i]);
+    let mut a_i = Motion::zero();
+    for (k, col) in s.cols.iter().enumerate() {
+        // (S_iᵀ a')_k, the plain product of the 6-vectors
+        let s_a = col.ang.dot(&a_prime.ang) + col.lin.dot(&a_prime.lin);
+        ws.qdd[v_index + k] = y[k] - s_a;
+        a_i += *col * y[k];
+    }
+    ws.a_world[i] = a_i;
 }
 
 /// Pass 3: accelerations, from the root outward.
@@ -187,6 +349,14 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
         let a_parent = motion_into_aligned(ws, i, body.parent.map_or(a_root, |p| ws.a_world[p]));
         // a' = ⁱX_λ(i) a_λ(i) + c_i   (RBDA Table 7.1; ⁱX_λ(i) as for v_i)
         let a_prime = a_parent + ws.c[i];
+        if nv == 1 {
+            accelerate_one_dof(ws, i, c.v_index, &a_prime);
+            continue;
+        }
+        if is_floating_root(body) {
+            accelerate_floating_root(ws, i, c.v_index, &a_prime);
+            continue;
+        }
         // q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),  a_i = a' + S_i q̈_i   (RBDA Table 7.1)
         let mut rhs = [0.0; 6];
         for k in 0..nv {
@@ -202,32 +372,40 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
     }
 }
 
+/// Pass 3 at body `i` with a joint of one degree of freedom, from `a' = ⁱX_λ(i) a_λ(i) + c_i`:
+/// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a')`, `a_i = a' + S_i q̈_i`   (RBDA Table 7.1), all scalars but `a`.
+#[inline(always)]
+fn accelerate_one_dof(ws: &mut Workspace, i: usize, v_index: usize, a_prime: &Motion) {
+    let qdd = ws.d_inv[i][(0, 0)] * (ws.u_bias[i][0] - a_prime.dot(&ws.u[i][0]));
+    ws.qdd[v_index] = qdd;
+    ws.a_world[i] = *a_prime + ws.s_world[i].cols[0] * qdd;
+}
+
 /// Writes into the top-left `nv × nv` block of `d_inv` the inverse of the symmetric positive
-/// definite top-left `nv × nv` block of `d` ([`spd_inverse`]; for one degree of freedom, one
-/// division), in place: false when a Cholesky pivot is not clearly positive relative to the
-/// scale of the articulated inertia `ia`: then `Err((k, pivot))`, the pivot's row `k` in the
-/// joint's coordinates and its value.
+/// definite top-left `nv × nv` block of `d` ([`spd_inverse`]); when a Cholesky pivot is not
+/// clearly positive relative to the scale of the articulated inertia `ia`
+/// ([`pivot_is_sound_for`]), `Err((k, pivot))`: the pivot's row `k` in the joint's coordinates
+/// and its value.
 fn invert_spd(
     d: &Matrix6,
     nv: usize,
     ia: &Matrix6,
     d_inv: &mut Matrix6,
 ) -> Result<(), (usize, f64)> {
-    // D's scale is that of the articulated inertia; a pivot within a few ulps of it is zero,
-    // and a subnormal one has no finite inverse (D⁻¹ would overflow). For a positive
-    // semi-definite `ia` the largest entry is on the diagonal (|a_jk| ≤ √(a_jj a_kk)).
-    let reference = 64.0 * ia.diagonal().amax();
-    let sound = |pivot: f64| pivot_is_sound(pivot, reference) && pivot >= f64::MIN_POSITIVE;
-    if nv == 1 {
-        let pivot = d[(0, 0)];
-        d_inv[(0, 0)] = 1.0 / pivot;
-        return if sound(pivot) {
-            Ok(())
-        } else {
-            Err((0, pivot))
-        };
-    }
+    let sound = |pivot: f64| pivot_is_sound_for(pivot, ia);
     spd_inverse(d, nv, sound, d_inv)
+}
+
+/// Whether a pivot of `D = Sᵀ I^A S` is sound: D's scale is that of the articulated inertia
+/// `ia`, so a pivot within a few ulps of it is zero, and a subnormal one has no finite inverse
+/// (D⁻¹ would overflow). For a positive semi-definite `ia` the largest entry is on the
+/// diagonal (|a_jk| ≤ √(a_jj a_kk)).
+#[inline(always)]
+fn pivot_is_sound_for(pivot: f64, ia: &Matrix6) -> bool {
+    // max |a_kk| by `f64::max` (one instruction per entry; a NaN entry leaves the pivot NaN).
+    let largest = (0..6).fold(0.0_f64, |m, k| m.max(ia[(k, k)].abs()));
+    let reference = 64.0 * largest;
+    pivot_is_sound(pivot, reference) && pivot >= f64::MIN_POSITIVE
 }
 
 /// The error for the failed pivot `k` (value `pivot`) of `D = Sᵀ I^A S` at body `i`: its body,

@@ -138,25 +138,7 @@ pub fn spd_inverse(
     sound: impl Fn(f64) -> bool,
     d_inv: &mut Matrix6,
 ) -> Result<(), (usize, f64)> {
-    let mut l = [[0.0; 6]; 6]; // lower triangle, row by row
-    let mut inv_diag = [0.0; 6]; // 1 / L_jj
-    for j in 0..n {
-        let mut pivot = d[(j, j)];
-        for k in 0..j {
-            pivot -= l[j][k] * l[j][k];
-        }
-        if !sound(pivot) {
-            return Err((j, pivot));
-        }
-        inv_diag[j] = 1.0 / pivot.sqrt();
-        for i in j + 1..n {
-            let mut s = d[(i, j)];
-            for k in 0..j {
-                s -= l[i][k] * l[j][k];
-            }
-            l[i][j] = s * inv_diag[j];
-        }
-    }
+    let (l, inv_diag) = spd_factor(d, n, sound)?;
     let mut w = [[0.0; 6]; 6];
     for j in 0..n {
         w[j][j] = inv_diag[j];
@@ -178,6 +160,73 @@ pub fn spd_inverse(
         }
     }
     Ok(())
+}
+
+/// Solves `D x = b` in place (`b` holds the right-hand side on entry) for the symmetric
+/// positive definite top-left `n × n` block of `d` (`n ≤ 6`), through `D = L Lᵀ` as in
+/// [`spd_inverse`], then `L y = b` and `Lᵀ x = y` (for `n = 6`, 92 multiplications where the
+/// inverse and its product with `b` take 192):
+///
+/// ```text
+/// y_j = (b_j − Σ_{k<j} L_jk y_k) / L_jj,   x_j = (y_j − Σ_{k>j} L_kj x_k) / L_jj   (j from n − 1 down)
+/// ```
+///
+/// A pivot that fails `sound`: `Err((j, pivot))`, as [`spd_inverse`] (`b` is then unspecified).
+pub fn spd_solve(
+    d: &Matrix6,
+    n: usize,
+    sound: impl Fn(f64) -> bool,
+    b: &mut [f64; 6],
+) -> Result<(), (usize, f64)> {
+    let (l, inv_diag) = spd_factor(d, n, sound)?;
+    for j in 0..n {
+        let mut s = b[j];
+        for k in 0..j {
+            s -= l[j][k] * b[k];
+        }
+        b[j] = s * inv_diag[j];
+    }
+    for j in (0..n).rev() {
+        let mut s = b[j];
+        for k in j + 1..n {
+            s -= l[k][j] * b[k];
+        }
+        b[j] = s * inv_diag[j];
+    }
+    Ok(())
+}
+
+/// A small Cholesky factor: `L`'s lower triangle row by row, and the reciprocals `1 / L_jj`.
+type SmallFactor = ([[f64; 6]; 6], [f64; 6]);
+
+/// The factor `L` of `D = L Lᵀ` and the reciprocals `1 / L_jj` for the top-left `n × n` block of
+/// `d`, as [`spd_inverse`] states; `Err((j, pivot))` for the first pivot that fails `sound`.
+#[inline(always)]
+fn spd_factor(
+    d: &Matrix6,
+    n: usize,
+    sound: impl Fn(f64) -> bool,
+) -> Result<SmallFactor, (usize, f64)> {
+    let mut l = [[0.0; 6]; 6]; // lower triangle, row by row
+    let mut inv_diag = [0.0; 6]; // 1 / L_jj
+    for j in 0..n {
+        let mut pivot = d[(j, j)];
+        for k in 0..j {
+            pivot -= l[j][k] * l[j][k];
+        }
+        if !sound(pivot) {
+            return Err((j, pivot));
+        }
+        inv_diag[j] = 1.0 / pivot.sqrt();
+        for i in j + 1..n {
+            let mut s = d[(i, j)];
+            for k in 0..j {
+                s -= l[i][k] * l[j][k];
+            }
+            l[i][j] = s * inv_diag[j];
+        }
+    }
+    Ok((l, inv_diag))
 }
 
 #[cfg(test)]
@@ -205,7 +254,7 @@ mod tests {
         assert!(err < 1e-12 * h.amax() * x.amax(), "|H X − B| = {err:e}");
     }
 
-    /// `D⁻¹ D = 1` for SPD blocks of every size, and a singular block is refused.
+    /// `D⁻¹ D = 1` and `D x = b` for SPD blocks of every size, and a singular block is refused.
     #[test]
     fn spd_inverse_inverts_and_refuses_singular_blocks() {
         let a = Matrix6::from_fn(|i, j| ((i * 7 + j * 3) % 5) as f64 - 1.5 + (i == j) as u8 as f64);
@@ -221,6 +270,18 @@ mod tests {
                 inv.view((0, 0), (n, n)).transpose()
             );
         }
+        for n in 1..=6 {
+            let b = [0.3, -1.2, 0.7, 2.0, -0.4, 1.1];
+            let mut x = b;
+            assert_eq!(spd_solve(&spd, n, |p| p > 1e-12, &mut x), Ok(()));
+            let residual = spd.view((0, 0), (n, n)) * nalgebra::DVector::from_column_slice(&x[..n])
+                - nalgebra::DVector::from_column_slice(&b[..n]);
+            assert!(
+                residual.amax() < 1e-12,
+                "n = {n}: D x − b = {:e}",
+                residual.amax()
+            );
+        }
         let mut singular = spd;
         singular.set_column(2, &singular.column(1).clone_owned());
         singular.set_row(2, &singular.row(1).clone_owned());
@@ -229,5 +290,7 @@ mod tests {
             spd_inverse(&singular, 6, |p| p > 1e-9, &mut Matrix6::zeros()).unwrap_err();
         assert_eq!(j, 2);
         assert!(pivot.abs() < 1e-9 * singular.amax(), "pivot {pivot:e}");
+        let refused = spd_solve(&singular, 6, |p| p > 1e-9, &mut [1.0; 6]).unwrap_err();
+        assert_eq!(refused, (j, pivot));
     }
 }

@@ -3,7 +3,7 @@
 
 use super::flops::*;
 use super::{Ancestors, CrbaFrames, Plan};
-use crate::model::Model;
+use crate::model::{JointKind, Model};
 
 /// The count of kernel `name` (as `spatial_dynamics bench` names them: `rnea`, `crba`,
 /// `fd_aba`, `fd_crba`, `fd_rnea_columns`, `gravity`) on `model` as its [`Plan`] runs it; `None`
@@ -51,51 +51,86 @@ fn crba_passes(model: &Model, plan: &Plan) -> Flops {
     }
 }
 
-/// The three ABA passes (world frame).
+/// The three ABA passes (world frame), each body's passes 2 and 3 as its joint takes them:
+/// one degree of freedom, a floating root, or the general form.
 fn aba_passes(model: &Model, anchors: &[bool]) -> Flops {
     // Pass 3's a_0 = a_base − [0; g] (as in `rnea_passes`).
     let mut total = placements(model) + Flops::new(0, 3);
     for (i, body) in model.bodies.iter().enumerate() {
         let nv = body.joint.kind.nv() as u64;
+        let has_parent = body.parent.is_some();
         // Pass 1: ⁰S, v_J (`S q̇`, each rate scaled by the mimic factor), v_i, c_i, ⁰I (and as
         // a 6×6), p^A.
         total += world_axes(&body.joint.kind) + SUBSPACE_COLUMN * nv + ADD6;
         total += CROSS6 + bias_added(&body.joint.kind, TRANSFORM_VECTOR);
         total += TRANSFORM_INERTIA + INERTIA_TO_MATRIX + INERTIA_APPLY + CROSS6;
-        // Pass 2: U, D, u, D⁻¹ (its pivot check scales `64 · max diag I^A` by ε).
-        total += MAT6_VEC6 * nv + DOT6 * (nv * nv) + (DOT6 + Flops::new(0, 1)) * nv;
-        total += Flops::new(1, 0);
+        // Pass 2's u = τ − Sᵀ p^A and the scale `64 · max diag I^A` of the pivot check.
+        total += (DOT6 + Flops::new(0, 1)) * nv + Flops::new(1, 0);
+        // Pass 3's a' = a_λ + c_i.
+        total += ADD6;
         total += if nv == 1 {
-            Flops {
-                div: 1,
-                ..Flops::new(1, 0)
-            }
+            aba_one_dof(has_parent)
+        } else if !has_parent && body.joint.kind == JointKind::Floating {
+            aba_floating_root()
         } else {
-            // The pivots checked against one scale `reference · ε` (`pivot_is_sound`).
-            spd_inverse(nv as usize) + Flops::new(1, 0)
+            aba_general(nv, has_parent)
         };
         if anchors[i] {
             // The parent's (or the root's) velocity and acceleration moved into the body's
             // aligned frame (`Translation::apply_motion`: a cross product and three
             // subtractions each).
             total += TRANSLATE_VECTOR * 2;
-            if body.parent.is_some() {
+            if has_parent {
                 // I^a and p^a moved into the parent's frame.
                 total += TRANSLATE_MATRIX6 + TRANSLATE_VECTOR;
             }
         }
-        if body.parent.is_some() {
-            // D⁻¹ u and the rows of D⁻¹ Uᵀ, the rank-nv update, p^a, I^a c, the parent sums.
-            total += (Flops::new(nv, nv) + Flops::new(6, 6) * nv) * nv;
-            total += (Flops::new(36, 36) + Flops::new(6, 6)) * nv;
-            total += MAT6_VEC6 + ADD6 + Flops::new(0, 36) + ADD6;
+        if has_parent {
+            // The parent sums of I^a and p^a.
+            total += Flops::new(0, 36) + ADD6;
         }
-        // Pass 3: a' = a_λ + c_i, the right-hand side, q̈ = D⁻¹ rhs (a `sum` of nv products:
-        // its first addition, to −0, is folded), a_i += S q̈.
-        total += ADD6 + (DOT6 + Flops::new(0, 1)) * nv;
-        total += Flops::new(nv, nv - 1) * nv + Flops::new(6, 6) * nv;
     }
     total
+}
+
+/// ABA's passes 2 and 3 at a joint of one degree of freedom (`aba::articulate_one_dof`,
+/// `accelerate_one_dof`), beyond [`aba_passes`]' shared terms: `U = I^A S`, `D = Sᵀ U`, `1/D`
+/// and its pivot check; below a parent `w = U / D`, the rank-1 update `I^A − U wᵀ`,
+/// `I^a c + U (u / D)` added to `p^A`; then `q̈ = (u − Uᵀ a') / D` and `a' + S q̈`.
+fn aba_one_dof(has_parent: bool) -> Flops {
+    let mut total = MAT6_VEC6 + DOT6;
+    total += Flops {
+        div: 1,
+        ..Flops::new(1, 0)
+    };
+    if has_parent {
+        total += Flops::new(6, 0) + Flops::new(36, 36) + MAT6_VEC6 + Flops::new(7, 0);
+        total += ADD6 * 2;
+    }
+    total + DOT6 + Flops::new(1, 1) + Flops::new(6, 6)
+}
+
+/// ABA's passes 2 and 3 at a floating root (`aba::articulate_floating_root`,
+/// `accelerate_floating_root`): `D = Sᵀ I^A S` as three 3×3 blocks turned by `Rᵀ · R` (two
+/// 3×3 products each), `y = D⁻¹ u` by a Cholesky solve (its pivots checked against one
+/// scale); then `q̈ = y − Sᵀ a'` and `a = S y` column by column.
+fn aba_floating_root() -> Flops {
+    let pass_2 = Flops::new(54, 36) * 3 + spd_solve(6) + Flops::new(1, 0);
+    pass_2 + (DOT6 + Flops::new(0, 1) + Flops::new(6, 6)) * 6
+}
+
+/// ABA's passes 2 and 3 at any other joint (`aba::articulate`): `U`, `D`, `D⁻¹` (its pivots
+/// checked against one scale); below a parent `D⁻¹ u` and the rows of `D⁻¹ Uᵀ`, the rank-nv
+/// update, `U D⁻¹ u` and `I^a c` added to `p^A`; then the right-hand side `u − Uᵀ a'`,
+/// `q̈ = D⁻¹ rhs` (a `sum` of nv products: its first addition, to −0, is folded), `a' + S q̈`.
+fn aba_general(nv: u64, has_parent: bool) -> Flops {
+    let mut total = MAT6_VEC6 * nv + DOT6 * (nv * nv) + spd_inverse(nv as usize) + Flops::new(1, 0);
+    if has_parent {
+        total += (Flops::new(nv, nv) + Flops::new(6, 6) * nv) * nv;
+        total += (Flops::new(36, 36) + Flops::new(6, 6)) * nv;
+        total += MAT6_VEC6 + ADD6;
+    }
+    total + (DOT6 + Flops::new(0, 1)) * nv + Flops::new(nv, nv - 1) * nv + Flops::new(6, 6) * nv
 }
 
 /// `ltl_factor` and `ltl_solve` along the tree: for coordinate `k` with `d_k` ancestors and

@@ -182,22 +182,14 @@ pub const INERTIA_ADD: Flops = Flops::new(0, 13);
 pub const MAT6_VEC6: Flops = Flops::new(36, 30);
 /// One column of `S q̇` with the coordinate scale.
 pub const SUBSPACE_COLUMN: Flops = Flops::new(7, 6);
-/// `Inertia::to_matrix`: skew matrices are negations and `1 m` is folded to copies of `m` (the
-/// source's `Matrix3::identity() * m` is 9 m; one multiplication is left in the code).
-pub const INERTIA_TO_MATRIX: Flops = Flops::new(1, 0);
+/// `Inertia::to_matrix`: copies of `Ī`, `m` and the components of `h`, some negated (none a
+/// FLOP).
+pub const INERTIA_TO_MATRIX: Flops = Flops::new(0, 0);
 /// `cholesky::spd_inverse` of an `n × n` block: the factor `L` (`n` square roots and
 /// reciprocals), `W = L⁻¹` and the lower triangle of `Wᵀ W`, loop by loop.
 pub fn spd_inverse(n: usize) -> Flops {
-    let mut total = Flops::new(0, 0);
+    let mut total = spd_factor(n);
     for j in 0..n as u64 {
-        // The pivot, its root's reciprocal, the column of `L` below it.
-        total += Flops::new(j, j)
-            + Flops {
-                div: 1,
-                sqrt: 1,
-                ..Flops::new(0, 0)
-            };
-        total += Flops::new(j + 1, j) * (n as u64 - 1 - j);
         // Column `j` of `W` below the diagonal: row `i` sums `i − j` products, then scales.
         for i in j + 1..n as u64 {
             total += Flops::new(i - j + 1, i - j - 1);
@@ -209,6 +201,31 @@ pub fn spd_inverse(n: usize) -> Flops {
     }
     total
 }
+
+/// `cholesky::spd_solve` of an `n × n` block: the factor `L`, then `L y = b` and `Lᵀ x = y`,
+/// `n − 1` products subtracted from each right-hand side in all and one scaling per entry
+/// each way.
+pub fn spd_solve(n: usize) -> Flops {
+    let n = n as u64;
+    spd_factor(n as usize) + Flops::new(n * (n - 1) + 2 * n, n * (n - 1))
+}
+
+/// The factor `L` of `cholesky::spd_inverse` and `spd_solve`: for each column the pivot, its
+/// root's reciprocal and the column below it.
+fn spd_factor(n: usize) -> Flops {
+    let mut total = Flops::new(0, 0);
+    for j in 0..n as u64 {
+        total += Flops::new(j, j)
+            + Flops {
+                div: 1,
+                sqrt: 1,
+                ..Flops::new(0, 0)
+            };
+        total += Flops::new(j + 1, j) * (n as u64 - 1 - j);
+    }
+    total
+}
+
 /// `axis_rotation` (nalgebra's `Rotation3::from_axis_angle`), without its `sin_cos`: as written
 /// 24 m + 13 a, but the repeated products `u_i u_j (1 − c)` and `u_k s` are computed once.
 pub const AXIS_ROTATION: Flops = Flops::new(15, 13);

@@ -77,13 +77,19 @@ impl Inertia {
     /// The dense 6×6 matrix `[Ī h×; h×ᵀ m 1]`.
     pub fn to_matrix(&self) -> Matrix6 {
         let mut m = Matrix6::zeros();
-        let hx = skew(&self.h);
-        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.i_bar);
-        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&hx);
-        m.fixed_view_mut::<3, 3>(3, 0).copy_from(&hx.transpose());
-        m.fixed_view_mut::<3, 3>(3, 3)
-            .copy_from(&(Matrix3::identity() * self.mass));
+        self.write_matrix(&mut m);
         m
+    }
+
+    /// [`to_matrix`](Self::to_matrix) into `m`, column by column ([`column`](Self::column)):
+    /// each entry written once, none read.
+    #[inline]
+    pub fn write_matrix(&self, m: &mut Matrix6) {
+        for j in 0..6 {
+            let column = self.column(j);
+            m.fixed_view_mut::<3, 1>(0, j).copy_from(&column.ang);
+            m.fixed_view_mut::<3, 1>(3, j).copy_from(&column.lin);
+        }
     }
 }
 

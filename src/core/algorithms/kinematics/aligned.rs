@@ -67,12 +67,19 @@ pub(crate) fn update_world_axes(ws: &mut Workspace, i: usize, rates: &[f64], sca
     let (x, s, axes) = (&ws.x_aligned[i], &ws.s[i], &ws.plan.s_axes[i]);
     let s_world = &mut ws.s_world[i];
     s_world.nv = s.nv;
+    let column = |k: usize| match axes[k] {
+        Some((j, sign)) => x.inverse_apply_axis(j, sign),
+        None => x.inverse_apply_motion(&s.cols[k]),
+    };
+    if s.nv == 1 {
+        // One column, without the loop's bookkeeping (most joints).
+        let col = column(0);
+        s_world.cols[0] = col;
+        return rates.first().map_or(Motion::zero(), |r| col * (r * scale));
+    }
     let mut v = Motion::zero();
     for k in 0..s.nv {
-        let col = match axes[k] {
-            Some((j, sign)) => x.inverse_apply_axis(j, sign),
-            None => x.inverse_apply_motion(&s.cols[k]),
-        };
+        let col = column(k);
         s_world.cols[k] = col;
         if let Some(r) = rates.get(k) {
             v += col * (r * scale);
