@@ -2,15 +2,16 @@
 # Simulation steps per second, ours against MuJoCo (C, mj_step), on the same URDFs, integrators
 # (RK4 and semi-implicit Euler) and step (1 ms): UR5 and Solo12 on a floating base, gravity on,
 # zero commands, no contact, limits or damping, from a displaced and moving initial state; both
-# timed inside their own process over runs of STEPS steps with no output (median of REPEATS).
+# timed inside their own process over runs of STEPS steps with no output (median of REPEATS),
+# alternately in ROUNDS rounds (the ratio: the median of the rounds' own ratios).
 # Prints a markdown table: steps per second of each, ours / MuJoCo (> 1: we are faster), and
 # the difference of the end states (after STEPS × 1 ms = 1 s by default). Fails when a joint's
 # angle or velocity differs from MuJoCo's by more than 1e-9 (see benches/mujoco/compare.py for
 # what is compared and why a floating base's pose is reported, not asserted).
 #
 # Usage: launch_scripts/bench_mujoco.sh
-#   Environment: STEPS (1000), REPEATS (7), DT (0.001), TOLERANCE (1e-9); SKIP_BUILD=1 uses our
-#   binary as it is; PYTHON picks python3.11.
+#   Environment: STEPS (1000), REPEATS (7), ROUNDS (5: ours then MuJoCo, alternately), DT (0.001),
+#   TOLERANCE (1e-9); SKIP_BUILD=1 uses our binary as it is; PYTHON picks python3.11.
 #
 # What it does, idempotently:
 #   1. target/mujoco-venv: a venv (git-ignored) with MuJoCo from PyPI (its C library and
@@ -66,4 +67,4 @@ fi
 
 "$venv/bin/python" "$repo/benches/mujoco/compare.py" --ours "$ours" --mujoco-steps "$build/steps" \
     --robots "$robots" --work "$build" --steps "${STEPS:-1000}" --repeats "${REPEATS:-7}" \
-    --dt "${DT:-0.001}" --tolerance "${TOLERANCE:-1e-9}"
+    --rounds "${ROUNDS:-5}" --dt "${DT:-0.001}" --tolerance "${TOLERANCE:-1e-9}"
