@@ -10,7 +10,7 @@
 //! `q̈` comes from `H q̈ = τ − C` (`H` by CRBA, factored as `LᵀL` along the tree or by Cholesky
 //! with mimic joints); `H⁻¹` and both products with it from that factor, one solve per column.
 
-use super::rnea_derivatives::{check_matrix, derivative_passes_into_rows};
+use super::rnea_derivatives::{check_matrix, derivative_passes, Target};
 use crate::algorithms::cholesky::cholesky_solve_rows;
 use crate::algorithms::forward_dynamics::crba_solve_on_joints;
 use crate::algorithms::kinematics::update_joints;
@@ -53,7 +53,7 @@ pub fn aba_derivatives<'w>(
     // allocation) and put it back.
     let qdd = std::mem::replace(&mut ws.qdd, DVector::zeros(0));
     identity_and_zeros(&mut ws.derivatives.rhs_rows, model.nv);
-    derivative_passes_into_rows(model, ws, v, qdd.as_slice(), ext);
+    derivative_passes(model, ws, v, qdd.as_slice(), ext, Target::SolveRows);
     ws.qdd = qdd;
     solve_with_factor(ws);
     let d = &ws.derivatives;

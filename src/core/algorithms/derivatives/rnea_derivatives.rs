@@ -87,7 +87,7 @@ pub fn rnea_derivatives_with<'w>(
 ) -> Result<RneaDerivatives<'w>, DynamicsError> {
     check_inverse_inputs(model, ws, q, v, a, ext)?;
     update_joints(model, ws, q);
-    derivative_passes(model, ws, v, a, ext);
+    derivative_passes(model, ws, v, a, ext, Target::Matrices);
     check_result(model, "tau", ws.tau.as_slice())?;
     let d = &ws.derivatives;
     check_matrix(model, "dtau_dq", &d.dtau_dq)?;
@@ -100,32 +100,22 @@ pub fn rnea_derivatives_with<'w>(
     })
 }
 
-/// Both passes, on joints already updated for `q` (inputs already checked): `ws.tau`,
-/// `ws.mass_matrix` and the derivatives of `ws.derivatives`.
+/// Both passes, on joints already updated for `q` (inputs already checked), the backward pass
+/// writing into `target`: with [`Target::Matrices`] `ws.tau`, `ws.mass_matrix` and the
+/// derivatives of `ws.derivatives`; with [`Target::SolveRows`] `−∂τ/∂q` and `−∂τ/∂q̇` straight
+/// into the right-hand sides of `aba_derivatives`' solve, `ws.derivatives.rhs_rows` laid out as
+/// [`SolveRows`] says, which must already hold zeros there, and neither `τ` nor `H` (CRBA made
+/// `H`, and `q̈` from `τ`).
 pub(crate) fn derivative_passes(
     model: &Model,
     ws: &mut Workspace,
     v: &[f64],
     a: &[f64],
     ext: &Externals<'_>,
+    target: Target,
 ) {
     forward_pass(model, ws, v, a, ext);
-    backward_pass(model, ws, Target::Matrices);
-}
-
-/// Both passes for forward dynamics' derivatives: `−∂τ/∂q` and `−∂τ/∂q̇` straight into the
-/// right-hand sides of `aba_derivatives`' solve, `ws.derivatives.rhs_rows` laid out as
-/// [`SolveRows`] says, which must already hold zeros there. `τ` and `H` are not computed (CRBA
-/// made `H` and `q̈` from `τ`).
-pub(crate) fn derivative_passes_into_rows(
-    model: &Model,
-    ws: &mut Workspace,
-    v: &[f64],
-    a: &[f64],
-    ext: &Externals<'_>,
-) {
-    forward_pass(model, ws, v, a, ext);
-    backward_pass(model, ws, Target::SolveRows);
+    backward_pass(model, ws, target);
 }
 
 /// A planar joint's columns act in series (translations fixed to the parent, the turn to the
@@ -194,7 +184,7 @@ fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64], ext: &E
 /// Where the backward pass writes: the matrices of [`RneaDerivatives`] with `τ`, or the rows
 /// of [`SolveRows`].
 #[derive(Clone, Copy)]
-enum Target {
+pub(crate) enum Target {
     Matrices,
     SolveRows,
 }
