@@ -192,7 +192,7 @@ mod tests {
     use super::*;
     use crate::node::logging::Level;
     use crate::node::params::Settings;
-    use spatial_dynamics_core::model::examples::PARTICLE_URDF;
+    use spatial_dynamics_core::model::examples::{pendulum_urdf, PARTICLE_URDF};
 
     const THETA: f64 = 0.7;
 
@@ -310,10 +310,20 @@ mod tests {
 
     #[test]
     fn a_state_whose_dynamics_overflow_is_dropped_with_the_reason() {
-        // A rate of 1e200 rad/s is finite, but the velocity products in the forward dynamics
-        // (≈ 1e400) are not.
-        let mut state = serving(pendulum());
-        let out = state.joint_states(Ok(pendulum_state(THETA, 1e200, at(1))), Some(0));
+        // A rate of 1e200 rad/s is finite, but a double pendulum's first link spinning at it
+        // pulls the second, bent at THETA, with a centrifugal torque of order m l² ω² ≈ 1e400:
+        // its acceleration is not finite.
+        let mut state = serving(Settings {
+            robot_description: pendulum_urdf(2, LENGTH, MASS),
+            ..Settings::default()
+        });
+        let message = JointState {
+            name: vec!["joint1".into(), "joint2".into()],
+            position: vec![THETA, THETA],
+            velocity: vec![1e200, 0.0],
+            ..pendulum_state(THETA, 0.0, at(1))
+        };
+        let out = state.joint_states(Ok(message), Some(0));
         assert!(out.gravity.is_none() && out.acceleration.is_none());
         let status = state.health.report("test", "pendulum1", true);
         let dropped: Vec<_> = status

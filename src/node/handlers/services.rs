@@ -180,11 +180,13 @@ mod tests {
             "{}",
             id.message
         );
-        // Finite inputs whose dynamics overflow.
+        // Finite inputs whose dynamics overflow: an effort of 1e308 N·m on an inertia of
+        // m l² / 3 ≈ 0.53 kg·m² is an acceleration of ≈ 1.9e308 rad/s², beyond f64.
         let fd = state.forward_dynamics(&ForwardDynamicsRequest {
             name: joint1(),
             position: vec![THETA],
-            velocity: vec![1e200],
+            velocity: vec![0.0],
+            effort: vec![1e308],
             ..Default::default()
         });
         assert!(!fd.success && fd.acceleration.is_empty() && !fd.message.is_empty());
