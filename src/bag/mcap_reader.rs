@@ -648,7 +648,18 @@ pub fn topics(path: &Path) -> Result<Option<Vec<TopicInfo>>, String> {
     for (id, schema, topic) in channels {
         let count = counts.as_ref().map(|m| m.get(&id).copied().unwrap_or(0));
         match topics.iter_mut().find(|t| t.name == topic) {
-            Some(t) => t.count = t.count.zip(count).map(|(a, b)| a + b),
+            Some(t) => {
+                // Counts are the file's word: a sum past u64 is a malformed statistics record.
+                t.count = match t.count.zip(count) {
+                    Some((a, b)) => Some(a.checked_add(b).ok_or_else(|| {
+                        format!(
+                            "the statistics record's message counts of topic '{}' overflow",
+                            t.name
+                        )
+                    })?),
+                    None => None,
+                };
+            }
             None => topics.push(TopicInfo {
                 name: topic,
                 type_name: schemas.get(&schema).cloned().unwrap_or_default(),
