@@ -11,30 +11,33 @@ use crate::model::{JointKind, Model};
 pub fn kernel_flops(model: &Model, name: &str) -> Option<Flops> {
     let plan = &Plan::new(model);
     let n = model.nv as u64;
-    let check = check_q(model);
+    let joints = joints(model, plan);
+    // Inverse and forward dynamics check `q`, two more input vectors, the root's motion and
+    // the result; CRBA `q` (its matrix by a probe the passes carry); gravity `q` and `τ`.
+    let dynamics_checks = check_q(model) + all_finite(n) * 3 + MOTION_FINITE * 2;
     Some(match name {
-        "rnea" => check + joints(model) + rnea_passes(model, true, true),
-        "crba" => check + joints(model) + crba_passes(model, plan),
-        "gravity" => check + joints(model) + gravity_passes(model),
+        "rnea" => dynamics_checks + joints + rnea_passes(model, true, true),
+        "crba" => check_q(model) + joints + crba_passes(model, plan),
+        "gravity" => check_q(model) + all_finite(n) + joints + gravity_passes(model),
         "fd_aba" => {
             if model.bodies.iter().any(|b| b.joint.is_mimic()) {
                 return None;
             }
-            check + joints(model) + aba_passes(model, &plan.anchors)
+            dynamics_checks + joints + aba_passes(model, &plan.anchors)
         }
         "fd_crba" => {
             let solve = match &plan.dof_ancestors {
                 Some(ancestors) => ltl(ancestors),
                 None => dense_cholesky(n),
             };
-            check + joints(model) + rnea_passes(model, true, false) + crba_passes(model, plan) + solve
+            dynamics_checks + joints + rnea_passes(model, true, false) + crba_passes(model, plan) + solve
                 // τ − C; each pivot checked against H_kk ε
                 + Flops::new(n, n)
         }
         "fd_rnea_columns" => {
-            check
-                + (joints(model) + rnea_passes(model, true, false))
-                + (joints(model) + rnea_passes(model, true, true)) * n
+            dynamics_checks
+                + (joints + rnea_passes(model, true, false))
+                + (joints + rnea_passes(model, true, true)) * n
                 // H_k = τ − C for each column, τ − C once; each pivot checked against H_kk ε
                 + Flops::new(n, n * n + n)
                 + dense_cholesky(n)
@@ -208,7 +211,9 @@ mod tests {
     /// (3 m), one component each of `v_i` and `a_i` added to (2 a) and `q̇ (v_i ×̂ e_j)` added
     /// to `a_i` (4 m + 4 a; a revolute joint has no `c_J`), two inertia products, a cross
     /// product and a sum for `f`, and inward `(σ μ) f_j` accumulated (2 m + 1 a) and, below the
-    /// root, a transform and a sum.
+    /// root, a transform and a sum. The checks: `x · 0` summed for each of `q`, `q̇`, `q̈` and
+    /// `τ` (n m + n a, and 2 a to join the lanes when one is used, 3 when all four are) and for
+    /// the root's velocity and acceleration (6 m + 5 a each).
     #[test]
     fn rnea_per_body_on_a_chain() {
         let per_body = Flops::new(
@@ -220,7 +225,9 @@ mod tests {
         let root = Flops::new(0, 3);
         for n in [1usize, 4, 9] {
             let model = chain(n);
-            let expected = root + per_body * n as u64 + below_root * (n as u64 - 1);
+            let joins = if n == 1 { 2 } else { 3 };
+            let checks = Flops::new(n as u64, n as u64 + joins) * 4 + Flops::new(12, 10);
+            let expected = root + per_body * n as u64 + below_root * (n as u64 - 1) + checks;
             assert_eq!(kernel_flops(&model, "rnea"), Some(expected), "n = {n}");
         }
     }

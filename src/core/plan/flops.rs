@@ -21,9 +21,12 @@
 //! valgrind (callgrind) counts how often each machine instruction of `benches/flop_harness.rs`
 //! runs while it calls a kernel, and `objdump` says which are floating-point arithmetic. Built
 //! without LLVM's vectorisers (`--scalar`, one operation per instruction), the count executed
-//! is this table's for every building block below and every kernel on the default arm (fixed
-//! and floating), a 12-link chain, `src/core/tests/models/tree.urdf` and the mimic gripper, but for
-//! `fd_crba` on `tree.urdf` and `src/core/tests/models/quarter_turns.urdf`, a few additions apart. The
+//! is this table's for every building block below, and for `rnea`, `crba`, `gravity` and
+//! `fd_rnea_columns` on the default arm (fixed and floating), a 12-link chain,
+//! `src/core/tests/models/tree.urdf` and the mimic gripper; `fd_aba` executes 5 additions a body
+//! fewer than the table (4 at the planar joint) and `fd_crba`'s sparse `LᵀL` from one addition
+//! fewer to 30 more, both within 1 %. The input and result checks are arithmetic too
+//! ([`all_finite`], [`MOTION_FINITE`]). The
 //! release build executes more, since its packed instructions compute lanes nobody needs
 //! (`docs/performance.md` lists how much more per kernel).
 //!
@@ -68,6 +71,7 @@
 //! Dense factorisations and ABA's inverse of a joint's `D` ([`spd_inverse`]) count exactly their
 //! loops.
 
+use super::Plan;
 use crate::model::{Body, JointKind, Model, UpShape};
 use std::ops::{Add, AddAssign, Mul};
 
@@ -239,29 +243,49 @@ pub const QUATERNION_ROTATION: Flops = Flops {
     sincos: 0,
 };
 
-/// `check_q`: the squared norm of every floating joint's quaternion (4 m + 3 a).
+/// `check_q`: the squared norm of every floating joint's quaternion (4 m + 3 a), after `q`'s
+/// finiteness ([`all_finite`]).
 pub(crate) fn check_q(model: &Model) -> Flops {
     let floating = model
         .bodies
         .iter()
         .filter(|b| b.joint.kind == JointKind::Floating && !b.joint.is_mimic())
         .count() as u64;
-    Flops::new(4, 3) * floating
+    all_finite(model.nq as u64) + Flops::new(4, 3) * floating
 }
 
-/// `update_joints`: `jcalc_up` for every body, but for a revolute joint about a coordinate
-/// axis whose placement has no rotation (`UpShape::AxisTurn`): its turn angle, `sin_cos` and
+/// `validate::all_finite` on `n` values: `x · 0` for each, summed into four lanes that start
+/// at 0, and the lanes joined, `(l₀ + l₁) + (l₂ + l₃)`; a join of two lanes that were never
+/// added to (`0 + 0`) is folded.
+pub(crate) fn all_finite(n: u64) -> Flops {
+    let lanes = n.min(4);
+    let joins = match lanes {
+        0 => 0,
+        1 | 2 => 2,
+        _ => 3,
+    };
+    Flops::new(n, n + joins)
+}
+
+/// `Motion::is_finite`: `ω · 0 + v · 0` and its three components summed.
+pub const MOTION_FINITE: Flops = Flops::new(6, 5);
+
+/// `update_joints`: every joint's coordinates, [`SIN_COS`] for each body of the plan's turning
+/// range (`Plan::turning`, from the first revolute joint about a coordinate axis to the last:
+/// one branch-free loop, on a turn angle of 0 for a body between them that has none), and each
+/// joint's transform: `jcalc_up` without its `sin_cos`, or for a revolute joint about a
+/// coordinate axis whose placement has no rotation (`UpShape::AxisTurn`) its turn angle and
 /// `model::turn_up_unrotated`, which computes nothing.
-pub(crate) fn joints(model: &Model) -> Flops {
-    let mut total = Flops::default();
+pub(crate) fn joints(model: &Model, plan: &Plan) -> Flops {
+    let mut total = SIN_COS * plan.turning.len() as u64;
     for body in &model.bodies {
         // The joint's coordinates `scale · q + offset` (the identity map unless mimic; still
         // computed), then its transform.
         let kind = &body.joint.kind;
         let nq = kind.nq() as u64;
         let transform = match kind.up_shape(&body.x_tree) {
-            UpShape::AxisTurn(_) => turn_angle(kind) + SIN_COS,
-            _ => jcalc_up(kind),
+            UpShape::AxisTurn(_) => turn_angle(kind),
+            _ => turn_angle(kind) + jcalc_up_turned(kind),
         };
         total += Flops::new(nq, nq) + transform;
     }
@@ -277,8 +301,7 @@ const SINCOS: Flops = Flops {
 /// `spatial::sin_cos` for one angle: the reduction (4 m + 13 a with its two-sum and tail),
 /// `y²`, `y²/2`, `z²`, `z⁴` (4 m), the two kernels by Estrin's scheme (7 m + 7 a each) and
 /// their assembly with the tail (`1 − z/2` once, 1 a; 3 m + 2 a for `sin`, 2 m + 5 a for
-/// `cos`). `update_joints` runs it for every joint, on a turn angle of 0 where the joint has
-/// none.
+/// `cos`).
 pub const SIN_COS: Flops = Flops::new(27, 35);
 
 /// `JointKind::jcalc_up` for a joint of kind `kind`: its turn angle, `spatial::sin_cos` of it,
