@@ -120,9 +120,11 @@ pub(crate) fn ltl_solve_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, x:
     }
 }
 
-/// Solves `Lᵀ L X = B` in place for `k` right-hand sides held row by row: `w` is `n` rows of
-/// `k` entries, row `i` of `B` at `w[i k .. (i + 1) k]` (the column-major storage of `Bᵀ`).
-/// Every step is then a whole-row update, contiguous and independent entry by entry, where a
+/// Solves `Lᵀ L X = B` in place for `B = [1 | G]`, `k = n + per_dof n` right-hand sides held
+/// row by row: `w` is `n` rows of `k` entries, row `i` of `B` at `w[i k .. (i + 1) k]` (the
+/// column-major storage of `Bᵀ`): the identity's row, then `per_dof` columns for each
+/// coordinate `j` (from `n + per_dof j` on), zero for every `j ≥ e(i)` (past `i`'s subtree).
+/// Every step is a whole-row update, contiguous and independent entry by entry, where a
 /// column-by-column solve waits on one division after another:
 ///
 /// ```text
@@ -136,58 +138,72 @@ pub(crate) fn ltl_solve_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, x:
 /// first pass when `c` is `p`'s only child (`D(p) = {c} ∪ D(c)`), in the second always
 /// (`A(c) = {p} ∪ A(p)`), so each row of their shared sum is loaded once for both.
 ///
-/// With `identity_first`, the first `n` columns of `B` are the identity (`k ≥ n`), and there:
-/// row `i` of `Y = L⁻ᵀ` is zero outside the columns `i` and `D(i)` (`Y_i` gathers `e_i` and the
-/// rows below `i`, each zero outside its own subtree's range), so the first pass updates only
-/// the columns from `i` on (one contiguous range: the zeros past `D(i)` cost less to recompute
-/// than a second sweep per group; a pair from `p` on, where `c`'s column `p` stays zero); and
-/// `X = H⁻¹` is symmetric, its row `m` at columns `c ≥ m` needs only its ancestors' rows at
-/// the same columns (`c ≥ m > a`), so the second pass computes only the upper triangle of that
-/// block (a pair from `p` on; the entries below the diagonal are left as scratch, not `H⁻¹`).
+/// The zeros of `B` are kept where they stay:
+/// - Row `i` of `Y` is zero in the columns of every `j ≥ e(i)`: it gathers `B_i` and the rows
+///   of `D(i)`, each zero from its own `e(m) ≤ e(i)` on. So the first pass updates row `i` up to
+///   column `n + per_dof e(i)` only, and each sweep of four rows `m` of `D(i)` up to their
+///   largest `n + per_dof e(m)` (a leg's rows in the floating base's sum reach the leg's end,
+///   not all `n` coordinates); the entries past them stay zero as they came.
+/// - In the identity block, row `i` of `Y = L⁻ᵀ` is zero outside the columns `i` and `D(i)`,
+///   so the first pass updates the columns from `i` on (a pair from `p` on, where `c`'s column
+///   `p` stays zero).
+/// - `X = H⁻¹` there is symmetric: its row `m` at columns `c ≥ m` needs only its ancestors'
+///   rows at the same columns (`c ≥ m > a`), so the second pass computes only the upper
+///   triangle of that block (a pair from `p` on); the entries below the diagonal are left as
+///   scratch, not `H⁻¹`.
 pub(crate) fn ltl_solve_rows(
     ancestors: &Ancestors,
     factor: &DMatrix<f64>,
     w: &mut [f64],
-    k: usize,
-    identity_first: bool,
+    per_dof: usize,
 ) {
     let n = ancestors.len();
     let l = factor.as_slice();
     let entry = |r: usize, c: usize| l[r + c * n];
     let parent = |c: usize| ancestors.of(c).first().copied();
-    // The columns a row (or a pair from its upper row `p`) updates.
-    let from = |p: usize| if identity_first { p } else { 0 };
+    let k = n + per_dof * n;
+    debug_assert_eq!(
+        w.len(),
+        n * k,
+        "n rows of the identity, then per_dof columns a coordinate"
+    );
+    // The columns a row (or a pair from its upper row `p`) updates, from `p` on; in the first
+    // pass up to where row `m` of `Y` ends (`to(m)`).
+    let to = |m: usize| n + per_dof * ancestors.below(m).end;
     let mut end = n;
     while end > 0 {
         let c = end - 1;
         let below = ancestors.below(c);
         let (head, tail) = w.split_at_mut(end * k);
         let tail: &[f64] = tail;
-        // Row m of D(c) is tail's row m − c − 1.
+        // Row m of D(c) is tail's row m − c − 1, non-zero before `to(m)` only.
         let rows_below = |first: usize| {
             below.clone().map(move |m| {
                 let row_m = &tail[(m - c - 1) * k..(m - c) * k];
-                (m, &row_m[first..])
+                (m, &row_m[first..], to(m) - first)
             })
         };
         match parent(c) {
             Some(p) if p + 1 == c && ancestors.below(p).end == below.end => {
                 let (row_p, row_c) = head[p * k..].split_at_mut(k);
+                let columns = p..to(c);
                 let mut pair = ChainPair {
-                    y: [&mut row_c[from(p)..], &mut row_p[from(p)..]],
+                    y: [&mut row_c[columns.clone()], &mut row_p[columns.clone()]],
                     link: entry(c, p),
                     scale: [1.0 / entry(c, c), 1.0 / entry(p, p)],
                 };
-                let terms = rows_below(from(p)).map(|(m, x)| ([entry(m, c), entry(m, p)], x));
+                let terms = rows_below(columns.start)
+                    .map(|(m, x, len)| ([entry(m, c), entry(m, p)], x, len));
                 subtract_combinations(&mut pair, terms);
                 end -= 2;
             }
             _ => {
                 let mut row = OneRow {
-                    y: &mut head[c * k + from(c)..],
+                    y: &mut head[c * k..][c..to(c)],
                     scale: 1.0 / entry(c, c),
                 };
-                subtract_combinations(&mut row, rows_below(from(c)).map(|(m, x)| (entry(m, c), x)));
+                let terms = rows_below(c).map(|(m, x, len)| (entry(m, c), x, len));
+                subtract_combinations(&mut row, terms);
                 end -= 1;
             }
         }
@@ -200,25 +216,28 @@ pub(crate) fn ltl_solve_rows(
             ancestors
                 .of(p)
                 .iter()
-                .map(move |&a| (a, &head[a * k + first..(a + 1) * k]))
+                .map(move |&a| (a, &head[a * k + first..(a + 1) * k], k - first))
         };
         let c = p + 1;
         if c < n && parent(c) == Some(p) {
             let (row_p, row_c) = tail.split_at_mut(k);
             let mut pair = ChainPair {
-                y: [&mut row_p[from(p)..], &mut row_c[from(p)..k]],
+                y: [&mut row_p[p..], &mut row_c[p..k]],
                 link: entry(c, p),
                 scale: [1.0 / entry(p, p), 1.0 / entry(c, c)],
             };
-            let terms = rows_above(from(p)).map(|(a, x)| ([entry(p, a), entry(c, a)], x));
+            let terms = rows_above(p).map(|(a, x, len)| ([entry(p, a), entry(c, a)], x, len));
             subtract_combinations(&mut pair, terms);
             p += 2;
         } else {
             let mut row = OneRow {
-                y: &mut tail[from(p)..k],
+                y: &mut tail[p..k],
                 scale: 1.0 / entry(p, p),
             };
-            subtract_combinations(&mut row, rows_above(from(p)).map(|(a, x)| (entry(p, a), x)));
+            subtract_combinations(
+                &mut row,
+                rows_above(p).map(|(a, x, len)| (entry(p, a), x, len)),
+            );
             p += 1;
         }
     }
@@ -240,9 +259,17 @@ trait Rows {
     /// The terms' coefficients, one per row.
     type Coefficients: Copy;
     const NONE: Self::Coefficients;
-    /// `y_r ← y_r − Σ_t c_tr x_t` over a group of `T` terms, and with `last` the rows' ending
-    /// step after it.
-    fn sweep<const T: usize>(&mut self, c: &[Self::Coefficients; T], x: [&[f64]; T], last: bool);
+    /// The rows' length.
+    fn len(&self) -> usize;
+    /// `y_r ← y_r − Σ_t c_tr x_t` over a group of `T` terms on the rows' first `len` entries
+    /// (each `x_t` at least that long), and with `last` the rows' ending step after it.
+    fn sweep<const T: usize>(
+        &mut self,
+        c: &[Self::Coefficients; T],
+        x: [&[f64]; T],
+        len: usize,
+        last: bool,
+    );
     /// The ending step alone (no terms).
     fn end(&mut self);
 }
@@ -257,15 +284,18 @@ impl Rows for OneRow<'_> {
     type Coefficients = f64;
     const NONE: f64 = 0.0;
     #[inline(always)]
-    fn sweep<const T: usize>(&mut self, c: &[f64; T], x: [&[f64]; T], last: bool) {
-        let n = self.y.len();
-        let x = x.map(|x| &x[..n]);
+    fn len(&self) -> usize {
+        self.y.len()
+    }
+    #[inline(always)]
+    fn sweep<const T: usize>(&mut self, c: &[f64; T], x: [&[f64]; T], len: usize, last: bool) {
+        let (y, x) = (&mut self.y[..len], x.map(|x| &x[..len]));
         if last {
-            for (j, y) in self.y.iter_mut().enumerate() {
+            for (j, y) in y.iter_mut().enumerate() {
                 *y = (*y - combination(c, &x, j)) * self.scale;
             }
         } else {
-            for (j, y) in self.y.iter_mut().enumerate() {
+            for (j, y) in y.iter_mut().enumerate() {
                 *y -= combination(c, &x, j);
             }
         }
@@ -289,10 +319,13 @@ impl Rows for ChainPair<'_> {
     type Coefficients = [f64; 2];
     const NONE: [f64; 2] = [0.0; 2];
     #[inline(always)]
-    fn sweep<const T: usize>(&mut self, c: &[[f64; 2]; T], x: [&[f64]; T], last: bool) {
+    fn len(&self) -> usize {
+        self.y[0].len()
+    }
+    #[inline(always)]
+    fn sweep<const T: usize>(&mut self, c: &[[f64; 2]; T], x: [&[f64]; T], len: usize, last: bool) {
         let [y0, y1] = &mut self.y;
-        let n = y0.len();
-        let (y1, x) = (&mut y1[..n], x.map(|x| &x[..n]));
+        let (y0, y1, x) = (&mut y0[..len], &mut y1[..len], x.map(|x| &x[..len]));
         let (c0, c1) = (c.map(|c| c[0]), c.map(|c| c[1]));
         let ([s0, s1], link) = (self.scale, self.link);
         if last {
@@ -319,33 +352,38 @@ impl Rows for ChainPair<'_> {
     }
 }
 
-/// `rows ← rows − Σ_t c_t x_t` over the terms `(c_t, x_t)` (each `x_t` as long as the rows),
-/// four terms per sweep over the rows: each entry of a row is loaded and stored once per four
-/// terms, each entry of a term once per sweep for all the rows; the rows' ending step (the
-/// scaling) is done in the last sweep.
+/// `rows ← rows − Σ_t c_t x_t` over the terms `(c_t, x_t, len_t)` (`x_t` as long as the rows,
+/// zero from `len_t` on), four terms per sweep over the rows: each entry of a row is loaded and
+/// stored once per four terms, each entry of a term once per sweep for all the rows. A sweep
+/// covers the columns before its terms' longest `len_t`, the last one the whole rows, with the
+/// rows' ending step (the scaling).
 #[inline(always)]
 fn subtract_combinations<'a, R: Rows>(
     rows: &mut R,
-    terms: impl Iterator<Item = (R::Coefficients, &'a [f64])>,
+    terms: impl Iterator<Item = (R::Coefficients, &'a [f64], usize)>,
 ) {
     let mut terms = terms.peekable();
     let (mut c, mut x) = ([R::NONE; 4], [&[][..]; 4]);
     loop {
-        let mut len = 0;
-        while len < 4 {
+        let (mut count, mut len) = (0, 0);
+        while count < 4 {
             match terms.next() {
-                Some((c_t, x_t)) => (c[len], x[len]) = (c_t, x_t),
+                Some((c_t, x_t, len_t)) => {
+                    (c[count], x[count]) = (c_t, x_t);
+                    len = len.max(len_t);
+                }
                 None => break,
             }
-            len += 1;
+            count += 1;
         }
         let last = terms.peek().is_none();
-        match len {
-            4 => rows.sweep(&c, x, last),
+        let len = if last { rows.len() } else { len };
+        match count {
+            4 => rows.sweep(&c, x, len, last),
             // Fewer than four terms: the last sweep.
-            3 => rows.sweep(&[c[0], c[1], c[2]], [x[0], x[1], x[2]], true),
-            2 => rows.sweep(&[c[0], c[1]], [x[0], x[1]], true),
-            1 => rows.sweep(&[c[0]], [x[0]], true),
+            3 => rows.sweep(&[c[0], c[1], c[2]], [x[0], x[1], x[2]], len, true),
+            2 => rows.sweep(&[c[0], c[1]], [x[0], x[1]], len, true),
+            1 => rows.sweep(&[c[0]], [x[0]], len, true),
             _ => rows.end(), // no terms at all
         }
         if last {
@@ -417,23 +455,20 @@ mod tests {
                 "{}: |H x − b| = {err:e}",
                 model.name
             );
-            // Three right-hand sides row by row: the storage of Bᵀ in, of Xᵀ out.
-            let b3 = DMatrix::from_fn(n, 3, |i, j| ((i * 3 + j) as f64 * 0.7).cos());
-            let mut rows = b3.transpose().as_slice().to_vec();
-            ltl_solve_rows(&ancestors, &factor, &mut rows, 3, false);
-            let x3 = DMatrix::from_column_slice(3, n, &rows).transpose();
-            let err = (&h * &x3 - &b3).amax();
-            assert!(
-                err < 1e-12 * (h.amax() * x3.amax()),
-                "{}: |H X − B| = {err:e} (rows)",
-                model.name
-            );
-            // The identity first, then B: H⁻¹ and H⁻¹ B.
-            let mut b4 = DMatrix::identity(n, n).insert_columns(n, 3, 0.0);
-            b4.columns_mut(n, 3).copy_from(&b3);
+            // The identity first, then two columns a coordinate, row i zero in those of the
+            // coordinates past its subtree, row by row (the storage of Bᵀ in, of Xᵀ out): H⁻¹ and
+            // H⁻¹ B.
+            let per_dof = 2;
+            let k = n + per_dof * n;
+            let mut b4 = DMatrix::identity(n, n).insert_columns(n, per_dof * n, 0.0);
+            for i in 0..n {
+                for c in n..n + per_dof * ancestors.below(i).end {
+                    b4[(i, c)] = ((i * k + c) as f64 * 0.7).cos();
+                }
+            }
             let mut rows = b4.transpose().as_slice().to_vec();
-            ltl_solve_rows(&ancestors, &factor, &mut rows, n + 3, true);
-            let mut x4 = DMatrix::from_column_slice(n + 3, n, &rows).transpose();
+            ltl_solve_rows(&ancestors, &factor, &mut rows, per_dof);
+            let mut x4 = DMatrix::from_column_slice(k, n, &rows).transpose();
             for r in 0..n {
                 for c in 0..r {
                     x4[(r, c)] = x4[(c, r)]; // H⁻¹ from its upper triangle
