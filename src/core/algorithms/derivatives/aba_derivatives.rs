@@ -125,8 +125,10 @@ fn solve_with_factor(ws: &mut Workspace) {
         .zip(d.ddq_dv.as_mut_slice().chunks_exact_mut(nv))
         .enumerate()
     {
-        for (i, row) in rows.chunks_exact(k).enumerate() {
-            (dq[i], dv[i]) = (row[nv + 2 * c], row[nv + 2 * c + 1]);
+        let at = nv + 2 * c;
+        for ((dq, dv), row) in dq.iter_mut().zip(dv.iter_mut()).zip(rows.chunks_exact(k)) {
+            let pair = &row[at..at + 2];
+            (*dq, *dv) = (pair[0], pair[1]);
         }
     }
 }
