@@ -167,9 +167,11 @@ pub(crate) fn ltl_solve_rows(
         n * k,
         "n rows of the identity, then per_dof columns a coordinate"
     );
-    // The columns a row (or a pair from its upper row `p`) updates, from `p` on; in the first
-    // pass up to where row `m` of `Y` ends (`to(m)`).
+    // The columns a row `c` (or a pair from its upper row `p`) updates: from `c` (`p`) on, in
+    // the first pass up to where row `c` of `Y` ends (`to(c)`).
     let to = |m: usize| n + per_dof * ancestors.below(m).end;
+    // Lᵀ Y = B, leaves inward: row `c`, or `c` and then its parent `p = c − 1`. Rows from
+    // `end` on are done.
     let mut end = n;
     while end > 0 {
         let c = end - 1;
@@ -208,6 +210,7 @@ pub(crate) fn ltl_solve_rows(
             }
         }
     }
+    // L X = Y, root outward: row `p`, or `p` and then its child `c = p + 1`.
     let mut p = 0;
     while p < n {
         let (head, tail) = w.split_at_mut(p * k);
