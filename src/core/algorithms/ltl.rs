@@ -120,9 +120,11 @@ pub(crate) fn ltl_solve_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, x:
     }
 }
 
-/// Solves `Lᵀ L X = B` in place for `k` right-hand sides held row by row: `w` is `n` rows of
-/// `k` entries, row `i` of `B` at `w[i k .. (i + 1) k]` (the column-major storage of `Bᵀ`).
-/// Every step is then a whole-row update, contiguous and independent entry by entry, where a
+/// Solves `Lᵀ L X = B` in place for `B = [1 | G]`, `k = n + per_dof n` right-hand sides held
+/// row by row: `w` is `n` rows of `k` entries, row `i` of `B` at `w[i k .. (i + 1) k]` (the
+/// column-major storage of `Bᵀ`): the identity's row, then `per_dof` columns for each
+/// coordinate `j` (from `n + per_dof j` on), zero for every `j ≥ e(i)` (past `i`'s subtree).
+/// Every step is a whole-row update, contiguous and independent entry by entry, where a
 /// column-by-column solve waits on one division after another:
 ///
 /// ```text
@@ -131,113 +133,266 @@ pub(crate) fn ltl_solve_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, x:
 /// ```
 ///
 /// Each row gathers its sum four rows at a time and divides in the last sweep
-/// ([`subtract_combination_and_scale`]), reading and writing its own entries once per four
-/// terms.
+/// ([`subtract_combinations`]), reading and writing its own entries once per four terms. Two
+/// coordinates in a chain (`p` the parent of `c = p + 1`) go together ([`ChainPair`]): in the
+/// first pass when `c` is `p`'s only child (`D(p) = {c} ∪ D(c)`), in the second always
+/// (`A(c) = {p} ∪ A(p)`), so each row of their shared sum is loaded once for both.
 ///
-/// With `identity_first`, the first `n` columns of `B` are the identity (`k ≥ n`), and there:
-/// row `i` of `Y = L⁻ᵀ` is zero outside the columns `i` and `D(i)` (`Y_i` gathers `e_i` and the
-/// rows below `i`, each zero outside its own subtree's range), so the first pass updates only
-/// the columns from `i` on (one contiguous range: the zeros past `D(i)` cost less to recompute
-/// than a second sweep per group); and `X = H⁻¹` is symmetric, its row `m` at columns `c ≥ m` needs only its ancestors'
-/// rows at the same columns (`c ≥ m > a`), so the second pass computes only the upper triangle
-/// of that block (the entries below it are left as scratch, not `H⁻¹`).
+/// The zeros of `B` are kept where they stay:
+/// - Row `i` of `Y` is zero in the columns of every `j ≥ e(i)`: it gathers `B_i` and the rows
+///   of `D(i)`, each zero from its own `e(m) ≤ e(i)` on. So the first pass updates row `i` up to
+///   column `n + per_dof e(i)` only, and each sweep of four rows `m` of `D(i)` up to their
+///   largest `n + per_dof e(m)` (a leg's rows in the floating base's sum reach the leg's end,
+///   not all `n` coordinates); the entries past them stay zero as they came.
+/// - In the identity block, row `i` of `Y = L⁻ᵀ` is zero outside the columns `i` and `D(i)`,
+///   so the first pass updates the columns from `i` on (a pair from `p` on, where `c`'s column
+///   `p` stays zero).
+/// - `X = H⁻¹` there is symmetric: its row `m` at columns `c ≥ m` needs only its ancestors'
+///   rows at the same columns (`c ≥ m > a`), so the second pass computes only the upper
+///   triangle of that block (a pair from `p` on); the entries below the diagonal are left as
+///   scratch, not `H⁻¹`.
 pub(crate) fn ltl_solve_rows(
     ancestors: &Ancestors,
     factor: &DMatrix<f64>,
     w: &mut [f64],
-    k: usize,
-    identity_first: bool,
+    per_dof: usize,
 ) {
     let n = ancestors.len();
     let l = factor.as_slice();
-    for i in (0..n).rev() {
-        let (head, tail) = w.split_at_mut((i + 1) * k);
-        let row_i = &mut head[i * k..];
-        let below = ancestors.below(i);
-        // The columns to update: from i on with the identity first (columns before i are zero
-        // in every row of the sum, and those past i's subtree up to n as well), or all.
-        let columns = if identity_first { i..k } else { 0..k };
-        let terms = below.clone().map(|m| {
-            let row_m = &tail[(m - i - 1) * k..(m - i) * k];
-            (l[m + i * n], &row_m[columns.clone()])
-        });
-        subtract_combination_and_scale(&mut row_i[columns.clone()], terms, 1.0 / l[i + i * n]);
+    let entry = |r: usize, c: usize| l[r + c * n];
+    let parent = |c: usize| ancestors.of(c).first().copied();
+    let k = n + per_dof * n;
+    debug_assert_eq!(
+        w.len(),
+        n * k,
+        "n rows of the identity, then per_dof columns a coordinate"
+    );
+    // The columns a row `c` (or a pair from its upper row `p`) updates: from `c` (`p`) on, in
+    // the first pass up to where row `c` of `Y` ends (`to(c)`).
+    let to = |m: usize| n + per_dof * ancestors.below(m).end;
+    // Lᵀ Y = B, leaves inward: row `c`, or `c` and then its parent `p = c − 1`. Rows from
+    // `end` on are done.
+    let mut end = n;
+    while end > 0 {
+        let c = end - 1;
+        let below = ancestors.below(c);
+        let (head, tail) = w.split_at_mut(end * k);
+        let tail: &[f64] = tail;
+        // Row m of D(c) is tail's row m − c − 1, non-zero before `to(m)` only.
+        let rows_below = |first: usize| {
+            below.clone().map(move |m| {
+                let row_m = &tail[(m - c - 1) * k..(m - c) * k];
+                (m, &row_m[first..], to(m) - first)
+            })
+        };
+        match parent(c) {
+            Some(p) if p + 1 == c && ancestors.below(p).end == below.end => {
+                let (row_p, row_c) = head[p * k..].split_at_mut(k);
+                let columns = p..to(c);
+                let mut pair = ChainPair {
+                    y: [&mut row_c[columns.clone()], &mut row_p[columns.clone()]],
+                    link: entry(c, p),
+                    scale: [1.0 / entry(c, c), 1.0 / entry(p, p)],
+                };
+                let terms = rows_below(columns.start)
+                    .map(|(m, x, len)| ([entry(m, c), entry(m, p)], x, len));
+                subtract_combinations(&mut pair, terms);
+                end -= 2;
+            }
+            _ => {
+                let mut row = OneRow {
+                    y: &mut head[c * k..][c..to(c)],
+                    scale: 1.0 / entry(c, c),
+                };
+                let terms = rows_below(c).map(|(m, x, len)| (entry(m, c), x, len));
+                subtract_combinations(&mut row, terms);
+                end -= 1;
+            }
+        }
     }
-    for m in 0..n {
-        let (head, tail) = w.split_at_mut(m * k);
-        let first = if identity_first { m } else { 0 };
-        let row_m = &mut tail[first..k];
-        let terms = ancestors
-            .of(m)
-            .iter()
-            .map(|&a| (l[m + a * n], &head[a * k + first..(a + 1) * k]));
-        subtract_combination_and_scale(row_m, terms, 1.0 / l[m + m * n]);
+    // L X = Y, root outward: row `p`, or `p` and then its child `c = p + 1`.
+    let mut p = 0;
+    while p < n {
+        let (head, tail) = w.split_at_mut(p * k);
+        let head: &[f64] = head;
+        let rows_above = |first: usize| {
+            ancestors
+                .of(p)
+                .iter()
+                .map(move |&a| (a, &head[a * k + first..(a + 1) * k], k - first))
+        };
+        let c = p + 1;
+        if c < n && parent(c) == Some(p) {
+            let (row_p, row_c) = tail.split_at_mut(k);
+            let mut pair = ChainPair {
+                y: [&mut row_p[p..], &mut row_c[p..k]],
+                link: entry(c, p),
+                scale: [1.0 / entry(p, p), 1.0 / entry(c, c)],
+            };
+            let terms = rows_above(p).map(|(a, x, len)| ([entry(p, a), entry(c, a)], x, len));
+            subtract_combinations(&mut pair, terms);
+            p += 2;
+        } else {
+            let mut row = OneRow {
+                y: &mut tail[p..k],
+                scale: 1.0 / entry(p, p),
+            };
+            subtract_combinations(
+                &mut row,
+                rows_above(p).map(|(a, x, len)| (entry(p, a), x, len)),
+            );
+            p += 1;
+        }
     }
 }
 
-/// `y ← (y − Σ_t c_t x_t) s` over the terms `(c_t, x_t)` (each `x_t` as long as `y`), four
-/// terms per sweep over `y`: each entry of `y` is loaded and stored once per four products, and
-/// the scaling is done in the last sweep.
+/// `Σ_t c_t x_t[j]` over a group of `T` terms.
 #[inline(always)]
-fn subtract_combination_and_scale<'a>(
-    y: &mut [f64],
-    terms: impl Iterator<Item = (f64, &'a [f64])>,
+fn combination<const T: usize>(c: &[f64; T], x: &[&[f64]; T], j: usize) -> f64 {
+    let mut sum = c[0] * x[0][j];
+    for t in 1..T {
+        sum += c[t] * x[t][j];
+    }
+    sum
+}
+
+/// Rows that one sweep over their columns updates together, each from the same terms `x_t`
+/// with its own coefficient.
+trait Rows {
+    /// The terms' coefficients, one per row.
+    type Coefficients: Copy;
+    const NONE: Self::Coefficients;
+    /// The rows' length.
+    fn len(&self) -> usize;
+    /// `y_r ← y_r − Σ_t c_tr x_t` over a group of `T` terms on the rows' first `len` entries
+    /// (each `x_t` at least that long), and with `last` the rows' ending step after it.
+    fn sweep<const T: usize>(
+        &mut self,
+        c: &[Self::Coefficients; T],
+        x: [&[f64]; T],
+        len: usize,
+        last: bool,
+    );
+    /// The ending step alone (no terms).
+    fn end(&mut self);
+}
+
+/// One row: `y ← (y − Σ_t c_t x_t) s`.
+struct OneRow<'a> {
+    y: &'a mut [f64],
     scale: f64,
+}
+
+impl Rows for OneRow<'_> {
+    type Coefficients = f64;
+    const NONE: f64 = 0.0;
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.y.len()
+    }
+    #[inline(always)]
+    fn sweep<const T: usize>(&mut self, c: &[f64; T], x: [&[f64]; T], len: usize, last: bool) {
+        let (y, x) = (&mut self.y[..len], x.map(|x| &x[..len]));
+        if last {
+            for (j, y) in y.iter_mut().enumerate() {
+                *y = (*y - combination(c, &x, j)) * self.scale;
+            }
+        } else {
+            for (j, y) in y.iter_mut().enumerate() {
+                *y -= combination(c, &x, j);
+            }
+        }
+    }
+    #[inline(always)]
+    fn end(&mut self) {
+        self.y.iter_mut().for_each(|y| *y *= self.scale);
+    }
+}
+
+/// Two rows of a chain over the same columns, the second of which also takes the first's
+/// result as a term: `y_0 ← (y_0 − Σ_t c_t0 x_t) s_0`, then
+/// `y_1 ← (y_1 − Σ_t c_t1 x_t − link y_0) s_1` (entry by entry, in one sweep).
+struct ChainPair<'a> {
+    y: [&'a mut [f64]; 2],
+    link: f64,
+    scale: [f64; 2],
+}
+
+impl Rows for ChainPair<'_> {
+    type Coefficients = [f64; 2];
+    const NONE: [f64; 2] = [0.0; 2];
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.y[0].len()
+    }
+    #[inline(always)]
+    fn sweep<const T: usize>(&mut self, c: &[[f64; 2]; T], x: [&[f64]; T], len: usize, last: bool) {
+        let [y0, y1] = &mut self.y;
+        let (y0, y1, x) = (&mut y0[..len], &mut y1[..len], x.map(|x| &x[..len]));
+        let (c0, c1) = (c.map(|c| c[0]), c.map(|c| c[1]));
+        let ([s0, s1], link) = (self.scale, self.link);
+        if last {
+            for (j, (y0, y1)) in y0.iter_mut().zip(y1.iter_mut()).enumerate() {
+                let first = (*y0 - combination(&c0, &x, j)) * s0;
+                *y0 = first;
+                *y1 = (*y1 - combination(&c1, &x, j) - link * first) * s1;
+            }
+        } else {
+            for (j, (y0, y1)) in y0.iter_mut().zip(y1.iter_mut()).enumerate() {
+                *y0 -= combination(&c0, &x, j);
+                *y1 -= combination(&c1, &x, j);
+            }
+        }
+    }
+    #[inline(always)]
+    fn end(&mut self) {
+        let [y0, y1] = &mut self.y;
+        let ([s0, s1], link) = (self.scale, self.link);
+        for (y0, y1) in y0.iter_mut().zip(y1.iter_mut()) {
+            *y0 *= s0;
+            *y1 = (*y1 - link * *y0) * s1;
+        }
+    }
+}
+
+/// `rows ← rows − Σ_t c_t x_t` over the terms `(c_t, x_t, len_t)` (`x_t` as long as the rows,
+/// zero from `len_t` on), four terms per sweep over the rows: each entry of a row is loaded and
+/// stored once per four terms, each entry of a term once per sweep for all the rows. A sweep
+/// covers the columns before its terms' longest `len_t`, the last one the whole rows, with the
+/// rows' ending step (the scaling).
+#[inline(always)]
+fn subtract_combinations<'a, R: Rows>(
+    rows: &mut R,
+    terms: impl Iterator<Item = (R::Coefficients, &'a [f64], usize)>,
 ) {
     let mut terms = terms.peekable();
-    let n = y.len();
-    while let Some(first) = terms.next() {
-        let mut group: [(f64, &[f64]); 4] = [first, (0.0, &[]), (0.0, &[]), (0.0, &[])];
-        let mut len = 1;
-        while len < 4 {
+    let (mut c, mut x) = ([R::NONE; 4], [&[][..]; 4]);
+    loop {
+        let (mut count, mut len) = (0, 0);
+        while count < 4 {
             match terms.next() {
-                Some(term) => group[len] = term,
+                Some((c_t, x_t, len_t)) => {
+                    (c[count], x[count]) = (c_t, x_t);
+                    len = len.max(len_t);
+                }
                 None => break,
             }
-            len += 1;
+            count += 1;
         }
         let last = terms.peek().is_none();
-        match group[..len] {
-            [(a, p), (b, q), (c, r), (d, s)] => {
-                let (p, q, r, s) = (&p[..n], &q[..n], &r[..n], &s[..n]);
-                let sum = |j: usize| (a * p[j] + b * q[j]) + (c * r[j] + d * s[j]);
-                if last {
-                    for (j, y) in y.iter_mut().enumerate() {
-                        *y = (*y - sum(j)) * scale;
-                    }
-                } else {
-                    for (j, y) in y.iter_mut().enumerate() {
-                        *y -= sum(j);
-                    }
-                }
-            }
+        let len = if last { rows.len() } else { len };
+        match count {
+            4 => rows.sweep(&c, x, len, last),
             // Fewer than four terms: the last sweep.
-            [(a, p), (b, q), (c, r)] => {
-                let (p, q, r) = (&p[..n], &q[..n], &r[..n]);
-                for (j, y) in y.iter_mut().enumerate() {
-                    *y = (*y - ((a * p[j] + b * q[j]) + c * r[j])) * scale;
-                }
-            }
-            [(a, p), (b, q)] => {
-                let (p, q) = (&p[..n], &q[..n]);
-                for (j, y) in y.iter_mut().enumerate() {
-                    *y = (*y - (a * p[j] + b * q[j])) * scale;
-                }
-            }
-            [(a, p)] => {
-                let p = &p[..n];
-                for (y, p) in y.iter_mut().zip(p) {
-                    *y = (*y - a * p) * scale;
-                }
-            }
-            _ => {}
+            3 => rows.sweep(&[c[0], c[1], c[2]], [x[0], x[1], x[2]], len, true),
+            2 => rows.sweep(&[c[0], c[1]], [x[0], x[1]], len, true),
+            1 => rows.sweep(&[c[0]], [x[0]], len, true),
+            _ => rows.end(), // no terms at all
         }
         if last {
             return;
         }
     }
-    // No terms at all.
-    y.iter_mut().for_each(|y| *y *= scale);
 }
 
 #[cfg(test)]
@@ -303,23 +458,20 @@ mod tests {
                 "{}: |H x − b| = {err:e}",
                 model.name
             );
-            // Three right-hand sides row by row: the storage of Bᵀ in, of Xᵀ out.
-            let b3 = DMatrix::from_fn(n, 3, |i, j| ((i * 3 + j) as f64 * 0.7).cos());
-            let mut rows = b3.transpose().as_slice().to_vec();
-            ltl_solve_rows(&ancestors, &factor, &mut rows, 3, false);
-            let x3 = DMatrix::from_column_slice(3, n, &rows).transpose();
-            let err = (&h * &x3 - &b3).amax();
-            assert!(
-                err < 1e-12 * (h.amax() * x3.amax()),
-                "{}: |H X − B| = {err:e} (rows)",
-                model.name
-            );
-            // The identity first, then B: H⁻¹ and H⁻¹ B.
-            let mut b4 = DMatrix::identity(n, n).insert_columns(n, 3, 0.0);
-            b4.columns_mut(n, 3).copy_from(&b3);
+            // The identity first, then two columns a coordinate, row i zero in those of the
+            // coordinates past its subtree, row by row (the storage of Bᵀ in, of Xᵀ out): H⁻¹ and
+            // H⁻¹ B.
+            let per_dof = 2;
+            let k = n + per_dof * n;
+            let mut b4 = DMatrix::identity(n, n).insert_columns(n, per_dof * n, 0.0);
+            for i in 0..n {
+                for c in n..n + per_dof * ancestors.below(i).end {
+                    b4[(i, c)] = ((i * k + c) as f64 * 0.7).cos();
+                }
+            }
             let mut rows = b4.transpose().as_slice().to_vec();
-            ltl_solve_rows(&ancestors, &factor, &mut rows, n + 3, true);
-            let mut x4 = DMatrix::from_column_slice(n + 3, n, &rows).transpose();
+            ltl_solve_rows(&ancestors, &factor, &mut rows, per_dof);
+            let mut x4 = DMatrix::from_column_slice(k, n, &rows).transpose();
             for r in 0..n {
                 for c in 0..r {
                     x4[(r, c)] = x4[(c, r)]; // H⁻¹ from its upper triangle

@@ -74,8 +74,8 @@ pub fn aba_derivatives<'w>(
     })
 }
 
-/// The right-hand sides `[1 | −∂τ/∂q | −∂τ/∂q̇]` before the passes add the derivatives: row
-/// `i` (of `3 nv` entries) is `e_iᵀ` then zeros.
+/// The right-hand sides before the passes add the derivatives: row `i` (of `3 nv` entries) is
+/// `e_iᵀ` then zeros.
 fn identity_and_zeros(rows: &mut [f64], nv: usize) {
     let k = 3 * nv;
     let rows = &mut rows[..k * nv];
@@ -87,8 +87,11 @@ fn identity_and_zeros(rows: &mut [f64], nv: usize) {
 
 /// `H⁻¹` into `ws.derivatives.minv` and `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` into `ddq_dq`, `ddq_dv`,
 /// solving `H X = B` for `B = [1 | −∂τ/∂q | −∂τ/∂q̇]` (held row by row in
-/// `ws.derivatives.rhs_rows`, `nv` rows of `3 nv`) with the factor `crba_solve_on_joints` left
-/// in `ws.factor`. The `3 nv` right-hand sides go row by row (each step an update of whole rows):
+/// `ws.derivatives.rhs_rows`, `nv` rows of `3 nv`, the columns of `−∂τ/∂q` and `−∂τ/∂q̇` side by
+/// side: column `c` of each at `nv + 2 c` and `nv + 2 c + 1`) with the factor
+/// `crba_solve_on_joints` left in `ws.factor`. Row `i` of `∂τ/∂q`, `∂τ/∂q̇` is zero outside
+/// `i`'s branch (its ancestors and subtree: turning or moving a joint elsewhere changes no force
+/// on `i`), so in particular at every column from `e(i)` on, as the tree solve takes it. The `3 nv` right-hand sides go row by row (each step an update of whole rows):
 /// along the tree ([`ltl_solve_rows`]) over the non-zeros of `L`, `O(nv d)` per column for depth
 /// `d`, where a product with the dense `H⁻¹` costs `nv²`; with mimic joints through the dense
 /// Cholesky factor ([`cholesky_solve_rows`]). Of the symmetric `H⁻¹` the tree solve computes
@@ -102,7 +105,7 @@ fn solve_with_factor(ws: &mut Workspace) {
     let k = 3 * nv;
     let rows = &mut d.rhs_rows[..k * nv];
     match &plan.dof_ancestors {
-        Some(ancestors) => ltl_solve_rows(ancestors, factor, rows, k, true),
+        Some(ancestors) => ltl_solve_rows(ancestors, factor, rows, 2),
         None => cholesky_solve_rows(factor, rows, k),
     }
     // H⁻¹ from its upper triangle (symmetric; the tree solve computes only that), the
@@ -122,8 +125,65 @@ fn solve_with_factor(ws: &mut Workspace) {
         .zip(d.ddq_dv.as_mut_slice().chunks_exact_mut(nv))
         .enumerate()
     {
-        for (i, row) in rows.chunks_exact(k).enumerate() {
-            (dq[i], dv[i]) = (row[nv + c], row[2 * nv + c]);
+        let at = nv + 2 * c;
+        for ((dq, dv), row) in dq.iter_mut().zip(dv.iter_mut()).zip(rows.chunks_exact(k)) {
+            let pair = &row[at..at + 2];
+            (*dq, *dv) = (pair[0], pair[1]);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::algorithms::rnea_derivatives;
+    use crate::model::ModelOptions;
+    use crate::sampling::{random_q, Rng};
+    use crate::urdf::model_from_str;
+    use crate::Workspace;
+
+    /// The tree solve takes row `i` of `∂τ/∂q`, `∂τ/∂q̇` as zero in every column from `e(i)`
+    /// (the end of `i`'s subtree) on: it is, exactly, on a branched tree with a fixed, a
+    /// planar and a floating base, where `e(i) < nv` for most rows.
+    #[test]
+    fn rows_of_the_inverse_dynamics_derivatives_end_with_their_subtree() {
+        let tree = include_str!("../../tests/models/tree.urdf");
+        let floating = ModelOptions {
+            floating_base: true,
+            ..Default::default()
+        };
+        for (text, options) in [
+            (tree.to_string(), ModelOptions::default()),
+            (tree.to_string(), floating),
+            (
+                tree.replace(r#"type="planar""#, r#"type="floating""#),
+                ModelOptions::default(),
+            ),
+        ] {
+            let model = model_from_str(&text, &options).unwrap();
+            let mut ws = Workspace::new(&model);
+            let ancestors = ws.plan.dof_ancestors.clone().expect("numbered depth-first");
+            let mut rng = Rng::new(11);
+            let q = random_q(&model, &mut rng);
+            let nv = model.nv();
+            let (v, a): (Vec<f64>, Vec<f64>) = (0..nv)
+                .map(|i| ((i as f64 * 0.9).sin(), (i as f64 * 1.3).cos()))
+                .unzip();
+            let d = rnea_derivatives(&model, &mut ws, &q, &v, &a).unwrap();
+            let (mut ending, mut nonzero) = (0, 0);
+            for i in 0..nv {
+                let end = ancestors.below(i).end;
+                ending += usize::from(end < nv);
+                for j in 0..nv {
+                    let (dq, dv) = (d.dtau_dq[(i, j)], d.dtau_dv[(i, j)]);
+                    if j >= end {
+                        assert_eq!((dq, dv), (0.0, 0.0), "{}: row {i}, column {j}", model.name);
+                    } else {
+                        nonzero += usize::from(dq != 0.0 || dv != 0.0);
+                    }
+                }
+            }
+            assert!(ending >= 2, "{}: {ending} rows end before nv", model.name);
+            assert!(nonzero > 0, "{}: all zeros", model.name);
         }
     }
 }

@@ -490,8 +490,10 @@ impl<const ASSIGN: bool> Entries for Matrices<'_, ASSIGN> {
     }
 }
 
-/// The right-hand sides `[1 | −∂τ/∂q | −∂τ/∂q̇]` of `aba_derivatives`' solve, row by row: `nv`
-/// rows of `3 nv` entries, `−∂τ_r/∂q_c` at `3 nv r + nv + c`, `−∂τ_r/∂q̇_c` `nv` further on.
+/// The right-hand sides of `aba_derivatives`' solve, row by row: `nv` rows of `3 nv` entries,
+/// the identity's row, then `−∂τ_r/∂q_c`, `−∂τ_r/∂q̇_c` side by side for each column `c` (at
+/// `3 nv r + nv + 2 c` and the entry after it), so that the columns of a row's branch up to the
+/// end of its subtree are one range.
 struct SolveRows<'a> {
     rows: &'a mut [f64],
     nv: usize,
@@ -501,9 +503,9 @@ impl Entries for SolveRows<'_> {
     const TAU_AND_H: bool = false;
     #[inline(always)]
     fn add(&mut self, r: usize, c: usize, dq: f64, dv: f64) {
-        let at = 3 * self.nv * r + self.nv + c;
+        let at = 3 * self.nv * r + self.nv + 2 * c;
         self.rows[at] -= dq;
-        self.rows[at + self.nv] -= dv;
+        self.rows[at + 1] -= dv;
     }
     #[inline(always)]
     fn add_h(&mut self, _: usize, _: usize, _: f64) {}
