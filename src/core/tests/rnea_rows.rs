@@ -1,7 +1,8 @@
 //! `rnea_rows` (RNEA on many states, blocks of them in the lanes of each instruction) against
 //! the scalar `rnea` row by row: the same bits for every state, on models the lanes cover
-//! (turns and slides along coordinate axes, placements with and without rotation, mimic joints)
-//! and models they do not (planar and floating joints), with row counts that leave a remainder;
+//! (turns and slides along coordinate axes and other axes, placements with and without
+//! rotation, mimic joints) and models they do not (planar and floating joints), with row counts
+//! that leave a remainder;
 //! and the same error, at the same row, when one state of a block is bad.
 
 use spatial_dynamics_core::algorithms::lanes::{covers, LANES};
@@ -32,7 +33,24 @@ fn models() -> Vec<(Model, bool)> {
             &fixed,
             true,
         ),
-        // Every joint along a coordinate axis: turns and slides under rotated placements.
+        // Turns and slides under rotated placements, a turn about another axis, slides at π/4.
+        (quarter_turns.to_string(), &fixed, true),
+        // A turn and a slide about and along an axis with three nonzero components.
+        (
+            quarter_turns
+                .replace(
+                    r#"<axis xyz="0.6 0.8 0"/>"#,
+                    r#"<axis xyz="0.48 0.6 0.64"/>"#,
+                )
+                .replacen(
+                    r#"<axis xyz="0 1 0"/>"#,
+                    r#"<axis xyz="0.64 -0.48 0.6"/>"#,
+                    2,
+                ),
+            &fixed,
+            true,
+        ),
+        // Every joint along a coordinate axis.
         (
             quarter_turns
                 .replace(r#"<axis xyz="0.6 0.8 0"/>"#, r#"<axis xyz="1 0 0"/>"#)
@@ -40,8 +58,6 @@ fn models() -> Vec<(Model, bool)> {
             &fixed,
             true,
         ),
-        // A turn about another axis, slides at π/4: row by row.
-        (quarter_turns.to_string(), &fixed, false),
         (include_str!("models/tree.urdf").to_string(), &fixed, false),
         (DEFAULT_ARM_URDF.to_string(), &floating, false),
         (PARTICLE_URDF.to_string(), &fixed, true),

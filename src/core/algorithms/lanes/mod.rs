@@ -19,7 +19,7 @@ use super::validate::all_finite;
 use crate::error::{check_len, DynamicsError};
 use crate::model::Model;
 use crate::Workspace;
-use passes::{rnea_lanes, unit_axis};
+use passes::{lane_column, rnea_lanes};
 use spatial::{LaneForce, LaneInertia, LaneMotion, LaneTransform};
 use value::{Lanes, V3};
 
@@ -30,8 +30,8 @@ pub const LANES: usize = 2;
 /// row `r` of `q_rows` (`nq` values a row), `v_rows` and `a_rows` (`nv` each) is state `r`,
 /// and its `τ` goes to row `r` of `tau_rows`, bit for bit what [`rnea`] gives on that state.
 ///
-/// On a model whose every joint is a revolute or prismatic joint along a coordinate axis (most
-/// arms: UR5, Panda, Kinova; mimic joints too) blocks of [`LANES`] rows run at once (the
+/// On a model whose every joint is revolute or prismatic (most arms: UR5, Panda, Kinova; mimic
+/// joints too) blocks of [`LANES`] rows run at once (the
 /// module's passes) and the remaining rows one at a time; any other model runs every row
 /// through [`rnea`]. A block with a non-finite input or result runs again row by row through
 /// [`rnea`], so an error is [`rnea`]'s, naming the joint or field. Errors come with the index
@@ -80,13 +80,13 @@ pub fn rnea_rows(
     rows_one_by_one(model, ws, first..rows, q_rows, v_rows, a_rows, tau_rows)
 }
 
-/// Whether [`rnea_rows`] runs `model`'s states in lanes: every joint is a revolute or
-/// prismatic joint along a coordinate axis (its `S` one signed unit vector of `[ω; v]`).
+/// Whether [`rnea_rows`] runs `model`'s states in lanes: every joint is revolute or prismatic,
+/// about or along any axis (no planar or floating joint).
 pub fn covers(model: &Model) -> bool {
     model
         .bodies
         .iter()
-        .all(|b| unit_axis(&b.joint.kind).is_some())
+        .all(|b| lane_column(&b.joint.kind).is_some())
 }
 
 /// Rows `rows` through the scalar [`rnea`], stopping at the first error (with its row).
@@ -113,10 +113,14 @@ fn rows_one_by_one(
 /// empty when the passes do not cover the model (`covered` false).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct LaneScratch {
-    /// Whether every joint has a unit axis ([`unit_axis`]): the lane passes run on the model.
+    /// Whether every joint is revolute or prismatic ([`covers`]): the lane passes run on it.
     covered: bool,
-    /// Each joint's `(j, σ)`: `S_i = σ e_j`.
+    /// Each joint's `(j, σ)` when `S = σ e_j` (else unused), and its `S` in every lane when it is
+    /// not a unit vector.
     unit_axes: Vec<(usize, f64)>,
+    general: Vec<Option<LaneMotion>>,
+    /// Whether any `S` is not a unit vector.
+    any_general: bool,
     /// A prismatic joint's axis (zero for a turn), in every lane.
     slide_axes: Vec<V3>,
     /// Each body's inertia and joint placement `X_tree`, in every lane.
@@ -126,7 +130,7 @@ pub(crate) struct LaneScratch {
     angles: Vec<f64>,
     sines: Vec<f64>,
     cosines: Vec<f64>,
-    /// A prismatic joint's coordinate `μ q + o`.
+    /// The coordinate `μ q + o` of a joint that does not turn about a coordinate axis.
     slides: Vec<Lanes>,
     /// `ⁱX_λ`: the entries the joint's form reads; those constant in `q` set here, from `X_tree`.
     x_up: Vec<LaneTransform>,
@@ -142,10 +146,10 @@ impl LaneScratch {
         if !covers(model) {
             return Self::default();
         }
-        let unit_axes = model
+        let columns: Vec<_> = model
             .bodies
             .iter()
-            .filter_map(|b| unit_axis(&b.joint.kind))
+            .filter_map(|b| lane_column(&b.joint.kind))
             .collect();
         let n = model.nbodies();
         let x_tree: Vec<_> = model
@@ -155,7 +159,12 @@ impl LaneScratch {
             .collect();
         LaneScratch {
             covered: true,
-            unit_axes,
+            unit_axes: columns.iter().map(|c| c.unwrap_or((0, 0.0))).collect(),
+            any_general: columns.iter().any(Result::is_err),
+            general: columns
+                .iter()
+                .map(|c| c.err().map(|s| LaneMotion::splat(&s)))
+                .collect(),
             slide_axes: model
                 .bodies
                 .iter()

@@ -1,6 +1,5 @@
 //! RNEA on [`LANES`] states at once (handout eqs. 13–16; Featherstone, RBDA Table 5.1), for a
-//! model whose every joint has `S_i = σ e_j`, one signed unit vector of `[ω; v]` (a revolute
-//! joint about, or a prismatic joint along, a coordinate axis; [`unit_axis`]). The passes are
+//! model whose every joint is revolute or prismatic ([`lane_column`]). The passes are
 //! [`rnea`](crate::algorithms::rnea)'s, with each `f64` a lane value ([`Lanes`]):
 //!
 //! ```text
@@ -21,23 +20,28 @@
 use super::spatial::{with_lane_transform, LaneMotion, LaneSpatialTransform};
 use super::value::{tr_mul, Lanes};
 use super::LANES;
-use crate::model::{JointKind, Model, UpShape};
-use crate::spatial::{sin_cos_all, Motion, Vector3};
+use crate::model::{JointKind, Model, MotionSubspace, UpShape};
+use crate::spatial::{sin_cos_all, Motion, Transform, Vector3};
 use crate::Workspace;
 
-/// `Some((j, σ))` when the lane passes cover body `i`'s joint: a revolute or prismatic joint
-/// whose `S` is the signed unit vector `σ e_j` of `[ω; v]` (`Plan::s_axes`).
-pub(crate) fn unit_axis(kind: &JointKind) -> Option<(usize, f64)> {
-    match kind {
-        JointKind::Revolute { .. } | JointKind::Continuous { .. } | JointKind::Prismatic { .. } => {
-            kind.subspace_axes()[0]
+/// The joint's `S` when the lane passes cover it, a revolute or prismatic joint (one degree of
+/// freedom, `S` constant, no `c_J`): `Ok((j, σ))` for `S = σ e_j`, one signed unit vector of
+/// `[ω; v]` (`Plan::s_axes`: about or along a coordinate axis; `S q̇`, `S q̈` and `Sᵀ f` are one
+/// component, `rnea::along_axis`), `Err(S)` for any other axis (`rnea::joint_motion`). `None`
+/// for a planar or floating joint.
+pub(crate) fn lane_column(kind: &JointKind) -> Option<Result<(usize, f64), Motion>> {
+    let column = match *kind {
+        JointKind::Revolute { axis } | JointKind::Continuous { axis } => {
+            Motion::new(axis, Vector3::zeros())
         }
-        _ => None,
-    }
+        JointKind::Prismatic { axis } => Motion::new(Vector3::zeros(), axis),
+        _ => return None,
+    };
+    Some(kind.subspace_axes()[0].ok_or(column))
 }
 
 /// `τ` of the [`LANES`] states whose rows (`nq`, `nv` values each, consecutive) are `q`, `v`,
-/// `a`, into `tau` (`nv` values a row), on a covered model ([`unit_axis`]), inputs finite.
+/// `a`, into `tau` (`nv` values a row), on a covered model ([`lane_column`]), inputs finite.
 pub(crate) fn rnea_lanes(
     model: &Model,
     ws: &mut Workspace,
@@ -47,8 +51,15 @@ pub(crate) fn rnea_lanes(
     tau: &mut [f64],
 ) {
     update_joints(model, ws, q);
-    forward_pass(model, ws, v, a);
-    inward_pass(model, ws);
+    // Compiled apart for models whose every `S` is a unit axis (most), without the test for a
+    // general column at each body.
+    if ws.lanes.any_general {
+        forward_pass::<true>(model, ws, v, a);
+        inward_pass::<true>(model, ws);
+    } else {
+        forward_pass::<false>(model, ws, v, a);
+        inward_pass::<false>(model, ws);
+    }
     for (k, t) in ws.lanes.tau.iter().enumerate() {
         t.scatter(tau, model.nv, k);
     }
@@ -59,7 +70,8 @@ pub(crate) fn rnea_lanes(
 /// of each `ⁱX_λ` that vary with `q` (the others were set with the scratch): a turn about
 /// `e_k` mixes rows `I`, `J` of `E_tree` (`model::turn_up`), or for a placement without
 /// rotation is `c`, `s` itself (`model::turn_up_unrotated`, read by the axis-turn form); a
-/// slide along `axis` moves the origin to `r_tree + E_treeᵀ (axis q)`.
+/// slide along `axis` moves the origin to `r_tree + E_treeᵀ (axis q)`; a turn about another
+/// axis is the scalar `jcalc_up_turned`'s, lane by lane.
 fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
     let Workspace { plan, lanes, .. } = ws;
     let nq = model.nq;
@@ -79,8 +91,12 @@ fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
         &mut lanes.sines[turning.clone()],
         &mut lanes.cosines[turning],
     );
-    let joints = plan.turn_axes.iter().zip(&plan.up_shapes);
-    for (i, (&axis, &shape)) in joints.enumerate() {
+    let joints = model
+        .bodies
+        .iter()
+        .zip(&plan.turn_axes)
+        .zip(&plan.up_shapes);
+    for (i, ((body, &axis), &shape)) in joints.enumerate() {
         let x_up = &mut lanes.x_up[i];
         let x_tree = &lanes.x_tree[i];
         match axis {
@@ -98,9 +114,19 @@ fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
                     }
                 }
             }
-            None => {
+            None if matches!(body.joint.kind, JointKind::Prismatic { .. }) => {
                 let moved = lanes.slide_axes[i].scale(lanes.slides[i]);
                 x_up.trans = x_tree.trans + tr_mul(&x_tree.rot, &moved);
+            }
+            None => {
+                // A turn about another axis: libm's sine and cosine inside nalgebra's rotation.
+                let mut s = MotionSubspace::default();
+                for (l, &angle) in lanes.slides[i].0.iter().enumerate() {
+                    let mut x = Transform::identity();
+                    let kind = &body.joint.kind;
+                    kind.jcalc_up_turned(&[angle], (0.0, 1.0), &body.x_tree, &mut s, &mut x);
+                    x_up.set_lane(l, &x);
+                }
             }
         }
     }
@@ -108,7 +134,7 @@ fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
 
 /// The outward pass (eqs. 13–15) into `ws.lanes.v`, `a`, `f`, rates and accelerations read
 /// from the rows `v`, `a`.
-fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64]) {
+fn forward_pass<const GENERAL: bool>(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64]) {
     let nv = model.nv;
     // a_0 = −a_g   (RBDA Table 5.1), the root at rest
     let a_root = Motion::zero() - Motion::new(Vector3::zeros(), model.gravity);
@@ -126,13 +152,28 @@ fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64]) {
             x.apply_motion(&v_parent),
             x.apply_motion(&a_parent)
         ));
-        // S_i = σ e_j: q̇_i and q̈_i scaled by σ μ (μ a mimic follower's multiplier)
-        let (j, sign) = lanes.unit_axes[i];
-        let k = Lanes::splat(sign * c.scale);
-        let rate = k * Lanes::gather(v, nv, c.v_index);
-        let accel = k * Lanes::gather(a, nv, c.v_index);
-        // v_i = ⁱX_λ v_λ + σ q̇ e_j,  a_i = ⁱX_λ a_λ + σ q̇ (v_i ×̂ e_j) + σ q̈ e_j   (13, 14)
-        let (v_i, a_i) = along_axis(j, rate, accel, v_up, a_up);
+        let (rate, accel) = (
+            Lanes::gather(v, nv, c.v_index),
+            Lanes::gather(a, nv, c.v_index),
+        );
+        // v_i = ⁱX_λ v_λ + S_i q̇_i,  a_i = ⁱX_λ a_λ + S_i q̈_i + v_i ×̂ S_i q̇_i   (13, 14)
+        let general = if GENERAL {
+            lanes.general[i].as_ref()
+        } else {
+            None
+        };
+        let (v_i, a_i) = match general {
+            Some(s) => {
+                let scale = Lanes::splat(c.scale);
+                column_motion(s, rate * scale, accel * scale, v_up, a_up)
+            }
+            None => {
+                // S_i = σ e_j: q̇_i and q̈_i scaled by σ μ (μ a mimic follower's multiplier)
+                let (j, sign) = lanes.unit_axes[i];
+                let k = Lanes::splat(sign * c.scale);
+                along_axis(j, k * rate, k * accel, v_up, a_up)
+            }
+        };
         // f_i = I_i a_i + v_i ×* I_i v_i   (15)
         let inertia = &lanes.inertia[i];
         let f_i = inertia.apply(&a_i) + v_i.cross_force(&inertia.apply(&v_i));
@@ -145,15 +186,25 @@ fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64]) {
 
 /// The inward pass (eqs. 15–16) on `ws.lanes.f` into `ws.lanes.tau`: `τ_i = σ μ (f_i)_j`,
 /// `f_λ += ⁱX_λᵀ f_i`.
-fn inward_pass(model: &Model, ws: &mut Workspace) {
+fn inward_pass<const GENERAL: bool>(model: &Model, ws: &mut Workspace) {
     let Workspace { plan, lanes, .. } = ws;
     lanes.tau.fill(Lanes::splat(0.0));
     let joints = model.bodies.iter().zip(&plan.up_shapes).enumerate();
     for (i, (body, &shape)) in joints.rev() {
         let (c, f_i) = (body.joint.coords, lanes.f[i]);
-        let (j, sign) = lanes.unit_axes[i];
-        // τ_i = S_iᵀ f_i = σ (f_i)_j   (16), a mimic follower's μ σ (f_i)_j added to its leader's
-        lanes.tau[c.v_index] += Lanes::splat(sign * c.scale) * f_i.component(j);
+        // τ_i = S_iᵀ f_i   (16), a mimic follower's μ S_iᵀ f_i added to its leader's
+        let general = if GENERAL {
+            lanes.general[i].as_ref()
+        } else {
+            None
+        };
+        lanes.tau[c.v_index] += match general {
+            Some(s) => Lanes::splat(c.scale) * s.dot(&f_i),
+            None => {
+                let (j, sign) = lanes.unit_axes[i];
+                Lanes::splat(sign * c.scale) * f_i.component(j)
+            }
+        };
         if let Some(p) = body.parent {
             // f_λ(i) += λ(i)X*_i f_i   (15)
             let f_parent = with_lane_transform!(shape: shape, x_up: &lanes.x_up[i], |x| x
@@ -161,6 +212,23 @@ fn inward_pass(model: &Model, ws: &mut Workspace) {
             lanes.f[p] += f_parent;
         }
     }
+}
+
+/// `v_i = v_up + S q̇`, `a_i = a_up + v_i ×̂ S q̇ + S q̈` for one general column `S`, given
+/// `rate = μ q̇` and `accel = μ q̈` (`rnea::joint_motion`; `S x` summed from zero, as
+/// `MotionSubspace::apply` does). Out of line: rare, and it keeps the unit-axis loop tight.
+#[inline(never)]
+fn column_motion(
+    s: &LaneMotion,
+    rate: Lanes,
+    accel: Lanes,
+    v_up: LaneMotion,
+    a_up: LaneMotion,
+) -> (LaneMotion, LaneMotion) {
+    let v_joint = LaneMotion::default() + s.scale(rate);
+    let v_i = v_up + v_joint;
+    let a_i = a_up + v_i.cross_motion(&v_joint);
+    (v_i, a_i + (LaneMotion::default() + s.scale(accel)))
 }
 
 /// `v_i = v_up + rate e_j`, `a_i = a_up + rate (v_i ×̂ e_j) + accel e_j` (`rnea::along_axis`),

@@ -29,6 +29,30 @@ impl LaneMotion {
         }
     }
 
+    /// Every component times `s` (`Motion * f64`).
+    #[inline(always)]
+    pub(crate) fn scale(&self, s: Lanes) -> LaneMotion {
+        LaneMotion {
+            ang: self.ang.scale(s),
+            lin: self.lin.scale(s),
+        }
+    }
+
+    /// `[ω; v] ×̂ [m_ω; m_v] = [ω × m_ω; ω × m_v + v × m_ω]` ([`Motion::cross_motion`]).
+    #[inline(always)]
+    pub(crate) fn cross_motion(&self, m: &LaneMotion) -> LaneMotion {
+        LaneMotion {
+            ang: self.ang.cross(&m.ang),
+            lin: self.ang.cross(&m.lin) + self.lin.cross(&m.ang),
+        }
+    }
+
+    /// `mᵀ f = ω·n + v·f` ([`Motion::dot`]), each dot `(a₀ b₀ + a₁ b₁) + a₂ b₂`.
+    #[inline(always)]
+    pub(crate) fn dot(&self, f: &LaneForce) -> Lanes {
+        self.ang.dot(&f.ang) + self.lin.dot(&f.lin)
+    }
+
     /// `x` added to component `j` of `[ω; v]` ([`Motion::add_along`]).
     #[inline(always)]
     pub(crate) fn add_along(&mut self, j: usize, x: Lanes) {
@@ -67,6 +91,17 @@ fn add_cross_unit(out: &mut V3, x: &V3, k: usize, w: Lanes) {
     let (i, j) = ((k + 1) % 3, (k + 2) % 3);
     out[i] += x[j] * w;
     out[j] -= x[i] * w;
+}
+
+impl std::ops::Add for LaneMotion {
+    type Output = LaneMotion;
+    #[inline(always)]
+    fn add(self, o: LaneMotion) -> LaneMotion {
+        LaneMotion {
+            ang: self.ang + o.ang,
+            lin: self.lin + o.lin,
+        }
+    }
 }
 
 impl LaneForce {
@@ -154,6 +189,18 @@ pub(crate) trait LaneSpatialTransform {
     fn apply_motion(&self, m: &LaneMotion) -> LaneMotion;
     /// `Xᵀ f`, a force from body back into parent coordinates.
     fn transpose_apply_force(&self, f: &LaneForce) -> LaneForce;
+}
+
+impl LaneTransform {
+    /// Lane `l` set to the scalar transform `x`.
+    pub(crate) fn set_lane(&mut self, l: usize, x: &Transform) {
+        for r in 0..3 {
+            for c in 0..3 {
+                self.rot[r][c].0[l] = x.rot[(r, c)];
+            }
+            self.trans[r].0[l] = x.trans[r];
+        }
+    }
 }
 
 impl LaneSpatialTransform for LaneTransform {

@@ -82,6 +82,12 @@ impl V3 {
         V3([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx])
     }
 
+    /// `a · b` as nalgebra's `dot`: `(a₀ b₀ + a₁ b₁) + a₂ b₂`.
+    #[inline(always)]
+    pub(crate) fn dot(&self, b: &V3) -> Lanes {
+        self[0] * b[0] + self[1] * b[1] + self[2] * b[2]
+    }
+
     /// Every coordinate times `s` (nalgebra's `v * s`).
     #[inline(always)]
     pub(crate) fn scale(&self, s: Lanes) -> V3 {
