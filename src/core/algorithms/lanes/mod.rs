@@ -134,6 +134,9 @@ pub(crate) struct LaneScratch {
     slides: Vec<Lanes>,
     /// `ⁱX_λ`: the entries the joint's form reads; those constant in `q` set here, from `X_tree`.
     x_up: Vec<LaneTransform>,
+    /// Whether a body's velocity and acceleration are read back from `v`, `a`: it is the parent
+    /// of a body that does not follow it (a branch); along a chain they stay in registers.
+    read_later: Vec<bool>,
     /// Body velocities, accelerations and forces (body coordinates), and `τ` by coordinate.
     v: Vec<LaneMotion>,
     a: Vec<LaneMotion>,
@@ -159,6 +162,12 @@ impl LaneScratch {
             .collect();
         LaneScratch {
             covered: true,
+            read_later: (0..n)
+                .map(|i| {
+                    let mut children = model.bodies.iter().enumerate();
+                    children.any(|(k, b)| b.parent == Some(i) && k != i + 1)
+                })
+                .collect(),
             unit_axes: columns.iter().map(|c| c.unwrap_or((0, 0.0))).collect(),
             any_general: columns.iter().any(Result::is_err),
             general: columns

@@ -177,8 +177,9 @@ fn forward_pass<const GENERAL: bool>(model: &Model, ws: &mut Workspace, v: &[f64
         // f_i = I_i a_i + v_i ×* I_i v_i   (15)
         let inertia = &lanes.inertia[i];
         let f_i = inertia.apply(&a_i) + v_i.cross_force(&inertia.apply(&v_i));
-        lanes.v[i] = v_i;
-        lanes.a[i] = a_i;
+        if lanes.read_later[i] {
+            (lanes.v[i], lanes.a[i]) = (v_i, a_i);
+        }
         lanes.f[i] = f_i;
         last = (v_i, a_i);
     }
