@@ -17,7 +17,7 @@ mod value;
 use super::rnea::rnea;
 use super::validate::all_finite;
 use crate::error::{check_len, DynamicsError};
-use crate::model::Model;
+use crate::model::{JointKind, Model};
 use crate::Workspace;
 use passes::{lane_column, rnea_lanes};
 use spatial::{LaneForce, LaneInertia, LaneMotion, LaneTransform};
@@ -131,7 +131,7 @@ pub(crate) struct LaneScratch {
     sines: Vec<f64>,
     cosines: Vec<f64>,
     /// The coordinate `μ q + o` of a joint that does not turn about a coordinate axis.
-    slides: Vec<Lanes>,
+    positions: Vec<Lanes>,
     /// `ⁱX_λ`: the entries the joint's form reads; those constant in `q` set here, from `X_tree`.
     x_up: Vec<LaneTransform>,
     /// Whether a body's velocity and acceleration are read back from `v`, `a`: it is the parent
@@ -160,14 +160,16 @@ impl LaneScratch {
             .iter()
             .map(|b| LaneTransform::splat(&b.x_tree))
             .collect();
+        let mut read_later = vec![false; n];
+        for (k, body) in model.bodies.iter().enumerate() {
+            match body.parent {
+                Some(p) if p + 1 != k => read_later[p] = true,
+                _ => {}
+            }
+        }
         LaneScratch {
             covered: true,
-            read_later: (0..n)
-                .map(|i| {
-                    let mut children = model.bodies.iter().enumerate();
-                    children.any(|(k, b)| b.parent == Some(i) && k != i + 1)
-                })
-                .collect(),
+            read_later,
             unit_axes: columns.iter().map(|c| c.unwrap_or((0, 0.0))).collect(),
             any_general: columns.iter().any(Result::is_err),
             general: columns
@@ -178,7 +180,7 @@ impl LaneScratch {
                 .bodies
                 .iter()
                 .map(|b| match b.joint.kind {
-                    crate::model::JointKind::Prismatic { axis } => V3::splat(&axis),
+                    JointKind::Prismatic { axis } => V3::splat(&axis),
                     _ => V3::default(),
                 })
                 .collect(),
@@ -192,7 +194,7 @@ impl LaneScratch {
             angles: vec![0.0; n * LANES],
             sines: vec![0.0; n * LANES],
             cosines: vec![0.0; n * LANES],
-            slides: vec![Lanes::default(); n],
+            positions: vec![Lanes::default(); n],
             v: vec![LaneMotion::default(); n],
             a: vec![LaneMotion::default(); n],
             f: vec![LaneForce::default(); n],

@@ -81,7 +81,7 @@ fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
             let position = c.scale * q[l * nq + c.q_index] + c.offset;
             match axis {
                 Some((_, sign)) => lanes.angles[i * LANES + l] = sign * position,
-                None => lanes.slides[i].0[l] = position,
+                None => lanes.positions[i].0[l] = position,
             }
         }
     }
@@ -115,15 +115,16 @@ fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
                 }
             }
             None if matches!(body.joint.kind, JointKind::Prismatic { .. }) => {
-                let moved = lanes.slide_axes[i].scale(lanes.slides[i]);
+                let moved = lanes.slide_axes[i].scale(lanes.positions[i]);
                 x_up.trans = x_tree.trans + tr_mul(&x_tree.rot, &moved);
             }
             None => {
                 // A turn about another axis: libm's sine and cosine inside nalgebra's rotation.
                 let mut s = MotionSubspace::default();
-                for (l, &angle) in lanes.slides[i].0.iter().enumerate() {
+                for (l, &angle) in lanes.positions[i].0.iter().enumerate() {
                     let mut x = Transform::identity();
                     let kind = &body.joint.kind;
+                    // (0, 1): the sine and cosine only a turn about a coordinate axis reads
                     kind.jcalc_up_turned(&[angle], (0.0, 1.0), &body.x_tree, &mut s, &mut x);
                     x_up.set_lane(l, &x);
                 }
@@ -185,7 +186,7 @@ fn forward_pass<const GENERAL: bool>(model: &Model, ws: &mut Workspace, v: &[f64
     }
 }
 
-/// The inward pass (eqs. 15–16) on `ws.lanes.f` into `ws.lanes.tau`: `τ_i = σ μ (f_i)_j`,
+/// The inward pass (eqs. 15–16) on `ws.lanes.f` into `ws.lanes.tau`: `τ_i = μ S_iᵀ f_i`,
 /// `f_λ += ⁱX_λᵀ f_i`.
 fn inward_pass<const GENERAL: bool>(model: &Model, ws: &mut Workspace) {
     let Workspace { plan, lanes, .. } = ws;
