@@ -2,8 +2,8 @@
 //! the scalar `rnea` row by row: the same bits for every state, on models the lanes cover
 //! (turns and slides along coordinate axes and other axes, placements with and without
 //! rotation, mimic joints) and models they do not (planar and floating joints), with row counts
-//! that leave a remainder;
-//! and the same error, at the same row, when one state of a block is bad.
+//! that leave a remainder; and the same error, at the same row, when one state of a block is
+//! bad.
 
 use spatial_dynamics_core::algorithms::lanes::{covers, LANES};
 use spatial_dynamics_core::algorithms::{rnea, rnea_rows};
@@ -26,6 +26,7 @@ fn models() -> Vec<(Model, bool)> {
     let cases = [
         (DEFAULT_ARM_URDF.to_string(), &fixed, true),
         (MIMIC_GRIPPER_URDF.to_string(), &fixed, true),
+        // A planar base: row by row.
         (LAMP_URDF.to_string(), &fixed, false),
         (pendulum_urdf(7, 0.5, 0.7), &fixed, true),
         (
@@ -58,6 +59,7 @@ fn models() -> Vec<(Model, bool)> {
             &fixed,
             true,
         ),
+        // Planar and floating joints: row by row.
         (include_str!("models/tree.urdf").to_string(), &fixed, false),
         (DEFAULT_ARM_URDF.to_string(), &floating, false),
         (PARTICLE_URDF.to_string(), &fixed, true),
