@@ -9,7 +9,8 @@
 //! `world` Jacobian of one link, the one carried by the body deepest in the tree, named in the
 //! JSON as `"frame"`) and `center_of_mass` (the centre of mass with its Jacobian); then the
 //! [`DERIVATIVE_KERNELS`]: `rnea_derivatives` (`∂τ/∂q`, `∂τ/∂q̇`, `H` at `(q, q̇, q̈)`) and
-//! `aba_derivatives` (`∂q̈/∂q`, `∂q̈/∂q̇`, `H⁻¹` at `(q, q̇, τ)`). The [`SIM_KERNELS`] (one
+//! `aba_derivatives` (`∂q̈/∂q`, `∂q̈/∂q̇`, `H⁻¹` at `(q, q̇, τ)`). The [`BATCH_KERNELS`]
+//! (`rnea_rows`: RNEA on blocks of [`BATCH_ROWS`] states, ns per state) and the [`SIM_KERNELS`] (one
 //! simulation step, see [`sim`]) run only when `--kernels` names them; the JSON then also has
 //! `"sim_end"`: per simulation kernel the state its run ends in.
 
@@ -23,7 +24,7 @@ use serde_json::{json, Map, Value};
 use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics_core::algorithms::{
     aba_derivatives, center_of_mass_jacobian, choose_method, crba, find_frame, forward_dynamics,
-    frame_jacobian, gravity, rnea, rnea_derivatives, ReferenceFrame,
+    frame_jacobian, gravity, rnea, rnea_derivatives, rnea_rows, ReferenceFrame,
 };
 use spatial_dynamics_core::flop_table;
 use spatial_dynamics_core::sampling::{random_q, Rng};
@@ -82,6 +83,13 @@ pub const KINEMATICS_KERNELS: [&str; 2] = ["frame_jacobian", "center_of_mass"];
 /// The derivative kernels, reported last (see the module documentation).
 pub const DERIVATIVE_KERNELS: [&str; 2] = ["rnea_derivatives", "aba_derivatives"];
 
+/// The kernels over many states at once, timed only when `--kernels` names them; reported per
+/// state.
+pub const BATCH_KERNELS: [&str; 1] = ["rnea_rows"];
+
+/// States per call of a batch kernel (the states cut into blocks of this many rows).
+pub const BATCH_ROWS: usize = 64;
+
 /// The link `frame_jacobian` is timed on: the one of the body with the most bodies above it
 /// (the first such in model order), or the root link when nothing moves.
 pub fn deepest_link(model: &Model) -> &str {
@@ -124,8 +132,9 @@ pub fn run(
         .iter()
         .chain(&KINEMATICS_KERNELS)
         .chain(&DERIVATIVE_KERNELS)
+        .chain(&BATCH_KERNELS)
         .copied()
-        .filter(|k| only.is_empty() || only.iter().any(|o| o == k))
+        .filter(|k| (only.is_empty() && !BATCH_KERNELS.contains(k)) || only.iter().any(|o| o == k))
         .collect();
     if let Some(unknown) = only.iter().find(|o| !all.contains(&o.as_str())) {
         return Err(format!("bench: unknown kernel '{unknown}'"));
@@ -304,7 +313,12 @@ pub fn time_kernels(
     kernels
         .iter()
         .map(|&name| {
-            let known = [&KERNELS[..], &KINEMATICS_KERNELS, &DERIVATIVE_KERNELS];
+            let known = [
+                &KERNELS[..],
+                &KINEMATICS_KERNELS,
+                &DERIVATIVE_KERNELS,
+                &BATCH_KERNELS,
+            ];
             if !known.iter().any(|kernels| kernels.contains(&name)) {
                 return Err(format!("bench: unknown kernel '{name}'"));
             }
@@ -364,6 +378,26 @@ fn time_kernel(
         "aba_derivatives" => measure(states, settings, |s| {
             aba_derivatives(model, ws, &s.q, &s.v, &s.a_or_tau, &Externals::none()).map(sink)
         }),
+        "rnea_rows" => {
+            // Each block's rows contiguous, as `rnea_rows` reads them; ns per state.
+            let blocks: Vec<State> = states
+                .chunks(BATCH_ROWS)
+                .map(|rows| State {
+                    q: rows.iter().flat_map(|s| s.q.iter().copied()).collect(),
+                    v: rows.iter().flat_map(|s| s.v.iter().copied()).collect(),
+                    a_or_tau: rows
+                        .iter()
+                        .flat_map(|s| s.a_or_tau.iter().copied())
+                        .collect(),
+                })
+                .collect();
+            let mut tau = vec![0.0; BATCH_ROWS * model.nv()];
+            let per_block = measure(&blocks, settings, |b| {
+                let tau = &mut tau[..b.v.len()];
+                rnea_rows(model, ws, &b.q, &b.v, &b.a_or_tau, tau).map_err(|(_, e)| e)
+            })?;
+            Ok(per_block.map(|ns| ns * blocks.len() as f64 / states.len() as f64))
+        }
         _ => unreachable!("unknown kernel {name}"),
     }
 }

@@ -3,6 +3,7 @@
 
 use crate::algorithms::derivatives::DerivativeScratch;
 use crate::algorithms::frames::FrameScratch;
+use crate::algorithms::lanes::LaneScratch;
 use crate::error::DynamicsError;
 use crate::model::{JointKind, Model, MotionSubspace};
 use crate::plan::Plan;
@@ -95,6 +96,9 @@ pub struct Workspace {
     pub(crate) frame_scratch: FrameScratch,
     /// Scratch and results of the derivative algorithms.
     pub(crate) derivatives: DerivativeScratch,
+    /// Scratch of RNEA on several states at once ([`rnea_rows`](crate::algorithms::rnea_rows))
+    /// and the model's constants in its lane form.
+    pub(crate) lanes: LaneScratch,
 }
 
 impl Workspace {
@@ -153,6 +157,7 @@ impl Workspace {
             unit: DVector::zeros(nv),
             frame_scratch: FrameScratch::new(model),
             derivatives: DerivativeScratch::new(model),
+            lanes: LaneScratch::new(model),
         }
     }
 

@@ -4,6 +4,7 @@
 //! | module | computes |
 //! |---|---|
 //! | [`rnea`](mod@rnea) | inverse dynamics `τ = H(q) q̈ + C(q, q̇)` (recursive Newton–Euler) |
+//! | [`lanes`] | inverse dynamics of many states at once ([`rnea_rows`]), several in the lanes of each instruction |
 //! | [`bias`](mod@bias) | `C(q, q̇)`: gravity, Coriolis and centrifugal terms, external forces |
 //! | [`gravity`](mod@gravity) | `g(q)`: the gravity part of `C` |
 //! | [`crba`](mod@crba) | `H(q)` (composite rigid-body algorithm) |
@@ -38,6 +39,7 @@ pub mod gravity;
 pub mod jacobian;
 pub mod joint_state_outputs;
 pub mod kinematics;
+pub mod lanes;
 pub mod ltl;
 pub mod method_choice;
 pub mod rnea;
@@ -59,6 +61,7 @@ pub use frames::{find_frame, frame_placement, Frame};
 pub use gravity::gravity;
 pub use jacobian::{frame_jacobian, joint_jacobians, JointJacobians, ReferenceFrame};
 pub use joint_state_outputs::{joint_state_outputs, JointStateInputs, JointStateOutputs};
+pub use lanes::rnea_rows;
 pub use method_choice::{choose_method, MethodChoice};
 pub use rnea::{rnea, rnea_with};
 

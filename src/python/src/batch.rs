@@ -1,10 +1,12 @@
 //! One kernel (a library function writing its results into output slices) run over one state,
 //! with the model's own workspace, or over N states on `std::thread::available_parallelism()`
 //! (asked once per process) scoped threads, the GIL released: each thread has a workspace of
-//! its own and takes blocks of rows from a shared queue, reading each row's inputs in place in
-//! the arguments' buffers and writing its results in place in the outputs'. The outputs are
-//! numpy arrays allocated once per call: one state's results have the per-state shape, N
-//! states' results `(N, *shape)`, row `i` being state `i`'s.
+//! its own and takes blocks of rows from a shared queue, reading the block's inputs in place in
+//! the arguments' buffers and writing its results in place in the outputs'. A block goes to a
+//! block kernel (a library function over many rows, e.g. `rnea_rows`) or, by [`run`], to the
+//! one-state kernel row by row. The outputs are numpy arrays allocated once per call: one
+//! state's results have the per-state shape, N states' results `(N, *shape)`, row `i` being
+//! state `i`'s.
 
 use crate::arrays::{states_of, Rows};
 use crate::errors::{error, from_library};
@@ -17,7 +19,7 @@ use std::thread;
 
 /// Runs `kernel` on the `inputs` (argument name, value, values per state) into outputs of the
 /// per-state shapes `outputs`. The kernel reads one state's inputs and fills every value of
-/// one state's outputs (row-major).
+/// one state's outputs (row-major); N states go to it one row at a time.
 pub fn run<'py, const I: usize, const O: usize, K>(
     py: Python<'py>,
     model: &Model,
@@ -28,6 +30,36 @@ pub fn run<'py, const I: usize, const O: usize, K>(
 ) -> PyResult<[Bound<'py, PyArrayDyn<f64>>; O]>
 where
     K: Fn(&mut Workspace, [&[f64]; I], [&mut [f64]; O]) -> Result<(), DynamicsError> + Sync,
+{
+    let lens = inputs.map(|i| i.2);
+    let sizes = outputs.map(|shape| shape.iter().product::<usize>());
+    let rows = |ws: &mut Workspace, rows: usize, ins: [&[f64]; I], outs: [&mut [f64]; O]| {
+        one_by_one(ws, rows, ins, outs, lens, sizes, &kernel)
+    };
+    run_blocks(py, model, workspace, inputs, outputs, &kernel, rows)
+}
+
+/// [`run`] with a kernel of its own for N states: `block` gets a block's rows (their count,
+/// then each input's and output's values, row after row) and returns an error with the row of
+/// the block it is at.
+pub fn run_blocks<'py, const I: usize, const O: usize, K, B>(
+    py: Python<'py>,
+    model: &Model,
+    workspace: &Mutex<Workspace>,
+    inputs: [(&str, &Bound<'py, PyAny>, usize); I],
+    outputs: [&[usize]; O],
+    kernel: &K,
+    block: B,
+) -> PyResult<[Bound<'py, PyArrayDyn<f64>>; O]>
+where
+    K: Fn(&mut Workspace, [&[f64]; I], [&mut [f64]; O]) -> Result<(), DynamicsError>,
+    B: Fn(
+            &mut Workspace,
+            usize,
+            [&[f64]; I],
+            [&mut [f64]; O],
+        ) -> Result<(), (usize, DynamicsError)>
+        + Sync,
 {
     let mut rows = Vec::with_capacity(I);
     for (name, value, len) in inputs {
@@ -54,7 +86,7 @@ where
         Some(n) => {
             let lens = inputs.map(|i| i.2);
             let sizes = outputs.map(|shape| shape.iter().product::<usize>());
-            py.detach(|| in_parallel(model, n, ins, lens, slices, sizes, &kernel))
+            py.detach(|| in_parallel(model, n, ins, lens, slices, sizes, &block))
                 .map_err(|(row, e)| error(format!("row {row}: {e}")))?;
         }
     }
@@ -67,17 +99,23 @@ where
 /// process on its core takes fewer of them. On an error no further block is taken; each thread
 /// stops at its first, and the one of the lowest row is returned: every block before it was
 /// taken earlier and is finished, so it is the batch's first error by row.
-fn in_parallel<const I: usize, const O: usize, K>(
+fn in_parallel<const I: usize, const O: usize, B>(
     model: &Model,
     n: usize,
     ins: [&[f64]; I],
     lens: [usize; I],
     outs: [&mut [f64]; O],
     sizes: [usize; O],
-    kernel: &K,
+    block: &B,
 ) -> Result<(), (usize, DynamicsError)>
 where
-    K: Fn(&mut Workspace, [&[f64]; I], [&mut [f64]; O]) -> Result<(), DynamicsError> + Sync,
+    B: Fn(
+            &mut Workspace,
+            usize,
+            [&[f64]; I],
+            [&mut [f64]; O],
+        ) -> Result<(), (usize, DynamicsError)>
+        + Sync,
 {
     if n == 0 {
         return Ok(());
@@ -95,15 +133,12 @@ where
     let work = || -> Result<(), (usize, DynamicsError)> {
         let mut ws = Workspace::new(model);
         while let Some((first, outputs)) = take(&queue, n, rows_per_block) {
-            let mut rows = chunked(outputs, sizes);
-            for row in first..(first + rows_per_block).min(n) {
-                let inputs: [&[f64]; I] =
-                    std::array::from_fn(|k| &ins[k][row * lens[k]..(row + 1) * lens[k]]);
-                let outputs = rows.each_mut().map(|r| r.next().unwrap_or_default());
-                if let Err(e) = kernel(&mut ws, inputs, outputs) {
-                    lock(&queue).failed = true;
-                    return Err((row, e));
-                }
+            let end = (first + rows_per_block).min(n);
+            let inputs: [&[f64]; I] =
+                std::array::from_fn(|k| &ins[k][first * lens[k]..end * lens[k]]);
+            if let Err((row, e)) = block(&mut ws, end - first, inputs, outputs) {
+                lock(&queue).failed = true;
+                return Err((first + row, e));
             }
         }
         Ok(())
@@ -126,6 +161,30 @@ where
         Some(first) => Err(first),
         None => Ok(()),
     }
+}
+
+/// `rows` states through the one-state `kernel`, one at a time (`lens` input and `sizes` output
+/// values a state), stopping at the first error, with its row.
+fn one_by_one<const I: usize, const O: usize, K>(
+    ws: &mut Workspace,
+    rows: usize,
+    ins: [&[f64]; I],
+    outs: [&mut [f64]; O],
+    lens: [usize; I],
+    sizes: [usize; O],
+    kernel: &K,
+) -> Result<(), (usize, DynamicsError)>
+where
+    K: Fn(&mut Workspace, [&[f64]; I], [&mut [f64]; O]) -> Result<(), DynamicsError>,
+{
+    let mut cut = chunked(outs, sizes);
+    for row in 0..rows {
+        let inputs: [&[f64]; I] =
+            std::array::from_fn(|k| &ins[k][row * lens[k]..(row + 1) * lens[k]]);
+        let outputs = cut.each_mut().map(|r| r.next().unwrap_or_default());
+        kernel(ws, inputs, outputs).map_err(|e| (row, e))?;
+    }
+    Ok(())
 }
 
 /// `std::thread::available_parallelism()`, asked once per process: on Linux it reads the

@@ -4,7 +4,7 @@
 //! units, `q` and `v` in the order of `v_names`, a floating base's `q = [x y z qx qy qz qw]`
 //! and `v = [linear; angular]` in the base frame; matrices row-major (numpy's C order).
 
-use crate::batch::run;
+use crate::batch::{run, run_blocks};
 use crate::errors::{error, from_library};
 use nalgebra::DMatrix;
 use numpy::{PyArrayDyn, PyUntypedArrayMethods};
@@ -12,8 +12,8 @@ use pyo3::prelude::*;
 use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics_core::algorithms::{
     aba_derivatives, center_of_mass_jacobian, choose_method, crba, find_frame, forward_dynamics,
-    frame_jacobian, frame_placement, gravity, rnea, rnea_derivatives, ForwardDynamicsMethod,
-    ReferenceFrame,
+    frame_jacobian, frame_placement, gravity, rnea, rnea_derivatives, rnea_rows,
+    ForwardDynamicsMethod, ReferenceFrame,
 };
 use spatial_dynamics_core::{urdf, DynamicsError, Externals, ModelOptions, Workspace};
 use std::path::PathBuf;
@@ -195,7 +195,9 @@ impl Model {
     }
 
     /// Inverse dynamics `tau = M(q) a + C(q, v) + g(q)` (gravity, base at rest, no external
-    /// forces): `(nv,)`, or `(N, nv)`.
+    /// forces): `(nv,)`, or `(N, nv)`. N states go to the library's `rnea_rows` a block of
+    /// rows at a time (several states in the lanes of each instruction), one state to `rnea`:
+    /// the same bits either way.
     fn rnea<'py>(
         &self,
         py: Python<'py>,
@@ -204,14 +206,17 @@ impl Model {
         a: &Bound<'py, PyAny>,
     ) -> PyResult<Array<'py>> {
         let (m, nq, nv) = (&self.model, self.model.nq(), self.model.nv());
-        let [tau] = self.run(
+        let [tau] = run_blocks(
             py,
+            m,
+            &self.workspace,
             [("q", q, nq), ("v", v, nv), ("a", a, nv)],
             [&[nv]],
-            |ws, [q, v, a], [tau]| {
+            &|ws: &mut Workspace, [q, v, a]: [&[f64]; 3], [tau]: [&mut [f64]; 1]| {
                 tau.copy_from_slice(rnea(m, ws, q, v, a)?);
                 Ok(())
             },
+            |ws, _rows, [q, v, a], [tau]| rnea_rows(m, ws, q, v, a, tau),
         )?;
         Ok(tau)
     }
