@@ -396,17 +396,23 @@ fn bench_prints_the_json_contract() {
             "{kernel}: {out}"
         );
     }
-    // `--kernels` times only those named; a name it does not know is an error naming it.
+    // `--kernels` times only those named (`rnea_rows` only when named: ns per state, no FLOP
+    // count); a name it does not know is an error naming it.
     let (v, out) = bench_json(&[
         "--kernels",
-        "rnea,center_of_mass",
+        "rnea,center_of_mass,rnea_rows",
         "--states",
         "10",
         "--repeats",
         "1",
     ]);
     let timed: Vec<&String> = v["ns_per_call"].as_object().unwrap().keys().collect();
-    assert_eq!(timed, ["center_of_mass", "rnea"], "{out}");
+    assert_eq!(timed, ["center_of_mass", "rnea", "rnea_rows"], "{out}");
+    assert!(
+        v["ns_per_call"]["rnea_rows"].as_f64().unwrap() > 0.0,
+        "{out}"
+    );
+    assert!(v["flops_per_call"]["rnea_rows"].is_null(), "{out}");
     fails_with(
         &[
             "bench",
