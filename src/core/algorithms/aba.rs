@@ -105,13 +105,23 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
         ws.v_world[i] = v_i;
         // c_i = c_J + v_i × v_J   (RBDA Table 7.1), c_J carried into world coordinates
         ws.c[i] = v_i.cross_motion(&v_joint);
-        let q_joint = &ws.q_joint[i][..body.joint.kind.nq()];
-        if let Some(c_joint) = body.joint.kind.bias(q_joint, rates) {
-            ws.c[i] += x.inverse_apply_motion(&c_joint);
+        // Only a planar joint's S moves in its child frame: the others' c_J is zero, known
+        // without calling `JointKind::bias`.
+        if matches!(body.joint.kind, JointKind::Planar { .. }) {
+            let q_joint = &ws.q_joint[i][..body.joint.kind.nq()];
+            if let Some(c_joint) = body.joint.kind.bias(q_joint, rates) {
+                ws.c[i] += x.inverse_apply_motion(&c_joint);
+            }
         }
     }
-    // The inertias in a loop of their own: with the kinematics above in the same loop, the
-    // processor's registers overflow to the stack.
+    rigid_inertias(model, ws, ext);
+}
+
+/// Pass 1's initial articulated quantities, `I^A_i = I_i` and `p^A_i`, from the placements and
+/// velocities. A function of its own, not inlined: with the kinematics of [`velocity_pass`] in
+/// the same body, the processor's registers overflow to the stack.
+#[inline(never)]
+fn rigid_inertias(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
     for (i, body) in model.bodies.iter().enumerate() {
         let (x, v_i) = (&ws.x_aligned[i], ws.v_world[i]);
         let inertia = x.transpose_apply_inertia(&body.inertia);
