@@ -122,16 +122,18 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
 /// the same body, the processor's registers overflow to the stack.
 #[inline(never)]
 fn rigid_inertias(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
-    for (i, body) in model.bodies.iter().enumerate() {
-        let (x, v_i) = (&ws.x_aligned[i], ws.v_world[i]);
+    // Zipped slices: one pointer step per body, no index arithmetic or bounds checks.
+    let bodies = model.bodies.iter().zip(&ws.x_aligned).zip(&ws.v_world);
+    let outputs = ws.ia.iter_mut().zip(ws.pa.iter_mut());
+    for (i, (((body, x), v_i), (ia, pa))) in bodies.zip(outputs).enumerate() {
         let inertia = x.transpose_apply_inertia(&body.inertia);
         // I^A_i = I_i   (RBDA Table 7.1), in world coordinates
-        inertia.write_matrix(&mut ws.ia[i]);
+        inertia.write_matrix(ia);
         // p^A_i = v_i ×* I_i v_i − ⁱX*_0 f^x_i   (RBDA Table 7.1): f^x_i is given in body i's
         // frame, carried into world coordinates by ⁱX_0ᵀ
-        ws.pa[i] = v_i.cross_force(&inertia.apply(&v_i));
+        *pa = v_i.cross_force(&inertia.apply(v_i));
         if let Some(w) = ext.wrenches {
-            ws.pa[i] -= x.transpose_apply_force(&w[i]);
+            *pa -= x.transpose_apply_force(&w[i]);
         }
     }
 }
