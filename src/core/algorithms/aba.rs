@@ -37,8 +37,8 @@
 
 use super::cholesky::{spd_inverse, spd_solve};
 use super::kinematics::{
-    force_out_of_aligned, motion_into_aligned, update_aligned_placements, update_joints,
-    update_world_axes, Anchors,
+    force_out_of_aligned, motion_across_anchor, motion_into_aligned, update_aligned_placements,
+    update_joints, world_axes, Anchors,
 };
 use super::validate::{check_forward_inputs, check_result};
 use super::{pivot_is_sound, Externals};
@@ -88,33 +88,54 @@ pub(crate) fn refuse_mimic(model: &Model) -> Result<(), DynamicsError> {
 pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
     // ⁱX_0 = ⁱX_λ(i) λ(i)X_0   (RBDA Table 7.1), from each body's aligned frame
     update_aligned_placements(model, ws, Anchors::Spaced);
-    for (i, body) in model.bodies.iter().enumerate() {
-        let c = body.joint.coords;
-        let rates = &v[c.v_index..c.v_index + ws.s[i].nv];
+    velocities(model, ws, v, ext);
+    rigid_inertias(model, ws, ext);
+}
+
+/// Pass 1's world-frame axes `S_i`, velocities `v_i` and velocity-product accelerations `c_i`
+/// from the placements.
+#[inline(never)]
+fn velocities(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
+    let Workspace {
+        plan,
+        s,
+        x_aligned,
+        s_world,
+        v_world,
+        c: c_world,
+        q_joint,
+        anchor_shift,
+        ..
+    } = ws;
+    // Zipped slices: one pointer step per body; only the parent's velocity is indexed.
+    let bodies = model.bodies.iter().zip(s.iter()).zip(&plan.s_axes);
+    let frames = x_aligned
+        .iter()
+        .zip(plan.anchors.iter().zip(anchor_shift.iter()));
+    let outputs = s_world.iter_mut().zip(c_world.iter_mut());
+    for (i, (((body, s), axes), ((x, (&anchor, shift)), (s_world, c_i)))) in
+        bodies.zip(frames.zip(outputs)).enumerate()
+    {
+        let coords = body.joint.coords;
+        let rates = &v[coords.v_index..coords.v_index + s.nv];
         // v_J = S_i q̇_i   (RBDA Table 7.1's jcalc), with S_i ← ⁰X_i S_i in world coordinates
-        let v_joint = update_world_axes(ws, i, rates, c.scale);
-        let x = &ws.x_aligned[i];
-        let v_parent = motion_into_aligned(
-            ws,
-            i,
-            body.parent.map_or(ext.root_velocity, |p| ws.v_world[p]),
-        );
+        let v_joint = world_axes(x, s, axes, s_world, rates, coords.scale);
+        let v_parent = body.parent.map_or(ext.root_velocity, |p| v_world[p]);
         // v_i = ⁱX_λ(i) v_λ(i) + v_J   (RBDA Table 7.1): in world coordinates ⁱX_λ(i) is the
         // identity, xlt(r_i) where body i anchors a frame
-        let v_i = v_parent + v_joint;
-        ws.v_world[i] = v_i;
+        let v_i = motion_across_anchor(anchor, shift, v_parent) + v_joint;
+        v_world[i] = v_i;
         // c_i = c_J + v_i × v_J   (RBDA Table 7.1), c_J carried into world coordinates
-        ws.c[i] = v_i.cross_motion(&v_joint);
+        *c_i = v_i.cross_motion(&v_joint);
         // Only a planar joint's S moves in its child frame: the others' c_J is zero, known
         // without calling `JointKind::bias`.
         if matches!(body.joint.kind, JointKind::Planar { .. }) {
-            let q_joint = &ws.q_joint[i][..body.joint.kind.nq()];
+            let q_joint = &q_joint[i][..body.joint.kind.nq()];
             if let Some(c_joint) = body.joint.kind.bias(q_joint, rates) {
-                ws.c[i] += x.inverse_apply_motion(&c_joint);
+                *c_i += x.inverse_apply_motion(&c_joint);
             }
         }
     }
-    rigid_inertias(model, ws, ext);
 }
 
 /// Pass 1's initial articulated quantities, `I^A_i = I_i` and `p^A_i`, from the placements and
