@@ -30,7 +30,8 @@
 //! (`c_i` in the world frame: the world-frame `S` moves with the body, `d(⁰X_i S_i)/dt =
 //! v_i ×̂ ⁰X_i S_i + ⁰X_i S̊_i`.) Passes 2 and 3 take these equations in one of three forms by
 //! joint: one degree of freedom (`D_i` a scalar, `articulate_one_dof`), a floating root
-//! (`S_i` invertible: `q̈_i = D_i⁻¹ u_i − S_i⁻¹ a'`, `articulate_floating_root`), any other
+//! (`S_i` invertible and orthonormal in world axes: `a_i = (I^A_i)⁻¹ (S_i τ_i − p^A_i)`,
+//! `q̈_i = S_iᵀ (a_i − a')`, `articulate_floating_root`), any other
 //! (`articulate`). Mimic joints tie coordinates across bodies, which the
 //! recursion cannot express: models with them are refused (use the `crba` or `rnea_columns`
 //! method).
@@ -44,7 +45,7 @@ use super::validate::{check_forward_inputs, check_result};
 use super::{pivot_is_sound, Externals};
 use crate::error::DynamicsError;
 use crate::model::{Body, JointKind, Model};
-use crate::spatial::{Force, Matrix3, Matrix6, Motion, Translation};
+use crate::spatial::{Force, Matrix3, Matrix6, Motion, Translation, Vector3};
 use crate::Workspace;
 use nalgebra::Vector6;
 
@@ -327,13 +328,47 @@ fn is_floating_root(body: &Body) -> bool {
     body.parent.is_none() && body.joint.kind == JointKind::Floating
 }
 
-/// Pass 2 at a floating root ([`is_floating_root`]): `D_i⁻¹ u_i` into `ws.u_bias[i]` (by a
-/// Cholesky solve, [`spd_solve`]), without `U_i`. With
-/// `S_i = [0 R; R 0]` and `I^A_i = [A B; Bᵀ C]` (world axes, angular rows first),
-/// `D_i = S_iᵀ I^A_i S_i = [Rᵀ C R  Rᵀ Bᵀ R; Rᵀ B R  Rᵀ A R]`: the articulated inertia turned
-/// into the body's axes, in the joint's coordinate order. A pivot of `D_i` that fails is the
-/// same as on the general path ([`articulate`]): its coordinate names the direction.
+/// Pass 2 at a floating root ([`is_floating_root`]): its acceleration in world axes into
+/// `ws.u_bias[i]` (translations first), without `U_i` or `D_i`. As `S_i` is invertible,
+/// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a') = S_i⁻¹ (I^A_i)⁻¹ S_i⁻ᵀ u_i − S_i⁻¹ a'`, so
+/// `a_i = a' + S_i q̈_i = (I^A_i)⁻¹ S_i⁻ᵀ u_i = (I^A_i)⁻¹ (S_i⁻ᵀ τ_i − p^A_i)`: the root's
+/// acceleration is its articulated inertia's answer to the forces alone, and `S_i⁻ᵀ = S_i`. It
+/// is solved by one Cholesky factorisation ([`spd_solve`]) of `I^A_i` with its translations
+/// first (`[C Bᵀ; B A]` for `I^A_i = [A B; Bᵀ C]`, angular rows first), as the joint orders its
+/// coordinates: no 3×3 block is turned into the body's axes. A pivot that fails is named as
+/// `D_i` in the body's axes names it ([`floating_root_pivot`]). Not inlined: once per call, it
+/// would only crowd the registers of the one-dof bodies' loop.
+#[inline(never)]
 fn articulate_floating_root(ws: &mut Workspace, i: usize, tau: &[f64]) -> Result<(), (usize, f64)> {
+    let s = &ws.s_world[i];
+    let ia = &ws.ia[i];
+    // S_i τ_i − p^A_i, a force in world axes
+    let s_tau = s.cols[1..6]
+        .iter()
+        .zip(&tau[1..6])
+        .fold(s.cols[0] * tau[0], |sum, (col, t)| sum + *col * *t);
+    let b = Force::new(s_tau.ang, s_tau.lin) - ws.pa[i];
+    let mut d = Matrix6::zeros();
+    d.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&ia.fixed_view::<3, 3>(3, 3));
+    d.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&ia.fixed_view::<3, 3>(0, 3));
+    d.fixed_view_mut::<3, 3>(3, 3)
+        .copy_from(&ia.fixed_view::<3, 3>(0, 0));
+    let y = &mut ws.u_bias[i];
+    *y = [b.lin.x, b.lin.y, b.lin.z, b.ang.x, b.ang.y, b.ang.z];
+    // Only the lower triangle of d is read.
+    let solved = spd_solve(&d, 6, |pivot| pivot_is_sound_for(pivot, ia), y);
+    solved.map_err(|world| floating_root_pivot(ws, i).unwrap_or(world))
+}
+
+/// The failed pivot of a floating root's `D_i = S_iᵀ I^A_i S_i` in the body's axes, so that the
+/// error names the joint coordinate whose direction has no inertia: with
+/// `S_i = [0 R; R 0]` (`R`'s columns the body's axes in world coordinates),
+/// `D_i = [Rᵀ C R  Rᵀ Bᵀ R; Rᵀ B R  Rᵀ A R]`. `None` when every pivot of `D_i` is sound (the
+/// world-axes factorisation failed at the edge of the test: its pivot is reported).
+#[cold]
+fn floating_root_pivot(ws: &Workspace, i: usize) -> Option<(usize, f64)> {
     let s = &ws.s_world[i];
     let ia = &ws.ia[i];
     let r = Matrix3::from_columns(&[s.cols[3].ang, s.cols[4].ang, s.cols[5].ang]);
@@ -347,27 +382,22 @@ fn articulate_floating_root(ws: &mut Workspace, i: usize, tau: &[f64]) -> Result
         .copy_from(&lin_ang.transpose());
     d.fixed_view_mut::<3, 3>(3, 3)
         .copy_from(&turn(ia.fixed_view::<3, 3>(0, 0).into_owned()));
-    let y = &mut ws.u_bias[i];
-    for (k, y_k) in y.iter_mut().enumerate() {
-        // u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
-        *y_k = tau[k] - s.project(k, &ws.pa[i]);
-    }
-    spd_solve(&d, 6, |pivot| pivot_is_sound_for(pivot, ia), y)
+    spd_solve(&d, 6, |pivot| pivot_is_sound_for(pivot, ia), &mut [0.0; 6]).err()
 }
 
-/// Pass 3 at a floating root ([`is_floating_root`]) from `a' = a_0 + c_i` and `D_i⁻¹ u_i` (in
-/// `ws.u_bias[i]`, [`articulate_floating_root`]): as `U_i = I^A_i S_i`
-/// and `S_i` is invertible, `D_i⁻¹ U_iᵀ a' = S_i⁻¹ a'`, so
-/// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a') = D_i⁻¹ u_i − S_iᵀ a'` and `a_i = a' + S_i q̈_i = S_i D_i⁻¹ u_i`
-/// (the root's acceleration is its articulated inertia's answer to the forces alone).
+/// Pass 3 at a floating root ([`is_floating_root`]) from `a' = a_0 + c_i` and its acceleration
+/// `a_i` in world axes (in `ws.u_bias[i]`, translations first, [`articulate_floating_root`]):
+/// `q̈_i = S_i⁻¹ (a_i − a') = S_iᵀ (a_i − a')`.
 fn accelerate_floating_root(ws: &mut Workspace, i: usize, v_index: usize, a_prime: &Motion) {
     let (s, y) = (&ws.s_world[i], &ws.u_bias[i]);
-    let mut a_i = Motion::zero();
+    let a_i = Motion::new(
+        Vector3::new(y[3], y[4], y[5]),
+        Vector3::new(y[0], y[1], y[2]),
+    );
+    let relative = a_i - *a_prime;
     for (k, col) in s.cols.iter().enumerate() {
-        // (S_iᵀ a')_k, the plain product of the 6-vectors
-        let s_a = col.ang.dot(&a_prime.ang) + col.lin.dot(&a_prime.lin);
-        ws.qdd[v_index + k] = y[k] - s_a;
-        a_i += *col * y[k];
+        // (S_iᵀ (a_i − a'))_k, the plain product of the 6-vectors
+        ws.qdd[v_index + k] = col.ang.dot(&relative.ang) + col.lin.dot(&relative.lin);
     }
     ws.a_world[i] = a_i;
 }
@@ -451,5 +481,54 @@ fn singular_pivot(model: &Model, i: usize, k: usize, pivot: f64) -> DynamicsErro
         body: body.name.clone(),
         coordinate: model.v_name(body.joint.coords.v_index + k),
         pivot,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::urdf::model_from_str;
+    use crate::ModelOptions;
+
+    /// A floating rod with no inertia about its own axis (body z), turned a quarter about y so
+    /// that its axis lies along world x: `D` fails at its last pivot, the rotation about the
+    /// body's z (`root_joint[5]`), where a factorisation in world axes fails first about world x.
+    #[test]
+    fn a_floating_root_names_its_pivot_in_the_body_axes() {
+        let urdf = r#"<robot name="rod"><link name="rod"><inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0"/></inertial></link></robot>"#;
+        let options = ModelOptions {
+            floating_base: true,
+            ..Default::default()
+        };
+        let model = model_from_str(urdf, &options).unwrap();
+        let mut ws = Workspace::new(&model);
+        let half = std::f64::consts::FRAC_1_SQRT_2;
+        for (quaternion, coordinate) in [
+            ([0.0, 0.0, 0.0, 1.0], "root_joint[5]"),
+            ([0.0, half, 0.0, half], "root_joint[5]"),
+        ] {
+            let mut q = model.neutral();
+            q[3..7].copy_from_slice(&quaternion);
+            let err = aba(
+                &model,
+                &mut ws,
+                &q,
+                &[0.0; 6],
+                &[0.0; 6],
+                &Externals::none(),
+            )
+            .unwrap_err();
+            match err {
+                DynamicsError::SingularArticulatedInertia {
+                    coordinate: named,
+                    pivot,
+                    ..
+                } => {
+                    assert_eq!(named, coordinate);
+                    assert!(pivot.abs() < 1e-12, "{pivot}");
+                }
+                other => panic!("{other:?}"),
+            }
+        }
     }
 }
