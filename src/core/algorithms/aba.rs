@@ -38,13 +38,13 @@
 
 use super::cholesky::{spd_inverse, spd_solve};
 use super::kinematics::{
-    force_out_of_aligned, motion_across_anchor, motion_into_aligned, update_aligned_placements,
-    update_joints, world_axes, Anchors,
+    force_out_of_aligned, motion_across_anchor, update_aligned_placements, update_joints,
+    world_axes, Anchors,
 };
 use super::validate::{check_forward_inputs, check_result};
 use super::{pivot_is_sound, Externals};
 use crate::error::DynamicsError;
-use crate::model::{Body, JointKind, Model};
+use crate::model::{Body, JointKind, Model, MotionSubspace};
 use crate::spatial::{Force, Matrix3, Matrix6, Motion, Translation, Vector3};
 use crate::Workspace;
 use nalgebra::Vector6;
@@ -386,62 +386,118 @@ fn floating_root_pivot(ws: &Workspace, i: usize) -> Option<(usize, f64)> {
 }
 
 /// Pass 3 at a floating root ([`is_floating_root`]) from `a' = a_0 + c_i` and its acceleration
-/// `a_i` in world axes (in `ws.u_bias[i]`, translations first, [`articulate_floating_root`]):
-/// `q̈_i = S_i⁻¹ (a_i − a') = S_iᵀ (a_i − a')`.
-fn accelerate_floating_root(ws: &mut Workspace, i: usize, v_index: usize, a_prime: &Motion) {
-    let (s, y) = (&ws.s_world[i], &ws.u_bias[i]);
+/// `a_i` in world axes (`y`, its slot of `ws.u_bias`, translations first,
+/// [`articulate_floating_root`]): `q̈_i = S_i⁻¹ (a_i − a') = S_iᵀ (a_i − a')` into `qdd` (the
+/// joint's six), and `a_i` returned.
+fn accelerate_floating_root(
+    s: &MotionSubspace,
+    y: &[f64; 6],
+    a_prime: &Motion,
+    qdd: &mut [f64],
+) -> Motion {
     let a_i = Motion::new(
         Vector3::new(y[3], y[4], y[5]),
         Vector3::new(y[0], y[1], y[2]),
     );
     let relative = a_i - *a_prime;
-    for (k, col) in s.cols.iter().enumerate() {
+    for (qdd_k, col) in qdd.iter_mut().zip(&s.cols) {
         // (S_iᵀ (a_i − a'))_k, the plain product of the 6-vectors
-        ws.qdd[v_index + k] = col.ang.dot(&relative.ang) + col.lin.dot(&relative.lin);
+        *qdd_k = col.ang.dot(&relative.ang) + col.lin.dot(&relative.lin);
     }
-    ws.a_world[i] = a_i;
+    a_i
 }
 
-/// Pass 3: accelerations, from the root outward.
+/// Pass 3: accelerations, from the root outward, over each body's slots (zipped: one pointer
+/// step per body, only the parent's acceleration indexed).
 pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
     // a_0 = −a_g   (RBDA Table 7.1; plus the root's own acceleration)
-    let a_root = ext.root_acceleration - Motion::new(nalgebra::Vector3::zeros(), model.gravity);
-    for (i, body) in model.bodies.iter().enumerate() {
-        let nv = ws.s_world[i].nv;
-        let c = body.joint.coords;
-        let a_parent = motion_into_aligned(ws, i, body.parent.map_or(a_root, |p| ws.a_world[p]));
+    let a_root = ext.root_acceleration - Motion::new(Vector3::zeros(), model.gravity);
+    let Workspace {
+        plan,
+        anchor_shift,
+        c,
+        s_world,
+        u,
+        d_inv,
+        u_bias,
+        a_world,
+        qdd,
+        ..
+    } = ws;
+    let bodies = model
+        .bodies
+        .iter()
+        .zip(plan.anchors.iter().zip(anchor_shift.iter()));
+    let slots = (c.iter().zip(s_world.iter())).zip(u.iter().zip(d_inv.iter()).zip(u_bias.iter()));
+    for (i, ((body, (&anchor, shift)), ((c_i, s), ((u, d_inv), u_bias)))) in
+        bodies.zip(slots).enumerate()
+    {
+        let a_parent = body.parent.map_or(a_root, |p| a_world[p]);
         // a' = ⁱX_λ(i) a_λ(i) + c_i   (RBDA Table 7.1; ⁱX_λ(i) as for v_i)
-        let a_prime = a_parent + ws.c[i];
-        if nv == 1 {
-            accelerate_one_dof(ws, i, c.v_index, &a_prime);
-            continue;
-        }
-        if is_floating_root(body) {
-            accelerate_floating_root(ws, i, c.v_index, &a_prime);
-            continue;
-        }
-        // q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),  a_i = a' + S_i q̈_i   (RBDA Table 7.1)
-        let mut rhs = [0.0; 6];
-        for k in 0..nv {
-            rhs[k] = ws.u_bias[i][k] - a_prime.dot(&ws.u[i][k]);
-        }
-        let mut a_i = a_prime;
-        for k in 0..nv {
-            let qdd: f64 = (0..nv).map(|k2| ws.d_inv[i][(k, k2)] * rhs[k2]).sum();
-            ws.qdd[c.v_index + k] = qdd;
-            a_i += ws.s_world[i].cols[k] * qdd;
-        }
-        ws.a_world[i] = a_i;
+        let a_prime = motion_across_anchor(anchor, shift, a_parent) + *c_i;
+        let v_index = body.joint.coords.v_index;
+        a_world[i] = if s.nv == 1 {
+            accelerate_one_dof(
+                s,
+                &u[0],
+                d_inv[(0, 0)],
+                u_bias[0],
+                &a_prime,
+                &mut qdd[v_index],
+            )
+        } else if is_floating_root(body) {
+            accelerate_floating_root(s, u_bias, &a_prime, &mut qdd.as_mut_slice()[v_index..])
+        } else {
+            accelerate(
+                s,
+                u,
+                d_inv,
+                u_bias,
+                &a_prime,
+                &mut qdd.as_mut_slice()[v_index..],
+            )
+        };
     }
 }
 
-/// Pass 3 at body `i` with a joint of one degree of freedom, from `a' = ⁱX_λ(i) a_λ(i) + c_i`:
-/// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a')`, `a_i = a' + S_i q̈_i`   (RBDA Table 7.1), all scalars but `a`.
+/// Pass 3 at a joint of any number of degrees of freedom, from `a' = ⁱX_λ(i) a_λ(i) + c_i` and
+/// body `i`'s `S_i`, `U_i`, `D_i⁻¹`, `u_i`: `q̈_i = D_i⁻¹ (u_i − U_iᵀ a')` into `qdd` (from the
+/// joint's first coordinate) and `a_i = a' + S_i q̈_i` returned   (RBDA Table 7.1).
+fn accelerate(
+    s: &MotionSubspace,
+    u: &[Force; 6],
+    d_inv: &Matrix6,
+    u_bias: &[f64; 6],
+    a_prime: &Motion,
+    qdd: &mut [f64],
+) -> Motion {
+    let nv = s.nv;
+    let mut rhs = [0.0; 6];
+    for k in 0..nv {
+        rhs[k] = u_bias[k] - a_prime.dot(&u[k]);
+    }
+    let mut a_i = *a_prime;
+    for k in 0..nv {
+        let qdd_k: f64 = (0..nv).map(|k2| d_inv[(k, k2)] * rhs[k2]).sum();
+        qdd[k] = qdd_k;
+        a_i += s.cols[k] * qdd_k;
+    }
+    a_i
+}
+
+/// [`accelerate`] for a joint of one degree of freedom, all scalars but `a`:
+/// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a')` into `qdd`, `a_i = a' + S_i q̈_i` returned.
 #[inline(always)]
-fn accelerate_one_dof(ws: &mut Workspace, i: usize, v_index: usize, a_prime: &Motion) {
-    let qdd = ws.d_inv[i][(0, 0)] * (ws.u_bias[i][0] - a_prime.dot(&ws.u[i][0]));
-    ws.qdd[v_index] = qdd;
-    ws.a_world[i] = *a_prime + ws.s_world[i].cols[0] * qdd;
+fn accelerate_one_dof(
+    s: &MotionSubspace,
+    u: &Force,
+    d_inv: f64,
+    u_bias: f64,
+    a_prime: &Motion,
+    qdd: &mut f64,
+) -> Motion {
+    *qdd = d_inv * (u_bias - a_prime.dot(u));
+    *a_prime + s.cols[0] * *qdd
 }
 
 /// Writes into the top-left `nv × nv` block of `d_inv` the inverse of the symmetric positive
