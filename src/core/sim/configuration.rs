@@ -86,6 +86,11 @@ impl Configuration {
         Ok(())
     }
 
+    /// The first velocity coordinate of each floating joint.
+    pub(crate) fn floating_velocities(&self) -> impl Iterator<Item = usize> + '_ {
+        self.floating.iter().map(|&(_, v0)| v0)
+    }
+
     fn check(&self, nq: usize, nv: usize) -> Result<(), DynamicsError> {
         check_len("q", self.nq, nq)?;
         check_len("v", self.nv, nv)

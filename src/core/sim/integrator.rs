@@ -14,9 +14,9 @@
 // The schemes index stage vectors the way the formulas do.
 #![allow(clippy::needless_range_loop)]
 
+use super::configuration::Configuration;
 use super::{Evaluator, Scratch, State};
 use crate::error::DynamicsError;
-use crate::model::JointKind;
 use crate::spatial::{Motion, Vector3};
 use crate::Model;
 use std::fmt;
@@ -131,7 +131,7 @@ fn rk4(
         eval.acceleration(model, &s.q_stage, &rest[0], tau, &mut s.k_a[stage])?;
         if stage > 0 {
             // k_v[stage] ← u_stage, with θ_stage = c u_{stage−1}.
-            dexp_inv_in_place(model, &done[stage - 1], c, &mut rest[0]);
+            dexp_inv_in_place(&s.configuration, &done[stage - 1], c, &mut rest[0]);
         }
     }
     let (u, k_a) = (&s.k_v, &s.k_a);
@@ -150,18 +150,15 @@ fn rk4(
 /// − ad_θ⁴ k / 720 + …`, with `[θ, k] = ad_θ k` the motion cross product and `B_n` the Bernoulli
 /// numbers (`B_3 = 0`). The first term omitted is `O(h⁴)` per stage, `O(h⁵)` per step: RK4 keeps
 /// order 4. Euclidean coordinates are left as they are.
-fn dexp_inv_in_place(model: &Model, dir: &[f64], c: f64, k: &mut [f64]) {
+fn dexp_inv_in_place(configuration: &Configuration, dir: &[f64], c: f64, k: &mut [f64]) {
     let twist = |x: &[f64]| {
         Motion::new(
             Vector3::new(x[3], x[4], x[5]),
             Vector3::new(x[0], x[1], x[2]),
         )
     };
-    for j in model.coordinate_joints() {
-        if *j.kind != JointKind::Floating {
-            continue;
-        }
-        let block = j.v_index..j.v_index + 6;
+    for v_index in configuration.floating_velocities() {
+        let block = v_index..v_index + 6;
         let theta = twist(&dir[block.clone()]) * c;
         let k_j = twist(&k[block.clone()]);
         let once = theta.cross_motion(&k_j);
