@@ -38,7 +38,7 @@
 
 use super::cholesky::{spd_inverse, spd_solve};
 use super::kinematics::{
-    force_out_of_aligned, motion_across_anchor, update_aligned_placements, update_joints,
+    force_across_anchor, motion_across_anchor, update_aligned_placements, update_joints,
     world_axes, Anchors,
 };
 use super::validate::{check_forward_inputs, check_result};
@@ -160,20 +160,53 @@ fn rigid_inertias(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
     }
 }
 
+/// The bodies' slots that pass 2 reads and writes, each slice exactly one per body: with the
+/// lengths known and held apart from the workspace, indexing by body needs no bounds check,
+/// and no length is read again after each store.
+struct Slots<'w> {
+    anchors: &'w [bool],
+    anchor_shift: &'w [Vector3],
+    s_world: &'w [MotionSubspace],
+    c: &'w [Motion],
+    ia: &'w mut [Matrix6],
+    pa: &'w mut [Force],
+    u: &'w mut [[Force; 6]],
+    d_inv: &'w mut [Matrix6],
+    u_bias: &'w mut [[f64; 6]],
+}
+
+impl<'w> Slots<'w> {
+    /// The slots of the `n` bodies of `ws`.
+    fn of(ws: &'w mut Workspace, n: usize) -> Self {
+        Slots {
+            anchors: &ws.plan.anchors[..n],
+            anchor_shift: &ws.anchor_shift[..n],
+            s_world: &ws.s_world[..n],
+            c: &ws.c[..n],
+            ia: &mut ws.ia[..n],
+            pa: &mut ws.pa[..n],
+            u: &mut ws.u[..n],
+            d_inv: &mut ws.d_inv[..n],
+            u_bias: &mut ws.u_bias[..n],
+        }
+    }
+}
+
 /// Pass 2: articulated-body inertias and bias forces, from the leaves inward.
 pub(crate) fn articulated_pass(
     model: &Model,
     ws: &mut Workspace,
     tau: &[f64],
 ) -> Result<(), DynamicsError> {
+    let slots = &mut Slots::of(ws, model.bodies.len());
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let tau_i = &tau[body.joint.coords.v_index..];
-        let articulated = if ws.s_world[i].nv == 1 {
-            articulate_one_dof(ws, i, tau_i[0], body.parent)
+        let articulated = if slots.s_world[i].nv == 1 {
+            articulate_one_dof(slots, i, tau_i[0], body.parent)
         } else if is_floating_root(body) {
-            articulate_floating_root(ws, i, tau_i)
+            articulate_floating_root(slots, i, tau_i)
         } else {
-            articulate(ws, i, tau_i, body.parent)
+            articulate(slots, i, tau_i, body.parent)
         };
         if let Err((k, pivot)) = articulated {
             return Err(singular_pivot(model, i, k, pivot));
@@ -183,47 +216,48 @@ pub(crate) fn articulated_pass(
 }
 
 /// `I^A_λ(i) = I^A_λ(i) + λ(i)X*_i I^a ⁱX_λ(i)`, `p^A_λ(i) = p^A_λ(i) + λ(i)X*_i p^a` (RBDA Table
-/// 7.1) with `I^a`, `p^a` in body `i`'s slots of `ws.ia`, `ws.pa`, and `p` its parent: in world
-/// coordinates the transforms are the identity, `xlt(r_i)` where body `i` anchors its own frame.
-fn add_to_parent(ws: &mut Workspace, i: usize, p: usize) {
-    if ws.plan.anchors[i] {
-        ws.ia[i] = Translation(ws.anchor_shift[i]).transpose_apply_matrix6(&ws.ia[i]);
+/// 7.1) with `I^a`, `p^a` in body `i`'s slots of `slots.ia`, `slots.pa`, and `p` its parent:
+/// in world coordinates the transforms are the identity, `xlt(r_i)` where body `i` anchors its
+/// own frame.
+fn add_to_parent(slots: &mut Slots<'_>, i: usize, p: usize) {
+    if slots.anchors[i] {
+        slots.ia[i] = Translation(slots.anchor_shift[i]).transpose_apply_matrix6(&slots.ia[i]);
     }
-    let pa_i = force_out_of_aligned(ws, i, ws.pa[i]);
+    let pa_i = force_across_anchor(slots.anchors[i], &slots.anchor_shift[i], slots.pa[i]);
     // The parent comes before the child: split so both can be borrowed.
-    let (before, from_i) = ws.ia.split_at_mut(i);
+    let (before, from_i) = slots.ia.split_at_mut(i);
     before[p] += from_i[0];
-    ws.pa[p] += pa_i;
+    slots.pa[p] += pa_i;
 }
 
 /// Pass 2 at body `i` with a joint of any number of degrees of freedom: `U_i`, `D_i⁻¹`, `u_i`
-/// into `ws.u`, `ws.d_inv`, `ws.u_bias` and, below a parent, `I^a`, `p^a` over `I^A_i`, `p^A_i`
-/// (which body `i` no longer needs), added to the parent's ([`add_to_parent`]). `tau` starts at
-/// the joint's first coordinate. `Err((k, pivot))` for a pivot of `D_i` that fails ([`invert_spd`]).
+/// into `slots.u`, `slots.d_inv`, `slots.u_bias` and, below a parent, `I^a`, `p^a` over
+/// `I^A_i`, `p^A_i` (which body `i` no longer needs), added to the parent's
+/// ([`add_to_parent`]). `tau` starts at the joint's first coordinate. `Err((k, pivot))` for a pivot of `D_i` that fails ([`invert_spd`]).
 fn articulate(
-    ws: &mut Workspace,
+    slots: &mut Slots<'_>,
     i: usize,
     tau: &[f64],
     parent: Option<usize>,
 ) -> Result<(), (usize, f64)> {
     // Work on body i's slots in place (each is a 6×6 or six 6-vectors: no copies).
-    let s = &ws.s_world[i];
+    let s = &slots.s_world[i];
     let nv = s.nv;
-    let (u_cols, d_inv, u) = (&mut ws.u[i], &mut ws.d_inv[i], &mut ws.u_bias[i]);
+    let (u_cols, d_inv, u) = (&mut slots.u[i], &mut slots.d_inv[i], &mut slots.u_bias[i]);
     // Only D's top-left nv × nv block is used.
     let mut d = Matrix6::zeros();
     for k in 0..nv {
         // U_i = I^A_i S_i   (RBDA Table 7.1)
-        u_cols[k] = Force::from_vector(&(ws.ia[i] * s.cols[k].to_vector()));
+        u_cols[k] = Force::from_vector(&(slots.ia[i] * s.cols[k].to_vector()));
     }
     for k in 0..nv {
         for k2 in 0..nv {
             d[(k2, k)] = s.project(k2, &u_cols[k]); // D_i = S_iᵀ U_i   (RBDA Table 7.1)
         }
         // u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
-        u[k] = tau[k] - s.project(k, &ws.pa[i]);
+        u[k] = tau[k] - s.project(k, &slots.pa[i]);
     }
-    invert_spd(&d, nv, &ws.ia[i], d_inv)?;
+    invert_spd(&d, nv, &slots.ia[i], d_inv)?;
     if let Some(p) = parent {
         // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA
         // Table 7.1).
@@ -235,12 +269,12 @@ fn articulate(
                 w += u_cols[k2] * d_inv[(k, k2)];
             }
             // Σ_k U_k (D⁻¹ Uᵀ)_k: w is row k of D⁻¹ applied to U's columns.
-            ws.ia[i] -= u_cols[k].to_vector() * w.to_vector().transpose();
-            ws.pa[i] += u_cols[k] * d_inv_u;
+            slots.ia[i] -= u_cols[k].to_vector() * w.to_vector().transpose();
+            slots.pa[i] += u_cols[k] * d_inv_u;
         }
-        let bias = Force::from_vector(&(ws.ia[i] * ws.c[i].to_vector()));
-        ws.pa[i] += bias;
-        add_to_parent(ws, i, p);
+        let bias = Force::from_vector(&(slots.ia[i] * slots.c[i].to_vector()));
+        slots.pa[i] += bias;
+        add_to_parent(slots, i, p);
     }
     Ok(())
 }
@@ -252,19 +286,20 @@ fn articulate(
 /// across an anchor `I^a` is made in place, then moved.
 #[inline(always)]
 fn articulate_one_dof(
-    ws: &mut Workspace,
+    slots: &mut Slots<'_>,
     i: usize,
     tau: f64,
     parent: Option<usize>,
 ) -> Result<(), (usize, f64)> {
-    let s = ws.s_world[i].cols[0].to_vector();
-    let ia = &ws.ia[i];
+    let s = slots.s_world[i].cols[0].to_vector();
+    let ia = &slots.ia[i];
     // U_i = I^A_i S_i,   D_i = S_iᵀ U_i,   u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
     let u_col = *ia * s;
     let d = s.dot(&u_col);
-    let u = tau - ws.s_world[i].cols[0].dot(&ws.pa[i]);
+    let u = tau - slots.s_world[i].cols[0].dot(&slots.pa[i]);
     let d_inv = 1.0 / d;
-    (ws.u[i][0], ws.d_inv[i][(0, 0)], ws.u_bias[i][0]) = (Force::from_vector(&u_col), d_inv, u);
+    (slots.u[i][0], slots.d_inv[i][(0, 0)], slots.u_bias[i][0]) =
+        (Force::from_vector(&u_col), d_inv, u);
     if !pivot_is_sound_for(d, ia) {
         return Err((0, d));
     }
@@ -274,37 +309,37 @@ fn articulate_one_dof(
     // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA Table 7.1)
     let w = u_col * d_inv;
     let joint_force = Force::from_vector(&(u_col * (d_inv * u)));
-    if ws.plan.anchors[i] {
-        let ia = &mut ws.ia[i];
+    if slots.anchors[i] {
+        let ia = &mut slots.ia[i];
         for (mut column, w_j) in ia.column_iter_mut().zip(w.iter()) {
             column -= u_col * *w_j;
         }
-        let bias = Force::from_vector(&(*ia * ws.c[i].to_vector()));
-        ws.pa[i] += bias + joint_force;
-        add_to_parent(ws, i, p);
+        let bias = Force::from_vector(&(*ia * slots.c[i].to_vector()));
+        slots.pa[i] += bias + joint_force;
+        add_to_parent(slots, i, p);
     } else {
-        let bias = add_one_dof_to_parent(ws, i, p, &u_col, &w);
-        ws.pa[i] += bias + joint_force;
-        let pa_i = ws.pa[i];
-        ws.pa[p] += pa_i;
+        let bias = add_one_dof_to_parent(slots, i, p, &u_col, &w);
+        slots.pa[i] += bias + joint_force;
+        let pa_i = slots.pa[i];
+        slots.pa[p] += pa_i;
     }
     Ok(())
 }
 
 /// `I^A_λ += I^a` and `I^a c_i` (returned) for `I^a = I^A_i − U_i w_iᵀ`, column by column:
 /// column `j` of `I^a` is made once, added to the parent's `I^A_λ` and taken `c_{i,j}` times
-/// into the product, and never stored (`ws.ia[i]` keeps `I^A_i`). For a body in its parent's
+/// into the product, and never stored (`slots.ia[i]` keeps `I^A_i`). For a body in its parent's
 /// aligned frame.
 #[inline(always)]
 fn add_one_dof_to_parent(
-    ws: &mut Workspace,
+    slots: &mut Slots<'_>,
     i: usize,
     p: usize,
     u_col: &Vector6<f64>,
     w: &Vector6<f64>,
 ) -> Force {
-    let c = ws.c[i].to_vector();
-    let (before, from_i) = ws.ia.split_at_mut(i);
+    let c = slots.c[i].to_vector();
+    let (before, from_i) = slots.ia.split_at_mut(i);
     let (parent, ia) = (&mut before[p], &from_i[0]);
     let mut bias = Vector6::zeros();
     for j in 0..6 {
@@ -329,7 +364,7 @@ fn is_floating_root(body: &Body) -> bool {
 }
 
 /// Pass 2 at a floating root ([`is_floating_root`]): its acceleration in world axes into
-/// `ws.u_bias[i]` (translations first), without `U_i` or `D_i`. As `S_i` is invertible,
+/// `slots.u_bias[i]` (translations first), without `U_i` or `D_i`. As `S_i` is invertible,
 /// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a') = S_i⁻¹ (I^A_i)⁻¹ S_i⁻ᵀ u_i − S_i⁻¹ a'`, so
 /// `a_i = a' + S_i q̈_i = (I^A_i)⁻¹ S_i⁻ᵀ u_i = (I^A_i)⁻¹ (S_i⁻ᵀ τ_i − p^A_i)`: the root's
 /// acceleration is its articulated inertia's answer to the forces alone, and `S_i⁻ᵀ = S_i`. It
@@ -339,15 +374,19 @@ fn is_floating_root(body: &Body) -> bool {
 /// `D_i` in the body's axes names it ([`floating_root_pivot`]). Not inlined: once per call, it
 /// would only crowd the registers of the one-dof bodies' loop.
 #[inline(never)]
-fn articulate_floating_root(ws: &mut Workspace, i: usize, tau: &[f64]) -> Result<(), (usize, f64)> {
-    let s = &ws.s_world[i];
-    let ia = &ws.ia[i];
+fn articulate_floating_root(
+    slots: &mut Slots<'_>,
+    i: usize,
+    tau: &[f64],
+) -> Result<(), (usize, f64)> {
+    let s = &slots.s_world[i];
+    let ia = &slots.ia[i];
     // S_i τ_i − p^A_i, a force in world axes
     let s_tau = s.cols[1..6]
         .iter()
         .zip(&tau[1..6])
         .fold(s.cols[0] * tau[0], |sum, (col, t)| sum + *col * *t);
-    let b = Force::new(s_tau.ang, s_tau.lin) - ws.pa[i];
+    let b = Force::new(s_tau.ang, s_tau.lin) - slots.pa[i];
     let mut d = Matrix6::zeros();
     d.fixed_view_mut::<3, 3>(0, 0)
         .copy_from(&ia.fixed_view::<3, 3>(3, 3));
@@ -355,11 +394,11 @@ fn articulate_floating_root(ws: &mut Workspace, i: usize, tau: &[f64]) -> Result
         .copy_from(&ia.fixed_view::<3, 3>(0, 3));
     d.fixed_view_mut::<3, 3>(3, 3)
         .copy_from(&ia.fixed_view::<3, 3>(0, 0));
-    let y = &mut ws.u_bias[i];
+    let y = &mut slots.u_bias[i];
     *y = [b.lin.x, b.lin.y, b.lin.z, b.ang.x, b.ang.y, b.ang.z];
     // Only the lower triangle of d is read.
     let solved = spd_solve(&d, 6, |pivot| pivot_is_sound_for(pivot, ia), y);
-    solved.map_err(|world| floating_root_pivot(ws, i).unwrap_or(world))
+    solved.map_err(|world| floating_root_pivot(slots, i).unwrap_or(world))
 }
 
 /// The failed pivot of a floating root's `D_i = S_iᵀ I^A_i S_i` in the body's axes, so that the
@@ -368,9 +407,9 @@ fn articulate_floating_root(ws: &mut Workspace, i: usize, tau: &[f64]) -> Result
 /// `D_i = [Rᵀ C R  Rᵀ Bᵀ R; Rᵀ B R  Rᵀ A R]`. `None` when every pivot of `D_i` is sound (the
 /// world-axes factorisation failed at the edge of the test: its pivot is reported).
 #[cold]
-fn floating_root_pivot(ws: &Workspace, i: usize) -> Option<(usize, f64)> {
-    let s = &ws.s_world[i];
-    let ia = &ws.ia[i];
+fn floating_root_pivot(slots: &Slots<'_>, i: usize) -> Option<(usize, f64)> {
+    let s = &slots.s_world[i];
+    let ia = &slots.ia[i];
     let r = Matrix3::from_columns(&[s.cols[3].ang, s.cols[4].ang, s.cols[5].ang]);
     let turn = |block: Matrix3| r.tr_mul(&(block * r));
     let mut d = Matrix6::zeros();

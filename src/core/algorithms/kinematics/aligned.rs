@@ -122,8 +122,14 @@ pub(crate) fn motion_across_anchor(anchor: bool, shift: &Vector3, m: Motion) -> 
 /// A force in body `i`'s aligned frame into its parent's aligned frame ([`Anchors::Spaced`]):
 /// moved by `xlt(anchor_shift)ᵀ` when `i` anchors a frame.
 pub(crate) fn force_out_of_aligned(ws: &Workspace, i: usize, f: Force) -> Force {
-    if ws.plan.anchors[i] {
-        Translation(ws.anchor_shift[i]).transpose_apply_force(&f)
+    force_across_anchor(ws.plan.anchors[i], &ws.anchor_shift[i], f)
+}
+
+/// [`force_out_of_aligned`] for a body that is an `anchor` or not, with its `anchor_shift`.
+#[inline(always)]
+pub(crate) fn force_across_anchor(anchor: bool, shift: &Vector3, f: Force) -> Force {
+    if anchor {
+        Translation(*shift).transpose_apply_force(&f)
     } else {
         f
     }
