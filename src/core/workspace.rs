@@ -72,8 +72,9 @@ pub struct Workspace {
     pub(crate) u: Vec<[Force; 6]>,
     /// `D_i⁻¹ = (S_iᵀ U_i)⁻¹`, in the top-left `nv × nv` block (ABA).
     pub(crate) d_inv: Vec<Matrix6>,
-    /// `u_i = τ_i − S_iᵀ p^A_i` (ABA); at a floating root `D_i⁻¹ u_i`, and `U_i`, `D_i⁻¹` are not
-    /// made there (`aba::articulate_floating_root`).
+    /// `u_i = τ_i − S_iᵀ p^A_i` (ABA); at a floating root its acceleration `a_i` in world axes,
+    /// translations first, and `U_i`, `D_i⁻¹` are not made there
+    /// (`aba::articulate_floating_root`).
     pub(crate) u_bias: Vec<[f64; 6]>,
     /// Generalized forces: output of inverse dynamics, bias and gravity.
     pub(crate) tau: DVector<f64>,

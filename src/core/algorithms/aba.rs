@@ -30,21 +30,22 @@
 //! (`c_i` in the world frame: the world-frame `S` moves with the body, `d(⁰X_i S_i)/dt =
 //! v_i ×̂ ⁰X_i S_i + ⁰X_i S̊_i`.) Passes 2 and 3 take these equations in one of three forms by
 //! joint: one degree of freedom (`D_i` a scalar, `articulate_one_dof`), a floating root
-//! (`S_i` invertible: `q̈_i = D_i⁻¹ u_i − S_i⁻¹ a'`, `articulate_floating_root`), any other
+//! (`S_i` invertible and orthonormal in world axes: `a_i = (I^A_i)⁻¹ (S_i τ_i − p^A_i)`,
+//! `q̈_i = S_iᵀ (a_i − a')`, `articulate_floating_root`), any other
 //! (`articulate`). Mimic joints tie coordinates across bodies, which the
 //! recursion cannot express: models with them are refused (use the `crba` or `rnea_columns`
 //! method).
 
 use super::cholesky::{spd_inverse, spd_solve};
 use super::kinematics::{
-    force_out_of_aligned, motion_into_aligned, update_aligned_placements, update_joints,
-    update_world_axes, Anchors,
+    force_across_anchor, motion_across_anchor, update_aligned_placements, update_joints,
+    world_axes, Anchors,
 };
 use super::validate::{check_forward_inputs, check_result};
 use super::{pivot_is_sound, Externals};
 use crate::error::DynamicsError;
-use crate::model::{Body, JointKind, Model};
-use crate::spatial::{Force, Matrix3, Matrix6, Motion, Translation};
+use crate::model::{Body, JointKind, Model, MotionSubspace};
+use crate::spatial::{Force, Matrix3, Matrix6, Motion, Translation, Vector3};
 use crate::Workspace;
 use nalgebra::Vector6;
 
@@ -88,40 +89,105 @@ pub(crate) fn refuse_mimic(model: &Model) -> Result<(), DynamicsError> {
 pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
     // ⁱX_0 = ⁱX_λ(i) λ(i)X_0   (RBDA Table 7.1), from each body's aligned frame
     update_aligned_placements(model, ws, Anchors::Spaced);
-    for (i, body) in model.bodies.iter().enumerate() {
-        let c = body.joint.coords;
-        let rates = &v[c.v_index..c.v_index + ws.s[i].nv];
+    velocities(model, ws, v, ext);
+    rigid_inertias(model, ws, ext);
+}
+
+/// Pass 1's world-frame axes `S_i`, velocities `v_i` and velocity-product accelerations `c_i`
+/// from the placements.
+#[inline(never)]
+fn velocities(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
+    let Workspace {
+        plan,
+        s,
+        x_aligned,
+        s_world,
+        v_world,
+        c: c_world,
+        q_joint,
+        anchor_shift,
+        ..
+    } = ws;
+    // Zipped slices: one pointer step per body; only the parent's velocity is indexed.
+    let bodies = model.bodies.iter().zip(s.iter()).zip(&plan.s_axes);
+    let frames = x_aligned
+        .iter()
+        .zip(plan.anchors.iter().zip(anchor_shift.iter()));
+    let outputs = s_world.iter_mut().zip(c_world.iter_mut());
+    for (i, (((body, s), axes), ((x, (&anchor, shift)), (s_world, c_i)))) in
+        bodies.zip(frames.zip(outputs)).enumerate()
+    {
+        let coords = body.joint.coords;
+        let rates = &v[coords.v_index..coords.v_index + s.nv];
         // v_J = S_i q̇_i   (RBDA Table 7.1's jcalc), with S_i ← ⁰X_i S_i in world coordinates
-        let v_joint = update_world_axes(ws, i, rates, c.scale);
-        let x = &ws.x_aligned[i];
-        let v_parent = motion_into_aligned(
-            ws,
-            i,
-            body.parent.map_or(ext.root_velocity, |p| ws.v_world[p]),
-        );
+        let v_joint = world_axes(x, s, axes, s_world, rates, coords.scale);
+        let v_parent = body.parent.map_or(ext.root_velocity, |p| v_world[p]);
         // v_i = ⁱX_λ(i) v_λ(i) + v_J   (RBDA Table 7.1): in world coordinates ⁱX_λ(i) is the
         // identity, xlt(r_i) where body i anchors a frame
-        let v_i = v_parent + v_joint;
-        ws.v_world[i] = v_i;
+        let v_i = motion_across_anchor(anchor, shift, v_parent) + v_joint;
+        v_world[i] = v_i;
         // c_i = c_J + v_i × v_J   (RBDA Table 7.1), c_J carried into world coordinates
-        ws.c[i] = v_i.cross_motion(&v_joint);
-        let q_joint = &ws.q_joint[i][..body.joint.kind.nq()];
-        if let Some(c_joint) = body.joint.kind.bias(q_joint, rates) {
-            ws.c[i] += x.inverse_apply_motion(&c_joint);
+        *c_i = v_i.cross_motion(&v_joint);
+        // Only a planar joint's S moves in its child frame: the others' c_J is zero, known
+        // without calling `JointKind::bias`.
+        if matches!(body.joint.kind, JointKind::Planar { .. }) {
+            let q_joint = &q_joint[i][..body.joint.kind.nq()];
+            if let Some(c_joint) = body.joint.kind.bias(q_joint, rates) {
+                *c_i += x.inverse_apply_motion(&c_joint);
+            }
         }
     }
-    // The inertias in a loop of their own: with the kinematics above in the same loop, the
-    // processor's registers overflow to the stack.
-    for (i, body) in model.bodies.iter().enumerate() {
-        let (x, v_i) = (&ws.x_aligned[i], ws.v_world[i]);
+}
+
+/// Pass 1's initial articulated quantities, `I^A_i = I_i` and `p^A_i`, from the placements and
+/// velocities. A function of its own, not inlined: with the kinematics of [`velocity_pass`] in
+/// the same body, the processor's registers overflow to the stack.
+#[inline(never)]
+fn rigid_inertias(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
+    // Zipped slices: one pointer step per body, no index arithmetic or bounds checks.
+    let bodies = model.bodies.iter().zip(&ws.x_aligned).zip(&ws.v_world);
+    let outputs = ws.ia.iter_mut().zip(ws.pa.iter_mut());
+    for (i, (((body, x), v_i), (ia, pa))) in bodies.zip(outputs).enumerate() {
         let inertia = x.transpose_apply_inertia(&body.inertia);
         // I^A_i = I_i   (RBDA Table 7.1), in world coordinates
-        inertia.write_matrix(&mut ws.ia[i]);
+        inertia.write_matrix(ia);
         // p^A_i = v_i ×* I_i v_i − ⁱX*_0 f^x_i   (RBDA Table 7.1): f^x_i is given in body i's
         // frame, carried into world coordinates by ⁱX_0ᵀ
-        ws.pa[i] = v_i.cross_force(&inertia.apply(&v_i));
+        *pa = v_i.cross_force(&inertia.apply(v_i));
         if let Some(w) = ext.wrenches {
-            ws.pa[i] -= x.transpose_apply_force(&w[i]);
+            *pa -= x.transpose_apply_force(&w[i]);
+        }
+    }
+}
+
+/// The bodies' slots that pass 2 reads and writes, each slice exactly one per body: with the
+/// lengths known and held apart from the workspace, indexing by body needs no bounds check,
+/// and no length is read again after each store.
+struct Slots<'w> {
+    anchors: &'w [bool],
+    anchor_shift: &'w [Vector3],
+    s_world: &'w [MotionSubspace],
+    c: &'w [Motion],
+    ia: &'w mut [Matrix6],
+    pa: &'w mut [Force],
+    u: &'w mut [[Force; 6]],
+    d_inv: &'w mut [Matrix6],
+    u_bias: &'w mut [[f64; 6]],
+}
+
+impl<'w> Slots<'w> {
+    /// The slots of the `n` bodies of `ws`.
+    fn of(ws: &'w mut Workspace, n: usize) -> Self {
+        Slots {
+            anchors: &ws.plan.anchors[..n],
+            anchor_shift: &ws.anchor_shift[..n],
+            s_world: &ws.s_world[..n],
+            c: &ws.c[..n],
+            ia: &mut ws.ia[..n],
+            pa: &mut ws.pa[..n],
+            u: &mut ws.u[..n],
+            d_inv: &mut ws.d_inv[..n],
+            u_bias: &mut ws.u_bias[..n],
         }
     }
 }
@@ -132,14 +198,15 @@ pub(crate) fn articulated_pass(
     ws: &mut Workspace,
     tau: &[f64],
 ) -> Result<(), DynamicsError> {
+    let slots = &mut Slots::of(ws, model.bodies.len());
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let tau_i = &tau[body.joint.coords.v_index..];
-        let articulated = if ws.s_world[i].nv == 1 {
-            articulate_one_dof(ws, i, tau_i[0], body.parent)
+        let articulated = if slots.s_world[i].nv == 1 {
+            articulate_one_dof(slots, i, tau_i[0], body.parent)
         } else if is_floating_root(body) {
-            articulate_floating_root(ws, i, tau_i)
+            articulate_floating_root(slots, i, tau_i)
         } else {
-            articulate(ws, i, tau_i, body.parent)
+            articulate(slots, i, tau_i, body.parent)
         };
         if let Err((k, pivot)) = articulated {
             return Err(singular_pivot(model, i, k, pivot));
@@ -149,47 +216,48 @@ pub(crate) fn articulated_pass(
 }
 
 /// `I^A_λ(i) = I^A_λ(i) + λ(i)X*_i I^a ⁱX_λ(i)`, `p^A_λ(i) = p^A_λ(i) + λ(i)X*_i p^a` (RBDA Table
-/// 7.1) with `I^a`, `p^a` in body `i`'s slots of `ws.ia`, `ws.pa`, and `p` its parent: in world
-/// coordinates the transforms are the identity, `xlt(r_i)` where body `i` anchors its own frame.
-fn add_to_parent(ws: &mut Workspace, i: usize, p: usize) {
-    if ws.plan.anchors[i] {
-        ws.ia[i] = Translation(ws.anchor_shift[i]).transpose_apply_matrix6(&ws.ia[i]);
+/// 7.1) with `I^a`, `p^a` in body `i`'s slots of `slots.ia`, `slots.pa`, and `p` its parent:
+/// in world coordinates the transforms are the identity, `xlt(r_i)` where body `i` anchors its
+/// own frame.
+fn add_to_parent(slots: &mut Slots<'_>, i: usize, p: usize) {
+    if slots.anchors[i] {
+        slots.ia[i] = Translation(slots.anchor_shift[i]).transpose_apply_matrix6(&slots.ia[i]);
     }
-    let pa_i = force_out_of_aligned(ws, i, ws.pa[i]);
+    let pa_i = force_across_anchor(slots.anchors[i], &slots.anchor_shift[i], slots.pa[i]);
     // The parent comes before the child: split so both can be borrowed.
-    let (before, from_i) = ws.ia.split_at_mut(i);
+    let (before, from_i) = slots.ia.split_at_mut(i);
     before[p] += from_i[0];
-    ws.pa[p] += pa_i;
+    slots.pa[p] += pa_i;
 }
 
 /// Pass 2 at body `i` with a joint of any number of degrees of freedom: `U_i`, `D_i⁻¹`, `u_i`
-/// into `ws.u`, `ws.d_inv`, `ws.u_bias` and, below a parent, `I^a`, `p^a` over `I^A_i`, `p^A_i`
-/// (which body `i` no longer needs), added to the parent's ([`add_to_parent`]). `tau` starts at
-/// the joint's first coordinate. `Err((k, pivot))` for a pivot of `D_i` that fails ([`invert_spd`]).
+/// into `slots.u`, `slots.d_inv`, `slots.u_bias` and, below a parent, `I^a`, `p^a` over
+/// `I^A_i`, `p^A_i` (which body `i` no longer needs), added to the parent's
+/// ([`add_to_parent`]). `tau` starts at the joint's first coordinate. `Err((k, pivot))` for a pivot of `D_i` that fails ([`invert_spd`]).
 fn articulate(
-    ws: &mut Workspace,
+    slots: &mut Slots<'_>,
     i: usize,
     tau: &[f64],
     parent: Option<usize>,
 ) -> Result<(), (usize, f64)> {
     // Work on body i's slots in place (each is a 6×6 or six 6-vectors: no copies).
-    let s = &ws.s_world[i];
+    let s = &slots.s_world[i];
     let nv = s.nv;
-    let (u_cols, d_inv, u) = (&mut ws.u[i], &mut ws.d_inv[i], &mut ws.u_bias[i]);
+    let (u_cols, d_inv, u) = (&mut slots.u[i], &mut slots.d_inv[i], &mut slots.u_bias[i]);
     // Only D's top-left nv × nv block is used.
     let mut d = Matrix6::zeros();
     for k in 0..nv {
         // U_i = I^A_i S_i   (RBDA Table 7.1)
-        u_cols[k] = Force::from_vector(&(ws.ia[i] * s.cols[k].to_vector()));
+        u_cols[k] = Force::from_vector(&(slots.ia[i] * s.cols[k].to_vector()));
     }
     for k in 0..nv {
         for k2 in 0..nv {
             d[(k2, k)] = s.project(k2, &u_cols[k]); // D_i = S_iᵀ U_i   (RBDA Table 7.1)
         }
         // u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
-        u[k] = tau[k] - s.project(k, &ws.pa[i]);
+        u[k] = tau[k] - s.project(k, &slots.pa[i]);
     }
-    invert_spd(&d, nv, &ws.ia[i], d_inv)?;
+    invert_spd(&d, nv, &slots.ia[i], d_inv)?;
     if let Some(p) = parent {
         // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA
         // Table 7.1).
@@ -201,12 +269,12 @@ fn articulate(
                 w += u_cols[k2] * d_inv[(k, k2)];
             }
             // Σ_k U_k (D⁻¹ Uᵀ)_k: w is row k of D⁻¹ applied to U's columns.
-            ws.ia[i] -= u_cols[k].to_vector() * w.to_vector().transpose();
-            ws.pa[i] += u_cols[k] * d_inv_u;
+            slots.ia[i] -= u_cols[k].to_vector() * w.to_vector().transpose();
+            slots.pa[i] += u_cols[k] * d_inv_u;
         }
-        let bias = Force::from_vector(&(ws.ia[i] * ws.c[i].to_vector()));
-        ws.pa[i] += bias;
-        add_to_parent(ws, i, p);
+        let bias = Force::from_vector(&(slots.ia[i] * slots.c[i].to_vector()));
+        slots.pa[i] += bias;
+        add_to_parent(slots, i, p);
     }
     Ok(())
 }
@@ -218,19 +286,20 @@ fn articulate(
 /// across an anchor `I^a` is made in place, then moved.
 #[inline(always)]
 fn articulate_one_dof(
-    ws: &mut Workspace,
+    slots: &mut Slots<'_>,
     i: usize,
     tau: f64,
     parent: Option<usize>,
 ) -> Result<(), (usize, f64)> {
-    let s = ws.s_world[i].cols[0].to_vector();
-    let ia = &ws.ia[i];
+    let s = slots.s_world[i].cols[0].to_vector();
+    let ia = &slots.ia[i];
     // U_i = I^A_i S_i,   D_i = S_iᵀ U_i,   u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
     let u_col = *ia * s;
     let d = s.dot(&u_col);
-    let u = tau - ws.s_world[i].cols[0].dot(&ws.pa[i]);
+    let u = tau - slots.s_world[i].cols[0].dot(&slots.pa[i]);
     let d_inv = 1.0 / d;
-    (ws.u[i][0], ws.d_inv[i][(0, 0)], ws.u_bias[i][0]) = (Force::from_vector(&u_col), d_inv, u);
+    (slots.u[i][0], slots.d_inv[i][(0, 0)], slots.u_bias[i][0]) =
+        (Force::from_vector(&u_col), d_inv, u);
     if !pivot_is_sound_for(d, ia) {
         return Err((0, d));
     }
@@ -240,37 +309,37 @@ fn articulate_one_dof(
     // I^a = I^A_i − U_i D_i⁻¹ U_iᵀ,  p^a = p^A_i + I^a c_i + U_i D_i⁻¹ u_i   (RBDA Table 7.1)
     let w = u_col * d_inv;
     let joint_force = Force::from_vector(&(u_col * (d_inv * u)));
-    if ws.plan.anchors[i] {
-        let ia = &mut ws.ia[i];
+    if slots.anchors[i] {
+        let ia = &mut slots.ia[i];
         for (mut column, w_j) in ia.column_iter_mut().zip(w.iter()) {
             column -= u_col * *w_j;
         }
-        let bias = Force::from_vector(&(*ia * ws.c[i].to_vector()));
-        ws.pa[i] += bias + joint_force;
-        add_to_parent(ws, i, p);
+        let bias = Force::from_vector(&(*ia * slots.c[i].to_vector()));
+        slots.pa[i] += bias + joint_force;
+        add_to_parent(slots, i, p);
     } else {
-        let bias = add_one_dof_to_parent(ws, i, p, &u_col, &w);
-        ws.pa[i] += bias + joint_force;
-        let pa_i = ws.pa[i];
-        ws.pa[p] += pa_i;
+        let bias = add_one_dof_to_parent(slots, i, p, &u_col, &w);
+        slots.pa[i] += bias + joint_force;
+        let pa_i = slots.pa[i];
+        slots.pa[p] += pa_i;
     }
     Ok(())
 }
 
 /// `I^A_λ += I^a` and `I^a c_i` (returned) for `I^a = I^A_i − U_i w_iᵀ`, column by column:
 /// column `j` of `I^a` is made once, added to the parent's `I^A_λ` and taken `c_{i,j}` times
-/// into the product, and never stored (`ws.ia[i]` keeps `I^A_i`). For a body in its parent's
+/// into the product, and never stored (`slots.ia[i]` keeps `I^A_i`). For a body in its parent's
 /// aligned frame.
 #[inline(always)]
 fn add_one_dof_to_parent(
-    ws: &mut Workspace,
+    slots: &mut Slots<'_>,
     i: usize,
     p: usize,
     u_col: &Vector6<f64>,
     w: &Vector6<f64>,
 ) -> Force {
-    let c = ws.c[i].to_vector();
-    let (before, from_i) = ws.ia.split_at_mut(i);
+    let c = slots.c[i].to_vector();
+    let (before, from_i) = slots.ia.split_at_mut(i);
     let (parent, ia) = (&mut before[p], &from_i[0]);
     let mut bias = Vector6::zeros();
     for j in 0..6 {
@@ -294,15 +363,53 @@ fn is_floating_root(body: &Body) -> bool {
     body.parent.is_none() && body.joint.kind == JointKind::Floating
 }
 
-/// Pass 2 at a floating root ([`is_floating_root`]): `D_i⁻¹ u_i` into `ws.u_bias[i]` (by a
-/// Cholesky solve, [`spd_solve`]), without `U_i`. With
-/// `S_i = [0 R; R 0]` and `I^A_i = [A B; Bᵀ C]` (world axes, angular rows first),
-/// `D_i = S_iᵀ I^A_i S_i = [Rᵀ C R  Rᵀ Bᵀ R; Rᵀ B R  Rᵀ A R]`: the articulated inertia turned
-/// into the body's axes, in the joint's coordinate order. A pivot of `D_i` that fails is the
-/// same as on the general path ([`articulate`]): its coordinate names the direction.
-fn articulate_floating_root(ws: &mut Workspace, i: usize, tau: &[f64]) -> Result<(), (usize, f64)> {
-    let s = &ws.s_world[i];
-    let ia = &ws.ia[i];
+/// Pass 2 at a floating root ([`is_floating_root`]): its acceleration in world axes into
+/// `slots.u_bias[i]` (translations first), without `U_i` or `D_i`. As `S_i` is invertible,
+/// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a') = S_i⁻¹ (I^A_i)⁻¹ S_i⁻ᵀ u_i − S_i⁻¹ a'`, so
+/// `a_i = a' + S_i q̈_i = (I^A_i)⁻¹ S_i⁻ᵀ u_i = (I^A_i)⁻¹ (S_i⁻ᵀ τ_i − p^A_i)`: the root's
+/// acceleration is its articulated inertia's answer to the forces alone, and `S_i⁻ᵀ = S_i`. It
+/// is solved by one Cholesky factorisation ([`spd_solve`]) of `I^A_i` with its translations
+/// first (`[C Bᵀ; B A]` for `I^A_i = [A B; Bᵀ C]`, angular rows first), as the joint orders its
+/// coordinates: no 3×3 block is turned into the body's axes. A pivot that fails is named as
+/// `D_i` in the body's axes names it ([`floating_root_pivot`]). Not inlined: once per call, it
+/// would only crowd the registers of the one-dof bodies' loop.
+#[inline(never)]
+fn articulate_floating_root(
+    slots: &mut Slots<'_>,
+    i: usize,
+    tau: &[f64],
+) -> Result<(), (usize, f64)> {
+    let s = &slots.s_world[i];
+    let ia = &slots.ia[i];
+    // S_i τ_i − p^A_i, a force in world axes
+    let s_tau = s.cols[1..6]
+        .iter()
+        .zip(&tau[1..6])
+        .fold(s.cols[0] * tau[0], |sum, (col, t)| sum + *col * *t);
+    let b = Force::new(s_tau.ang, s_tau.lin) - slots.pa[i];
+    let mut d = Matrix6::zeros();
+    d.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&ia.fixed_view::<3, 3>(3, 3));
+    d.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&ia.fixed_view::<3, 3>(0, 3));
+    d.fixed_view_mut::<3, 3>(3, 3)
+        .copy_from(&ia.fixed_view::<3, 3>(0, 0));
+    let y = &mut slots.u_bias[i];
+    *y = [b.lin.x, b.lin.y, b.lin.z, b.ang.x, b.ang.y, b.ang.z];
+    // Only the lower triangle of d is read.
+    let solved = spd_solve(&d, 6, |pivot| pivot_is_sound_for(pivot, ia), y);
+    solved.map_err(|world| floating_root_pivot(slots, i).unwrap_or(world))
+}
+
+/// The failed pivot of a floating root's `D_i = S_iᵀ I^A_i S_i` in the body's axes, so that the
+/// error names the joint coordinate whose direction has no inertia: with
+/// `S_i = [0 R; R 0]` (`R`'s columns the body's axes in world coordinates),
+/// `D_i = [Rᵀ C R  Rᵀ Bᵀ R; Rᵀ B R  Rᵀ A R]`. `None` when every pivot of `D_i` is sound (the
+/// world-axes factorisation failed at the edge of the test: its pivot is reported).
+#[cold]
+fn floating_root_pivot(slots: &Slots<'_>, i: usize) -> Option<(usize, f64)> {
+    let s = &slots.s_world[i];
+    let ia = &slots.ia[i];
     let r = Matrix3::from_columns(&[s.cols[3].ang, s.cols[4].ang, s.cols[5].ang]);
     let turn = |block: Matrix3| r.tr_mul(&(block * r));
     let mut d = Matrix6::zeros();
@@ -314,71 +421,122 @@ fn articulate_floating_root(ws: &mut Workspace, i: usize, tau: &[f64]) -> Result
         .copy_from(&lin_ang.transpose());
     d.fixed_view_mut::<3, 3>(3, 3)
         .copy_from(&turn(ia.fixed_view::<3, 3>(0, 0).into_owned()));
-    let y = &mut ws.u_bias[i];
-    for (k, y_k) in y.iter_mut().enumerate() {
-        // u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
-        *y_k = tau[k] - s.project(k, &ws.pa[i]);
-    }
-    spd_solve(&d, 6, |pivot| pivot_is_sound_for(pivot, ia), y)
+    spd_solve(&d, 6, |pivot| pivot_is_sound_for(pivot, ia), &mut [0.0; 6]).err()
 }
 
-/// Pass 3 at a floating root ([`is_floating_root`]) from `a' = a_0 + c_i` and `D_i⁻¹ u_i` (in
-/// `ws.u_bias[i]`, [`articulate_floating_root`]): as `U_i = I^A_i S_i`
-/// and `S_i` is invertible, `D_i⁻¹ U_iᵀ a' = S_i⁻¹ a'`, so
-/// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a') = D_i⁻¹ u_i − S_iᵀ a'` and `a_i = a' + S_i q̈_i = S_i D_i⁻¹ u_i`
-/// (the root's acceleration is its articulated inertia's answer to the forces alone).
-fn accelerate_floating_root(ws: &mut Workspace, i: usize, v_index: usize, a_prime: &Motion) {
-    let (s, y) = (&ws.s_world[i], &ws.u_bias[i]);
-    let mut a_i = Motion::zero();
-    for (k, col) in s.cols.iter().enumerate() {
-        // (S_iᵀ a')_k, the plain product of the 6-vectors
-        let s_a = col.ang.dot(&a_prime.ang) + col.lin.dot(&a_prime.lin);
-        ws.qdd[v_index + k] = y[k] - s_a;
-        a_i += *col * y[k];
+/// Pass 3 at a floating root ([`is_floating_root`]) from `a' = a_0 + c_i` and its acceleration
+/// `a_i` in world axes (`y`, its slot of `ws.u_bias`, translations first,
+/// [`articulate_floating_root`]): `q̈_i = S_i⁻¹ (a_i − a') = S_iᵀ (a_i − a')` into `qdd` (the
+/// joint's six), and `a_i` returned.
+fn accelerate_floating_root(
+    s: &MotionSubspace,
+    y: &[f64; 6],
+    a_prime: &Motion,
+    qdd: &mut [f64],
+) -> Motion {
+    let a_i = Motion::new(
+        Vector3::new(y[3], y[4], y[5]),
+        Vector3::new(y[0], y[1], y[2]),
+    );
+    let relative = a_i - *a_prime;
+    for (qdd_k, col) in qdd.iter_mut().zip(&s.cols) {
+        // (S_iᵀ (a_i − a'))_k, the plain product of the 6-vectors
+        *qdd_k = col.ang.dot(&relative.ang) + col.lin.dot(&relative.lin);
     }
-    ws.a_world[i] = a_i;
+    a_i
 }
 
-/// Pass 3: accelerations, from the root outward.
+/// Pass 3: accelerations, from the root outward, over each body's slots (zipped: one pointer
+/// step per body, only the parent's acceleration indexed).
 pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
     // a_0 = −a_g   (RBDA Table 7.1; plus the root's own acceleration)
-    let a_root = ext.root_acceleration - Motion::new(nalgebra::Vector3::zeros(), model.gravity);
-    for (i, body) in model.bodies.iter().enumerate() {
-        let nv = ws.s_world[i].nv;
-        let c = body.joint.coords;
-        let a_parent = motion_into_aligned(ws, i, body.parent.map_or(a_root, |p| ws.a_world[p]));
+    let a_root = ext.root_acceleration - Motion::new(Vector3::zeros(), model.gravity);
+    let Workspace {
+        plan,
+        anchor_shift,
+        c,
+        s_world,
+        u,
+        d_inv,
+        u_bias,
+        a_world,
+        qdd,
+        ..
+    } = ws;
+    let bodies = model
+        .bodies
+        .iter()
+        .zip(plan.anchors.iter().zip(anchor_shift.iter()));
+    let slots = (c.iter().zip(s_world.iter())).zip(u.iter().zip(d_inv.iter()).zip(u_bias.iter()));
+    for (i, ((body, (&anchor, shift)), ((c_i, s), ((u, d_inv), u_bias)))) in
+        bodies.zip(slots).enumerate()
+    {
+        let a_parent = body.parent.map_or(a_root, |p| a_world[p]);
         // a' = ⁱX_λ(i) a_λ(i) + c_i   (RBDA Table 7.1; ⁱX_λ(i) as for v_i)
-        let a_prime = a_parent + ws.c[i];
-        if nv == 1 {
-            accelerate_one_dof(ws, i, c.v_index, &a_prime);
-            continue;
-        }
-        if is_floating_root(body) {
-            accelerate_floating_root(ws, i, c.v_index, &a_prime);
-            continue;
-        }
-        // q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),  a_i = a' + S_i q̈_i   (RBDA Table 7.1)
-        let mut rhs = [0.0; 6];
-        for k in 0..nv {
-            rhs[k] = ws.u_bias[i][k] - a_prime.dot(&ws.u[i][k]);
-        }
-        let mut a_i = a_prime;
-        for k in 0..nv {
-            let qdd: f64 = (0..nv).map(|k2| ws.d_inv[i][(k, k2)] * rhs[k2]).sum();
-            ws.qdd[c.v_index + k] = qdd;
-            a_i += ws.s_world[i].cols[k] * qdd;
-        }
-        ws.a_world[i] = a_i;
+        let a_prime = motion_across_anchor(anchor, shift, a_parent) + *c_i;
+        let v_index = body.joint.coords.v_index;
+        a_world[i] = if s.nv == 1 {
+            accelerate_one_dof(
+                s,
+                &u[0],
+                d_inv[(0, 0)],
+                u_bias[0],
+                &a_prime,
+                &mut qdd[v_index],
+            )
+        } else if is_floating_root(body) {
+            accelerate_floating_root(s, u_bias, &a_prime, &mut qdd.as_mut_slice()[v_index..])
+        } else {
+            accelerate(
+                s,
+                u,
+                d_inv,
+                u_bias,
+                &a_prime,
+                &mut qdd.as_mut_slice()[v_index..],
+            )
+        };
     }
 }
 
-/// Pass 3 at body `i` with a joint of one degree of freedom, from `a' = ⁱX_λ(i) a_λ(i) + c_i`:
-/// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a')`, `a_i = a' + S_i q̈_i`   (RBDA Table 7.1), all scalars but `a`.
+/// Pass 3 at a joint of any number of degrees of freedom, from `a' = ⁱX_λ(i) a_λ(i) + c_i` and
+/// body `i`'s `S_i`, `U_i`, `D_i⁻¹`, `u_i`: `q̈_i = D_i⁻¹ (u_i − U_iᵀ a')` into `qdd` (from the
+/// joint's first coordinate) and `a_i = a' + S_i q̈_i` returned   (RBDA Table 7.1).
+fn accelerate(
+    s: &MotionSubspace,
+    u: &[Force; 6],
+    d_inv: &Matrix6,
+    u_bias: &[f64; 6],
+    a_prime: &Motion,
+    qdd: &mut [f64],
+) -> Motion {
+    let nv = s.nv;
+    let mut rhs = [0.0; 6];
+    for k in 0..nv {
+        rhs[k] = u_bias[k] - a_prime.dot(&u[k]);
+    }
+    let mut a_i = *a_prime;
+    for k in 0..nv {
+        let qdd_k: f64 = (0..nv).map(|k2| d_inv[(k, k2)] * rhs[k2]).sum();
+        qdd[k] = qdd_k;
+        a_i += s.cols[k] * qdd_k;
+    }
+    a_i
+}
+
+/// [`accelerate`] for a joint of one degree of freedom, all scalars but `a`:
+/// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a')` into `qdd`, `a_i = a' + S_i q̈_i` returned.
 #[inline(always)]
-fn accelerate_one_dof(ws: &mut Workspace, i: usize, v_index: usize, a_prime: &Motion) {
-    let qdd = ws.d_inv[i][(0, 0)] * (ws.u_bias[i][0] - a_prime.dot(&ws.u[i][0]));
-    ws.qdd[v_index] = qdd;
-    ws.a_world[i] = *a_prime + ws.s_world[i].cols[0] * qdd;
+fn accelerate_one_dof(
+    s: &MotionSubspace,
+    u: &Force,
+    d_inv: f64,
+    u_bias: f64,
+    a_prime: &Motion,
+    qdd: &mut f64,
+) -> Motion {
+    *qdd = d_inv * (u_bias - a_prime.dot(u));
+    *a_prime + s.cols[0] * *qdd
 }
 
 /// Writes into the top-left `nv × nv` block of `d_inv` the inverse of the symmetric positive
@@ -418,5 +576,54 @@ fn singular_pivot(model: &Model, i: usize, k: usize, pivot: f64) -> DynamicsErro
         body: body.name.clone(),
         coordinate: model.v_name(body.joint.coords.v_index + k),
         pivot,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::urdf::model_from_str;
+    use crate::ModelOptions;
+
+    /// A floating rod with no inertia about its own axis (body z), turned a quarter about y so
+    /// that its axis lies along world x: `D` fails at its last pivot, the rotation about the
+    /// body's z (`root_joint[5]`), where a factorisation in world axes fails first about world x.
+    #[test]
+    fn a_floating_root_names_its_pivot_in_the_body_axes() {
+        let urdf = r#"<robot name="rod"><link name="rod"><inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0"/></inertial></link></robot>"#;
+        let options = ModelOptions {
+            floating_base: true,
+            ..Default::default()
+        };
+        let model = model_from_str(urdf, &options).unwrap();
+        let mut ws = Workspace::new(&model);
+        let half = std::f64::consts::FRAC_1_SQRT_2;
+        for (quaternion, coordinate) in [
+            ([0.0, 0.0, 0.0, 1.0], "root_joint[5]"),
+            ([0.0, half, 0.0, half], "root_joint[5]"),
+        ] {
+            let mut q = model.neutral();
+            q[3..7].copy_from_slice(&quaternion);
+            let err = aba(
+                &model,
+                &mut ws,
+                &q,
+                &[0.0; 6],
+                &[0.0; 6],
+                &Externals::none(),
+            )
+            .unwrap_err();
+            match err {
+                DynamicsError::SingularArticulatedInertia {
+                    coordinate: named,
+                    pivot,
+                    ..
+                } => {
+                    assert_eq!(named, coordinate);
+                    assert!(pivot.abs() < 1e-12, "{pivot}");
+                }
+                other => panic!("{other:?}"),
+            }
+        }
     }
 }

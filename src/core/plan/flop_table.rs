@@ -67,7 +67,8 @@ fn aba_passes(model: &Model, anchors: &[bool]) -> Flops {
         total += world_axes(&body.joint.kind) + SUBSPACE_COLUMN * nv + ADD6;
         total += CROSS6 + bias_added(&body.joint.kind, TRANSFORM_VECTOR);
         total += TRANSFORM_INERTIA + INERTIA_TO_MATRIX + INERTIA_APPLY + CROSS6;
-        // Pass 2's u = τ − Sᵀ p^A and the scale `64 · max diag I^A` of the pivot check.
+        // Pass 2's u = τ − Sᵀ p^A (a floating root's S τ − p^A: the same count) and the scale
+        // `64 · max diag I^A` of the pivot check.
         total += (DOT6 + Flops::new(0, 1)) * nv + Flops::new(1, 0);
         // Pass 3's a' = a_λ + c_i.
         total += ADD6;
@@ -114,12 +115,13 @@ fn aba_one_dof(has_parent: bool) -> Flops {
 }
 
 /// ABA's passes 2 and 3 at a floating root (`aba::articulate_floating_root`,
-/// `accelerate_floating_root`): `D = Sᵀ I^A S` as three 3×3 blocks turned by `Rᵀ · R` (two
-/// 3×3 products each), `y = D⁻¹ u` by a Cholesky solve (its pivots checked against one
-/// scale); then `q̈ = y − Sᵀ a'` and `a = S y` column by column.
+/// `accelerate_floating_root`), beyond [`aba_passes`]' shared terms (whose `u = τ − Sᵀ p^A`
+/// stands for the right-hand side `S τ − p^A`, the same 36 m + 36 a): `a = (I^A)⁻¹ (S τ − p^A)`
+/// by a Cholesky solve in world axes (its pivots checked against one scale); then
+/// `q̈ = Sᵀ (a − a')`.
 fn aba_floating_root() -> Flops {
-    let pass_2 = Flops::new(54, 36) * 3 + spd_solve(6) + Flops::new(1, 0);
-    pass_2 + (DOT6 + Flops::new(0, 1) + Flops::new(6, 6)) * 6
+    let pass_2 = spd_solve(6) + Flops::new(1, 0);
+    pass_2 + Flops::new(0, 6) + DOT6 * 6
 }
 
 /// ABA's passes 2 and 3 at any other joint (`aba::articulate`): `U`, `D`, `D⁻¹` (its pivots

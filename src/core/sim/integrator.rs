@@ -14,9 +14,9 @@
 // The schemes index stage vectors the way the formulas do.
 #![allow(clippy::needless_range_loop)]
 
+use super::configuration::Configuration;
 use super::{Evaluator, Scratch, State};
 use crate::error::DynamicsError;
-use crate::model::JointKind;
 use crate::spatial::{Motion, Vector3};
 use crate::Model;
 use std::fmt;
@@ -75,30 +75,19 @@ pub(super) fn advance(
     match integrator {
         Integrator::ExplicitEuler => {
             eval.acceleration(model, &state.q, &state.v, tau, &mut s.k_a[0])?;
-            move_q(model, &mut state.q, &state.v, h, &mut s.q_stage)?;
+            s.configuration
+                .integrate_in_place(&mut state.q, &state.v, h)?;
             axpy(&mut state.v, h, &s.k_a[0]);
         }
         Integrator::SemiImplicitEuler => {
             eval.acceleration(model, &state.q, &state.v, tau, &mut s.k_a[0])?;
             axpy(&mut state.v, h, &s.k_a[0]);
-            move_q(model, &mut state.q, &state.v, h, &mut s.q_stage)?;
+            s.configuration
+                .integrate_in_place(&mut state.q, &state.v, h)?;
         }
         Integrator::Rk4 => rk4(eval, s, model, state, tau, h)?,
         Integrator::ImplicitEuler => implicit_euler(eval, s, model, state, tau, h)?,
     }
-    Ok(())
-}
-
-/// `q ← q ⊕ h v` on the configuration manifold (`scratch` holds the new `q` on the way).
-fn move_q(
-    model: &Model,
-    q: &mut [f64],
-    v: &[f64],
-    h: f64,
-    scratch: &mut [f64],
-) -> Result<(), DynamicsError> {
-    model.integrate(q, v, h, scratch)?;
-    q.copy_from_slice(scratch);
     Ok(())
 }
 
@@ -133,7 +122,8 @@ fn rk4(
             s.q_stage.copy_from_slice(&state.q);
             rest[0].copy_from_slice(&state.v);
         } else {
-            model.integrate(&state.q, &done[stage - 1], c, &mut s.q_stage)?;
+            s.configuration
+                .integrate(&state.q, &done[stage - 1], c, &mut s.q_stage)?;
             for ((k, v), a) in rest[0].iter_mut().zip(&state.v).zip(&s.k_a[stage - 1]) {
                 *k = v + c * a;
             }
@@ -141,7 +131,7 @@ fn rk4(
         eval.acceleration(model, &s.q_stage, &rest[0], tau, &mut s.k_a[stage])?;
         if stage > 0 {
             // k_v[stage] ← u_stage, with θ_stage = c u_{stage−1}.
-            dexp_inv_in_place(model, &done[stage - 1], c, &mut rest[0]);
+            dexp_inv_in_place(&s.configuration, &done[stage - 1], c, &mut rest[0]);
         }
     }
     let (u, k_a) = (&s.k_v, &s.k_a);
@@ -149,7 +139,8 @@ fn rk4(
         s.v_stage[i] = (u[0][i] + 2.0 * u[1][i] + 2.0 * u[2][i] + u[3][i]) / 6.0;
         state.v[i] += h / 6.0 * (k_a[0][i] + 2.0 * k_a[1][i] + 2.0 * k_a[2][i] + k_a[3][i]);
     }
-    move_q(model, &mut state.q, &s.v_stage, h, &mut s.q_stage)
+    s.configuration
+        .integrate_in_place(&mut state.q, &s.v_stage, h)
 }
 
 /// `k ← dexp⁻¹(θ, k)` on each floating joint's block, with `θ = c·dir`: the rate `θ̇` at which
@@ -159,18 +150,15 @@ fn rk4(
 /// − ad_θ⁴ k / 720 + …`, with `[θ, k] = ad_θ k` the motion cross product and `B_n` the Bernoulli
 /// numbers (`B_3 = 0`). The first term omitted is `O(h⁴)` per stage, `O(h⁵)` per step: RK4 keeps
 /// order 4. Euclidean coordinates are left as they are.
-fn dexp_inv_in_place(model: &Model, dir: &[f64], c: f64, k: &mut [f64]) {
+fn dexp_inv_in_place(configuration: &Configuration, dir: &[f64], c: f64, k: &mut [f64]) {
     let twist = |x: &[f64]| {
         Motion::new(
             Vector3::new(x[3], x[4], x[5]),
             Vector3::new(x[0], x[1], x[2]),
         )
     };
-    for j in model.coordinate_joints() {
-        if *j.kind != JointKind::Floating {
-            continue;
-        }
-        let block = j.v_index..j.v_index + 6;
+    for v_index in configuration.floating_velocities() {
+        let block = v_index..v_index + 6;
         let theta = twist(&dir[block.clone()]) * c;
         let k_j = twist(&k[block.clone()]);
         let once = theta.cross_motion(&k_j);
@@ -194,7 +182,8 @@ fn implicit_euler(
     let [a_new, ..] = &mut s.k_a;
     v_new.copy_from_slice(&state.v);
     for _ in 0..4 {
-        model.integrate(&state.q, v_new, h, &mut s.q_stage)?;
+        s.configuration
+            .integrate(&state.q, v_new, h, &mut s.q_stage)?;
         eval.acceleration(model, &s.q_stage, v_new, tau, a_new)?;
         let mut norm = 0.0;
         for i in 0..n {
@@ -207,7 +196,8 @@ fn implicit_euler(
         for j in 0..n {
             let eps = 1e-7 * (1.0 + v_new[j].abs());
             v_new[j] += eps;
-            model.integrate(&state.q, v_new, h, &mut s.q_probe)?;
+            s.configuration
+                .integrate(&state.q, v_new, h, &mut s.q_probe)?;
             let result = eval.acceleration(model, &s.q_probe, v_new, tau, &mut s.a_probe);
             v_new[j] -= eps;
             result?;
@@ -222,7 +212,8 @@ fn implicit_euler(
         }
     }
     state.v.copy_from_slice(v_new);
-    move_q(model, &mut state.q, &state.v, h, &mut s.q_stage)
+    s.configuration
+        .integrate_in_place(&mut state.q, &state.v, h)
 }
 /// Solves `A x = b` in place by Gaussian elimination with partial pivoting (`b` becomes `x`).
 fn solve_in_place(a: &mut nalgebra::DMatrix<f64>, b: &mut nalgebra::DVector<f64>) {

@@ -9,12 +9,14 @@
 //! [`energy_guard`]), singular mass matrix. A [`Servo`] turns position or velocity commands into the efforts of
 //! each step.
 
+mod configuration;
 mod contact;
 mod energy_guard;
 mod forces;
 mod integrator;
 mod servo;
 
+use configuration::Configuration;
 use contact::Contacts;
 pub use contact::{ContactPoint, Ground};
 use energy_guard::EnergyGuard;
@@ -23,6 +25,7 @@ pub use forces::{Passive, PassiveForces};
 pub use integrator::Integrator;
 pub use servo::{CommandInterface, Servo, ServoAxis};
 
+use crate::algorithms::validate::all_finite;
 use crate::algorithms::{energy, forward_dynamics};
 use crate::error::DynamicsError;
 use crate::{Externals, ForwardDynamicsMethod, Model, Workspace};
@@ -146,6 +149,8 @@ impl Evaluator {
 
 /// Per-step scratch vectors of the integrators.
 pub(crate) struct Scratch {
+    /// How `q ⊕ v·dt` moves each coordinate ([`Configuration`]).
+    configuration: Configuration,
     /// Stage velocities and accelerations (RK4 uses four of each).
     k_v: [Vec<f64>; 4],
     k_a: [Vec<f64>; 4],
@@ -187,6 +192,7 @@ impl Simulator {
                 clamped: 0,
             },
             scratch: Scratch {
+                configuration: Configuration::new(model),
                 k_v: vecs(),
                 k_a: vecs(),
                 q_stage: vec![0.0; nq],
@@ -276,20 +282,8 @@ impl Simulator {
             .map_err(|source| SimError::Dynamics { t: state.t, source })?;
             state.t += h;
             let check_energy = self.guard.advance(power, h);
-            if let Some(i) = state.q.iter().position(|x| !x.is_finite()) {
-                let name = model
-                    .joint_of_q(i)
-                    .map_or(format!("q[{i}]"), |(n, _)| n.to_string());
-                return Err(SimError::NonFinite {
-                    t: state.t,
-                    coordinate: name,
-                });
-            }
-            if let Some(i) = state.v.iter().position(|x| !x.is_finite()) {
-                return Err(SimError::NonFinite {
-                    t: state.t,
-                    coordinate: model.v_name(i),
-                });
+            if !(all_finite(&state.q) && all_finite(&state.v)) {
+                return Err(non_finite(model, state));
             }
             if check_energy {
                 let (kinetic, potential) = self.kinetic_and_potential(model, state)?;
@@ -297,5 +291,68 @@ impl Simulator {
             }
         }
         Ok(())
+    }
+}
+
+/// The error for a state that is no longer finite, naming its first non-finite coordinate
+/// (a position before a velocity).
+#[cold]
+fn non_finite(model: &Model, state: &State) -> SimError {
+    let coordinate = match state.q.iter().position(|x| !x.is_finite()) {
+        Some(i) => model
+            .joint_of_q(i)
+            .map_or(format!("q[{i}]"), |(n, _)| n.to_string()),
+        None => {
+            let i = state.v.iter().position(|x| !x.is_finite()).unwrap_or(0);
+            model.v_name(i)
+        }
+    };
+    SimError::NonFinite {
+        t: state.t,
+        coordinate,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::examples::{pendulum_urdf, PARTICLE_URDF};
+    use crate::urdf::model_from_str;
+    use crate::ModelOptions;
+
+    /// A state that stops being finite is named by its first non-finite coordinate, a position
+    /// before a velocity; a step into it stops with that error.
+    #[test]
+    fn a_non_finite_state_names_its_coordinate() {
+        let model = model_from_str(&pendulum_urdf(3, 1.0, 1.0), &ModelOptions::default()).unwrap();
+        let name = |q: [f64; 3], v: [f64; 3]| {
+            let state = State {
+                t: 0.5,
+                q: q.to_vec(),
+                v: v.to_vec(),
+            };
+            match non_finite(&model, &state) {
+                SimError::NonFinite { t, coordinate } => (t, coordinate),
+                other => panic!("{other:?}"),
+            }
+        };
+        let (inf, nan) = (f64::INFINITY, f64::NAN);
+        assert_eq!(name([0.0, nan, 0.0], [inf; 3]), (0.5, "joint2".to_string()));
+        assert_eq!(
+            name([0.0; 3], [0.0, 0.0, -inf]),
+            (0.5, "joint3".to_string())
+        );
+        // A point mass on two slides (no velocity product at all): the energy budget starts
+        // at rest, then a step from the largest position and rate along x carries it past
+        // f64::MAX.
+        let model = model_from_str(PARTICLE_URDF, &ModelOptions::default()).unwrap();
+        let mut sim = Simulator::new(&model, SimConfig::default()).unwrap();
+        let mut state = State::at_rest(&model, vec![0.0; 2]);
+        sim.step(&model, &mut state, &[0.0; 2]).unwrap();
+        (state.q[0], state.v[0]) = (f64::MAX * 0.9999, 1e308);
+        match sim.step(&model, &mut state, &[0.0; 2]) {
+            Err(SimError::NonFinite { coordinate, .. }) => assert_eq!(coordinate, "x"),
+            other => panic!("{other:?}"),
+        }
     }
 }

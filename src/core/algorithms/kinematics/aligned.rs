@@ -4,7 +4,7 @@
 //! in them.
 
 use super::placements::below_parent;
-use crate::model::Model;
+use crate::model::{Model, MotionSubspace};
 use crate::spatial::{Force, Motion, Transform, Translation, Vector3};
 use crate::Workspace;
 
@@ -65,7 +65,21 @@ pub(crate) enum Anchors {
 #[inline(always)]
 pub(crate) fn update_world_axes(ws: &mut Workspace, i: usize, rates: &[f64], scale: f64) -> Motion {
     let (x, s, axes) = (&ws.x_aligned[i], &ws.s[i], &ws.plan.s_axes[i]);
-    let s_world = &mut ws.s_world[i];
+    world_axes(x, s, axes, &mut ws.s_world[i], rates, scale)
+}
+
+/// [`update_world_axes`] from body `i`'s aligned placement `x`, joint subspace `s` and
+/// coordinate axes `axes` (`ws.plan.s_axes[i]`) into `s_world`, for a pass that walks the
+/// bodies' slots itself.
+#[inline(always)]
+pub(crate) fn world_axes(
+    x: &Transform,
+    s: &MotionSubspace,
+    axes: &[Option<(usize, f64)>; 6],
+    s_world: &mut MotionSubspace,
+    rates: &[f64],
+    scale: f64,
+) -> Motion {
     s_world.nv = s.nv;
     let column = |k: usize| match axes[k] {
         Some((j, sign)) => x.inverse_apply_axis(j, sign),
@@ -92,8 +106,14 @@ pub(crate) fn update_world_axes(ws: &mut Workspace, i: usize, rates: &[f64], sca
 /// body `i`'s aligned frame ([`Anchors::Spaced`]): moved by `xlt(anchor_shift)` when `i`
 /// anchors a frame.
 pub(crate) fn motion_into_aligned(ws: &Workspace, i: usize, m: Motion) -> Motion {
-    if ws.plan.anchors[i] {
-        Translation(ws.anchor_shift[i]).apply_motion(&m)
+    motion_across_anchor(ws.plan.anchors[i], &ws.anchor_shift[i], m)
+}
+
+/// [`motion_into_aligned`] for a body that is an `anchor` or not, with its `anchor_shift`.
+#[inline(always)]
+pub(crate) fn motion_across_anchor(anchor: bool, shift: &Vector3, m: Motion) -> Motion {
+    if anchor {
+        Translation(*shift).apply_motion(&m)
     } else {
         m
     }
@@ -102,8 +122,14 @@ pub(crate) fn motion_into_aligned(ws: &Workspace, i: usize, m: Motion) -> Motion
 /// A force in body `i`'s aligned frame into its parent's aligned frame ([`Anchors::Spaced`]):
 /// moved by `xlt(anchor_shift)ᵀ` when `i` anchors a frame.
 pub(crate) fn force_out_of_aligned(ws: &Workspace, i: usize, f: Force) -> Force {
-    if ws.plan.anchors[i] {
-        Translation(ws.anchor_shift[i]).transpose_apply_force(&f)
+    force_across_anchor(ws.plan.anchors[i], &ws.anchor_shift[i], f)
+}
+
+/// [`force_out_of_aligned`] for a body that is an `anchor` or not, with its `anchor_shift`.
+#[inline(always)]
+pub(crate) fn force_across_anchor(anchor: bool, shift: &Vector3, f: Force) -> Force {
+    if anchor {
+        Translation(*shift).transpose_apply_force(&f)
     } else {
         f
     }

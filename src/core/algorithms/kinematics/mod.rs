@@ -10,8 +10,8 @@ mod placements;
 mod velocities;
 
 pub(crate) use aligned::{
-    force_out_of_aligned, motion_into_aligned, update_aligned_placements, update_world_axes,
-    Anchors,
+    force_across_anchor, force_out_of_aligned, motion_across_anchor, motion_into_aligned,
+    update_aligned_placements, update_world_axes, world_axes, Anchors,
 };
 pub(crate) use joints::{read_joint, update_joints, update_up, with_up_transform};
 pub use placements::body_placements;
