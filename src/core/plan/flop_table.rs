@@ -64,7 +64,7 @@ fn aba_passes(model: &Model, anchors: &[bool]) -> Flops {
         let has_parent = body.parent.is_some();
         // Pass 1: ⁰S, v_J (`S q̇`, each rate scaled by the mimic factor), v_i, c_i, ⁰I (and as
         // a 6×6), p^A.
-        total += world_axes(&body.joint.kind) + SUBSPACE_COLUMN * nv + ADD6;
+        total += world_axes(&body.joint.kind) + world_rates(nv) + ADD6;
         total += CROSS6 + bias_added(&body.joint.kind, TRANSFORM_VECTOR);
         total += TRANSFORM_INERTIA + INERTIA_TO_MATRIX + INERTIA_APPLY + CROSS6;
         // Pass 2's u = τ − Sᵀ p^A (a floating root's S τ − p^A: the same count) and the scale
@@ -95,6 +95,16 @@ fn aba_passes(model: &Model, anchors: &[bool]) -> Flops {
         }
     }
     total
+}
+
+/// `v_J = ⁰S q̇` in ABA's pass 1 (`kinematics::world_axes`): one column scaled by `μ q̇` (7 m), or
+/// the columns summed from zero ([`SUBSPACE_COLUMN`] each).
+fn world_rates(nv: u64) -> Flops {
+    if nv == 1 {
+        Flops::new(7, 0)
+    } else {
+        SUBSPACE_COLUMN * nv
+    }
 }
 
 /// ABA's passes 2 and 3 at a joint of one degree of freedom (`aba::articulate_one_dof`,
