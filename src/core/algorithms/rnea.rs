@@ -218,16 +218,23 @@ fn joint_motion(
 /// [`joint_motion`] for `S = σ e_j` ([`unit_axis`]) given `rate = σ μ q̇` and `accel = σ μ q̈`:
 /// `v_i = v_up + rate e_j`, `a_i = a_up + rate (v_i ×̂ e_j) + accel e_j`, the cross product with
 /// a unit vector four products (two for a slide, [`Motion::add_cross_axis`]) where the general
-/// form takes 18. One copy for each `j`, so that the components are known at compile time.
+/// form takes 18. One copy for each `j`, so that the components are known at compile time. For
+/// a [`Motion`] or the motion of several states at once (`lanes`), [`AlongAxis`].
 #[inline(always)]
-fn along_axis(j: usize, rate: f64, accel: f64, v_up: Motion, a_up: Motion) -> (Motion, Motion) {
+pub(crate) fn along_axis<M: AlongAxis>(
+    j: usize,
+    rate: M::Scalar,
+    accel: M::Scalar,
+    v_up: M,
+    a_up: M,
+) -> (M, M) {
     #[inline(always)]
-    fn along<const J: usize>(
-        rate: f64,
-        accel: f64,
-        v_up: Motion,
-        a_up: Motion,
-    ) -> (Motion, Motion) {
+    fn along<M: AlongAxis, const J: usize>(
+        rate: M::Scalar,
+        accel: M::Scalar,
+        v_up: M,
+        a_up: M,
+    ) -> (M, M) {
         let (mut v_i, mut a_i) = (v_up, a_up);
         v_i.add_along(J, rate);
         a_i.add_cross_axis(&v_i, J, rate);
@@ -235,11 +242,34 @@ fn along_axis(j: usize, rate: f64, accel: f64, v_up: Motion, a_up: Motion) -> (M
         (v_i, a_i)
     }
     match j {
-        0 => along::<0>(rate, accel, v_up, a_up),
-        1 => along::<1>(rate, accel, v_up, a_up),
-        2 => along::<2>(rate, accel, v_up, a_up),
-        3 => along::<3>(rate, accel, v_up, a_up),
-        4 => along::<4>(rate, accel, v_up, a_up),
-        _ => along::<5>(rate, accel, v_up, a_up),
+        0 => along::<M, 0>(rate, accel, v_up, a_up),
+        1 => along::<M, 1>(rate, accel, v_up, a_up),
+        2 => along::<M, 2>(rate, accel, v_up, a_up),
+        3 => along::<M, 3>(rate, accel, v_up, a_up),
+        4 => along::<M, 4>(rate, accel, v_up, a_up),
+        _ => along::<M, 5>(rate, accel, v_up, a_up),
+    }
+}
+
+/// The two updates [`along_axis`] makes to a motion `[ω; v]` along component `j` of a unit
+/// axis: `x e_j` added, and `w (m ×̂ e_j)` added.
+pub(crate) trait AlongAxis: Copy {
+    /// One value: `f64`, or one for each of several states.
+    type Scalar: Copy;
+    /// `self += x e_j`.
+    fn add_along(&mut self, j: usize, x: Self::Scalar);
+    /// `self += w (m ×̂ e_j)`.
+    fn add_cross_axis(&mut self, m: &Self, j: usize, w: Self::Scalar);
+}
+
+impl AlongAxis for Motion {
+    type Scalar = f64;
+    #[inline(always)]
+    fn add_along(&mut self, j: usize, x: f64) {
+        Motion::add_along(self, j, x)
+    }
+    #[inline(always)]
+    fn add_cross_axis(&mut self, m: &Motion, j: usize, w: f64) {
+        Motion::add_cross_axis(self, m, j, w)
     }
 }

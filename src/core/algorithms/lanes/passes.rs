@@ -20,6 +20,7 @@
 use super::spatial::{with_lane_transform, LaneMotion, LaneSpatialTransform};
 use super::value::{tr_mul, Lanes};
 use super::LANES;
+use crate::algorithms::rnea::along_axis;
 use crate::model::{JointKind, Model, MotionSubspace, UpShape};
 use crate::spatial::{sin_cos_all, Motion, Transform, Vector3};
 use crate::Workspace;
@@ -231,37 +232,4 @@ fn column_motion(
     let v_i = v_up + v_joint;
     let a_i = a_up + v_i.cross_motion(&v_joint);
     (v_i, a_i + (LaneMotion::default() + s.scale(accel)))
-}
-
-/// `v_i = v_up + rate e_j`, `a_i = a_up + rate (v_i ×̂ e_j) + accel e_j` (`rnea::along_axis`),
-/// one copy for each `j`.
-#[inline(always)]
-fn along_axis(
-    j: usize,
-    rate: Lanes,
-    accel: Lanes,
-    v_up: LaneMotion,
-    a_up: LaneMotion,
-) -> (LaneMotion, LaneMotion) {
-    #[inline(always)]
-    fn along<const J: usize>(
-        rate: Lanes,
-        accel: Lanes,
-        v_up: LaneMotion,
-        a_up: LaneMotion,
-    ) -> (LaneMotion, LaneMotion) {
-        let (mut v_i, mut a_i) = (v_up, a_up);
-        v_i.add_along(J, rate);
-        a_i.add_cross_axis(&v_i, J, rate);
-        a_i.add_along(J, accel);
-        (v_i, a_i)
-    }
-    match j {
-        0 => along::<0>(rate, accel, v_up, a_up),
-        1 => along::<1>(rate, accel, v_up, a_up),
-        2 => along::<2>(rate, accel, v_up, a_up),
-        3 => along::<3>(rate, accel, v_up, a_up),
-        4 => along::<4>(rate, accel, v_up, a_up),
-        _ => along::<5>(rate, accel, v_up, a_up),
-    }
 }

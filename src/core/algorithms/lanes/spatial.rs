@@ -20,6 +20,18 @@ pub(crate) struct LaneForce {
     pub(crate) lin: V3,
 }
 
+impl crate::algorithms::rnea::AlongAxis for LaneMotion {
+    type Scalar = Lanes;
+    #[inline(always)]
+    fn add_along(&mut self, j: usize, x: Lanes) {
+        LaneMotion::add_along(self, j, x)
+    }
+    #[inline(always)]
+    fn add_cross_axis(&mut self, m: &LaneMotion, j: usize, w: Lanes) {
+        LaneMotion::add_cross_axis(self, m, j, w)
+    }
+}
+
 impl LaneMotion {
     /// A motion constant across lanes.
     pub(crate) fn splat(m: &Motion) -> Self {
