@@ -42,7 +42,7 @@ use super::kinematics::{
     world_axes, Anchors,
 };
 use super::validate::{check_forward_inputs, check_result};
-use super::{pivot_is_sound, Externals};
+use super::Externals;
 use crate::error::DynamicsError;
 use crate::model::{Body, JointKind, Model, MotionSubspace};
 use crate::spatial::{Force, Matrix3, Matrix6, Motion, Translation, Vector3};
@@ -557,13 +557,23 @@ fn invert_spd(
 /// Whether a pivot of `D = Sᵀ I^A S` is sound: D's scale is that of the articulated inertia
 /// `ia`, so a pivot within a few ulps of it is zero, and a subnormal one has no finite inverse
 /// (D⁻¹ would overflow). For a positive semi-definite `ia` the largest entry is on the
-/// diagonal (|a_jk| ≤ √(a_jj a_kk)).
+/// diagonal (|a_jk| ≤ √(a_jj a_kk)). The test of [`pivot_is_sound`](super::pivot_is_sound) against `64 max |a_kk|`
+/// with the pivot at least `f64::MIN_POSITIVE`, by comparisons alone: a pivot in
+/// `[MIN_POSITIVE, MAX]` is finite, and NaN fails every comparison ([`sound_pivot_range`]).
 #[inline(always)]
 fn pivot_is_sound_for(pivot: f64, ia: &Matrix6) -> bool {
     // max |a_kk| by `f64::max` (one instruction per entry; a NaN entry leaves the pivot NaN).
     let largest = (0..6).fold(0.0_f64, |m, k| m.max(ia[(k, k)].abs()));
-    let reference = 64.0 * largest;
-    pivot_is_sound(pivot, reference) && pivot >= f64::MIN_POSITIVE
+    // 64 ε max |a_kk|: 64 ε = 2⁻⁴⁶ is a power of two, one exact scaling.
+    pivot > largest * (64.0 * f64::EPSILON) && sound_pivot_range(pivot)
+}
+
+/// `pivot ∈ [f64::MIN_POSITIVE, f64::MAX]`: positive, normal and finite (NaN is outside), so
+/// that with a pivot above `reference · ε` it passes
+/// [`pivot_is_sound`](super::pivot_is_sound)'s test.
+#[inline(always)]
+fn sound_pivot_range(pivot: f64) -> bool {
+    (f64::MIN_POSITIVE..=f64::MAX).contains(&pivot)
 }
 
 /// The error for the failed pivot `k` (value `pivot`) of `D = Sᵀ I^A S` at body `i`: its body,
@@ -584,6 +594,41 @@ mod tests {
     use super::*;
     use crate::urdf::model_from_str;
     use crate::ModelOptions;
+
+    /// The comparisons-only pivot test gives the verdict of `pivot_is_sound` against
+    /// `64 max |a_kk|` with a normal pivot, at the edges: NaN, infinities, the largest finite,
+    /// subnormals, zero, negatives, and pivots either side of `64 ε max |a_kk|`.
+    #[test]
+    fn the_pivot_test_matches_the_finite_relative_normal_test() {
+        let mut ia = Matrix6::identity() * 0.5;
+        ia[(4, 4)] = -3.0; // the scale is max |a_kk| = 3
+        let floor = 64.0 * 3.0 * f64::EPSILON;
+        let pivots = [
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::MAX,
+            f64::MIN_POSITIVE,
+            f64::MIN_POSITIVE / 2.0,
+            0.0,
+            -0.0,
+            -1.0,
+            floor,
+            floor * (1.0 + f64::EPSILON),
+            floor * (1.0 - f64::EPSILON),
+            1.0,
+        ];
+        for pivot in pivots {
+            let expected =
+                super::super::pivot_is_sound(pivot, 64.0 * 3.0) && pivot >= f64::MIN_POSITIVE;
+            assert_eq!(pivot_is_sound_for(pivot, &ia), expected, "{pivot:e}");
+        }
+        assert!(!pivot_is_sound_for(floor, &ia) && pivot_is_sound_for(1.0, &ia));
+        let tiny = Matrix6::identity() * 1e-300;
+        assert!(!pivot_is_sound_for(f64::MIN_POSITIVE / 2.0, &tiny));
+        assert!(pivot_is_sound_for(f64::MIN_POSITIVE, &tiny));
+        assert!(!pivot_is_sound_for(f64::INFINITY, &tiny));
+    }
 
     /// A floating rod with no inertia about its own axis (body z), turned a quarter about y so
     /// that its axis lies along world x: `D` fails at its last pivot, the rotation about the

@@ -67,9 +67,9 @@ fn aba_passes(model: &Model, anchors: &[bool]) -> Flops {
         total += world_axes(&body.joint.kind) + world_rates(nv) + ADD6;
         total += CROSS6 + bias_added(&body.joint.kind, TRANSFORM_VECTOR);
         total += TRANSFORM_INERTIA + INERTIA_TO_MATRIX + INERTIA_APPLY + CROSS6;
-        // Pass 2's u = τ − Sᵀ p^A (a floating root's S τ − p^A: the same count) and the scale
-        // `64 · max diag I^A` of the pivot check.
-        total += (DOT6 + Flops::new(0, 1)) * nv + Flops::new(1, 0);
+        // Pass 2's u = τ − Sᵀ p^A (a floating root's S τ − p^A: the same count); the pivot
+        // check's scale `64 ε · max diag I^A` is the one multiplication counted with `D`.
+        total += (DOT6 + Flops::new(0, 1)) * nv;
         // Pass 3's a' = a_λ + c_i.
         total += ADD6;
         total += if nv == 1 {
