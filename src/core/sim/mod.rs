@@ -25,6 +25,7 @@ pub use forces::{Passive, PassiveForces};
 pub use integrator::Integrator;
 pub use servo::{CommandInterface, Servo, ServoAxis};
 
+use crate::algorithms::energy::energy_of_checked;
 use crate::algorithms::forward_dynamics::forward_dynamics_on_checked_shapes;
 use crate::algorithms::validate::{all_finite, check_q, check_q_of, check_v};
 use crate::algorithms::{energy, forward_dynamics};
@@ -303,7 +304,11 @@ impl Simulator {
                 return Err(non_finite(model, state));
             }
             if check_energy {
-                let (kinetic, potential) = self.kinetic_and_potential(model, state)?;
+                // The state has the model's sizes (checked at the start), finite values
+                // (above) and unit quaternions (from `⊕`).
+                let (kinetic, potential) =
+                    energy_of_checked(model, &mut self.eval.ws, &state.q, &state.v)
+                        .map_err(|source| SimError::Dynamics { t: state.t, source })?;
                 self.guard.check(state.t, kinetic, potential)?;
             }
         }
