@@ -68,6 +68,7 @@ pub fn aba<'w>(
 /// every floating joint's quaternion is not (near) zero; the externals are finite, one wrench
 /// per body. The result is checked (`q̈` finite, the error naming the first coordinate that is
 /// not).
+#[inline(always)]
 pub(crate) fn aba_on_checked_inputs<'w>(
     model: &Model,
     ws: &'w mut Workspace,

@@ -100,11 +100,8 @@ pub(crate) fn forward_dynamics_on_checked_shapes<'w>(
     }
     match method {
         ForwardDynamicsMethod::Aba => aba::aba_on_checked_inputs(model, ws, q, v, tau, ext),
-        ForwardDynamicsMethod::Crba => {
-            update_joints(model, ws, q);
-            crba_solve_on_joints(model, ws, v, tau, ext)
-        }
-        // n + 1 inverse dynamics and a dense factorisation: its input checks are noise.
+        // The other methods keep their input checks, a few per cent of their work.
+        ForwardDynamicsMethod::Crba => crba_solve(model, ws, q, v, tau, ext),
         ForwardDynamicsMethod::RneaColumns => rnea_columns::rnea_columns(model, ws, q, v, tau, ext),
     }
 }
