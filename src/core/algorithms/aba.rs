@@ -60,6 +60,23 @@ pub fn aba<'w>(
 ) -> Result<&'w [f64], DynamicsError> {
     check_forward_inputs(model, ws, q, v, tau, ext)?;
     refuse_mimic(model)?;
+    aba_on_checked_inputs(model, ws, q, v, tau, ext)
+}
+
+/// [`aba`] without its input checks, for a caller that has established them: `ws` was made for
+/// `model`, which has no mimic joint; `q`, `v`, `τ` have the model's lengths and finite values,
+/// every floating joint's quaternion is not (near) zero; the externals are finite, one wrench
+/// per body. The result is checked (`q̈` finite, the error naming the first coordinate that is
+/// not).
+#[inline(always)]
+pub(crate) fn aba_on_checked_inputs<'w>(
+    model: &Model,
+    ws: &'w mut Workspace,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    ext: &Externals<'_>,
+) -> Result<&'w [f64], DynamicsError> {
     // [X_J, S_i] = jcalc(jtype(i), q_i),  ⁱX_λ(i) = X_J X_T(i)   (RBDA Table 7.1, for every i)
     update_joints(model, ws, q);
     velocity_pass(model, ws, v, ext);

@@ -11,7 +11,7 @@ use super::crba::crba_passes;
 use super::kinematics::update_joints;
 use super::ltl::{ltl_factor, ltl_solve};
 use super::rnea::rnea_passes;
-use super::validate::{check_forward_inputs, check_result};
+use super::validate::{all_finite, check_forward_inputs, check_result};
 use super::{aba, rnea_columns, Externals};
 use crate::error::DynamicsError;
 use crate::model::Model;
@@ -74,6 +74,33 @@ pub fn forward_dynamics<'w>(
 ) -> Result<&'w [f64], DynamicsError> {
     match method {
         ForwardDynamicsMethod::Aba => aba::aba(model, ws, q, v, tau, ext),
+        ForwardDynamicsMethod::Crba => crba_solve(model, ws, q, v, tau, ext),
+        ForwardDynamicsMethod::RneaColumns => rnea_columns::rnea_columns(model, ws, q, v, tau, ext),
+    }
+}
+
+/// [`forward_dynamics`] for a caller that has established the inputs' shapes: `ws` was made for
+/// `model`; `q`, `v`, `τ` have the model's lengths and every floating joint's quaternion in `q`
+/// is not (near) zero; the root motion is finite and the wrenches, if any, one per body; with
+/// `aba`, the model has no mimic joint. The values' finiteness is tested in one branch-free pass
+/// (when it fails, the checks of [`forward_dynamics`] name the first bad value); the result is
+/// checked.
+pub(crate) fn forward_dynamics_on_checked_shapes<'w>(
+    model: &Model,
+    ws: &'w mut Workspace,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    method: ForwardDynamicsMethod,
+    ext: &Externals<'_>,
+) -> Result<&'w [f64], DynamicsError> {
+    let wrenches_finite = ext.wrenches.is_none_or(|w| w.iter().all(|f| f.is_finite()));
+    if !(all_finite(q) & all_finite(v) & all_finite(tau) & wrenches_finite) {
+        check_forward_inputs(model, ws, q, v, tau, ext)?;
+    }
+    match method {
+        ForwardDynamicsMethod::Aba => aba::aba_on_checked_inputs(model, ws, q, v, tau, ext),
+        // The other methods keep their input checks, a few per cent of their work.
         ForwardDynamicsMethod::Crba => crba_solve(model, ws, q, v, tau, ext),
         ForwardDynamicsMethod::RneaColumns => rnea_columns::rnea_columns(model, ws, q, v, tau, ext),
     }

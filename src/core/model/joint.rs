@@ -444,7 +444,7 @@ fn floating_subspace(s: &mut MotionSubspace) {
 /// A floating joint's `ⁱX_λ = X_J X_tree` without its `S` (constant, `floating_subspace`):
 /// `X_J` has `E_J = Rᵀ` (`R` from the quaternion `q[3..7]`, [`quaternion_rotation`]) and the
 /// origin `p = q[0..3]`, so `E = Rᵀ E_tree` and `r = r_tree + E_treeᵀ p`.
-#[inline]
+#[inline(always)]
 pub fn floating_up(q: &[f64], x_tree: &Transform, x_up: &mut Transform) {
     let r = quaternion_rotation(q);
     x_up.rot = r.tr_mul(&x_tree.rot);

@@ -134,10 +134,14 @@ fn rk4(
             dexp_inv_in_place(&s.configuration, &done[stage - 1], c, &mut rest[0]);
         }
     }
-    let (u, k_a) = (&s.k_v, &s.k_a);
-    for i in 0..state.v.len() {
-        s.v_stage[i] = (u[0][i] + 2.0 * u[1][i] + 2.0 * u[2][i] + u[3][i]) / 6.0;
-        state.v[i] += h / 6.0 * (k_a[0][i] + 2.0 * k_a[1][i] + 2.0 * k_a[2][i] + k_a[3][i]);
+    // Every vector cut to `n` first: the loop indexes without bounds checks.
+    let n = state.v.len();
+    let [u0, u1, u2, u3] = s.k_v.each_ref().map(|x| &x[..n]);
+    let [a0, a1, a2, a3] = s.k_a.each_ref().map(|x| &x[..n]);
+    let (u, v) = (&mut s.v_stage[..n], &mut state.v[..n]);
+    for i in 0..n {
+        u[i] = (u0[i] + 2.0 * u1[i] + 2.0 * u2[i] + u3[i]) / 6.0;
+        v[i] += h / 6.0 * (a0[i] + 2.0 * a1[i] + 2.0 * a2[i] + a3[i]);
     }
     s.configuration
         .integrate_in_place(&mut state.q, &s.v_stage, h)

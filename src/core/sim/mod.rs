@@ -25,9 +25,12 @@ pub use forces::{Passive, PassiveForces};
 pub use integrator::Integrator;
 pub use servo::{CommandInterface, Servo, ServoAxis};
 
-use crate::algorithms::validate::all_finite;
+use crate::algorithms::energy::energy_of_checked;
+use crate::algorithms::forward_dynamics::forward_dynamics_on_checked_shapes;
+use crate::algorithms::validate::{all_finite, check_q, check_q_of, check_v};
 use crate::algorithms::{energy, forward_dynamics};
-use crate::error::DynamicsError;
+use crate::error::{check_len, DynamicsError};
+use crate::model::JointKind;
 use crate::{Externals, ForwardDynamicsMethod, Model, Workspace};
 use nalgebra::{DMatrix, DVector};
 use std::fmt;
@@ -112,12 +115,17 @@ pub(crate) struct Evaluator {
     method: ForwardDynamicsMethod,
     on: Passive,
     contacts: Option<Contacts>,
+    /// The model has mimic joints, which ABA refuses (after its input checks).
+    mimic: bool,
     /// Effort evaluations clamped to their limits.
     clamped: u64,
 }
 
 impl Evaluator {
-    /// `q̈` at `(q, v)` under `tau_cmd`, into `out`.
+    /// `q̈` at `(q, v)` under `tau_cmd`, into `out`. The shapes are the step's to establish
+    /// ([`Simulator::step`] checks the state and the commands' length; the stages and passive
+    /// efforts are the model's sizes, their quaternions normalised): forward dynamics tests
+    /// only the values' finiteness and its result.
     pub(crate) fn acceleration(
         &mut self,
         model: &Model,
@@ -141,7 +149,11 @@ impl Evaluator {
             wrenches,
             ..Default::default()
         };
-        let a = forward_dynamics(model, &mut self.ws, q, v, tau, self.method, &ext)?;
+        let a = if self.mimic && self.method == ForwardDynamicsMethod::Aba {
+            forward_dynamics(model, &mut self.ws, q, v, tau, self.method, &ext)?
+        } else {
+            forward_dynamics_on_checked_shapes(model, &mut self.ws, q, v, tau, self.method, &ext)?
+        };
         out.copy_from_slice(a);
         Ok(())
     }
@@ -169,6 +181,8 @@ pub struct Simulator {
     eval: Evaluator,
     scratch: Scratch,
     guard: EnergyGuard,
+    /// The bodies of the floating joints with coordinates of their own (quaternions to check).
+    floating: Vec<usize>,
 }
 
 impl Simulator {
@@ -189,6 +203,7 @@ impl Simulator {
                 method: config.method,
                 on: config.passive,
                 contacts,
+                mimic: model.has_mimic(),
                 clamped: 0,
             },
             scratch: Scratch {
@@ -204,6 +219,12 @@ impl Simulator {
             },
             config,
             guard: EnergyGuard::default(),
+            floating: (0..model.nbodies())
+                .filter(|&i| {
+                    let joint = &model.bodies[i].joint;
+                    joint.kind == JointKind::Floating && !joint.is_mimic()
+                })
+                .collect(),
         })
     }
 
@@ -251,10 +272,7 @@ impl Simulator {
         state: &mut State,
         tau_cmd: &[f64],
     ) -> Result<(), SimError> {
-        // A simulator made for another model: refused before any buffer is indexed.
-        self.eval
-            .ws
-            .check(model)
+        self.check_shapes(model, state, tau_cmd)
             .map_err(|source| SimError::Dynamics { t: state.t, source })?;
         if self.guard.needs_initial() {
             let (kinetic, potential) = self.kinetic_and_potential(model, state)?;
@@ -286,11 +304,42 @@ impl Simulator {
                 return Err(non_finite(model, state));
             }
             if check_energy {
-                let (kinetic, potential) = self.kinetic_and_potential(model, state)?;
+                // The state has the model's sizes (checked at the start), finite values
+                // (above) and unit quaternions (from `⊕`).
+                let (kinetic, potential) =
+                    energy_of_checked(model, &mut self.eval.ws, &state.q, &state.v)
+                        .map_err(|source| SimError::Dynamics { t: state.t, source })?;
                 self.guard.check(state.t, kinetic, potential)?;
             }
         }
         Ok(())
+    }
+}
+
+impl Simulator {
+    /// What forward dynamics leaves to the step ([`Evaluator::acceleration`]): the workspace
+    /// is this model's, the state and the commands have its sizes, every floating joint's
+    /// quaternion is not (near) zero. A failure is named by forward dynamics' own checks, in
+    /// their order (a non-finite coordinate before a zero quaternion, `q` before `v` before
+    /// `τ`), before any buffer is indexed.
+    fn check_shapes(
+        &self,
+        model: &Model,
+        state: &State,
+        tau_cmd: &[f64],
+    ) -> Result<(), DynamicsError> {
+        let ws = &self.eval.ws;
+        let sound = ws.check(model).is_ok()
+            && state.q.len() == model.nq
+            && state.v.len() == model.nv
+            && tau_cmd.len() == model.nv
+            && check_q_of(model, &state.q, &self.floating).is_ok();
+        if sound {
+            return Ok(());
+        }
+        check_q(model, ws, &state.q)?;
+        check_v(model, "v", &state.v)?;
+        check_len("tau", model.nv, tau_cmd.len())
     }
 }
 
@@ -353,6 +402,93 @@ mod tests {
         match sim.step(&model, &mut state, &[0.0; 2]) {
             Err(SimError::NonFinite { coordinate, .. }) => assert_eq!(coordinate, "x"),
             other => panic!("{other:?}"),
+        }
+    }
+
+    /// A step refuses bad inputs with the error forward dynamics gives them, whichever the
+    /// integrator, method and passive forces: wrong sizes, non-finite values, a zero
+    /// quaternion, two faults at once (the first in forward dynamics' order), and commands of
+    /// the wrong size with passive forces on.
+    #[test]
+    fn a_step_refuses_what_forward_dynamics_refuses() {
+        let options = ModelOptions {
+            floating_base: true,
+            ..Default::default()
+        };
+        let model = model_from_str(&pendulum_urdf(2, 1.0, 1.0), &options).unwrap();
+        let (nq, nv) = (model.nq, model.nv);
+        let good = |_: ()| (model.neutral(), vec![0.1; nv], vec![0.2; nv]);
+        type Case = (Vec<f64>, Vec<f64>, Vec<f64>);
+        let mut cases: Vec<Case> = Vec::new();
+        let (nan, inf) = (f64::NAN, f64::INFINITY);
+        for k in [0, 4, nq - 1] {
+            let (mut q, v, t) = good(());
+            q[k] = nan;
+            cases.push((q, v, t));
+        }
+        let (mut q, v, t) = good(());
+        q[3..7].fill(0.0);
+        cases.push((q.clone(), v.clone(), t.clone()));
+        let mut q_nan_too = q;
+        q_nan_too[nq - 1] = inf;
+        cases.push((q_nan_too, v, t));
+        let (q, mut v, t) = good(());
+        v[nv - 1] = inf;
+        cases.push((q.clone(), v.clone(), t.clone()));
+        cases.push((q.clone(), v, vec![0.0; nv + 1]));
+        let (_, v, mut t) = good(());
+        t[2] = nan;
+        cases.push((q.clone(), v.clone(), t.clone()));
+        cases.push((q[1..].to_vec(), v.clone(), t.clone()));
+        cases.push((q.clone(), v[1..].to_vec(), t.clone()));
+        cases.push((q, v, vec![0.0; nv - 1]));
+        for integrator in Integrator::ALL {
+            for method in ForwardDynamicsMethod::ALL {
+                for passive in [Passive::default(), Passive::all()] {
+                    let config = SimConfig {
+                        integrator,
+                        method,
+                        passive,
+                        ..Default::default()
+                    };
+                    let mut sim = Simulator::new(&model, config).unwrap();
+                    let mut ws = Workspace::new(&model);
+                    for (q, v, tau) in &cases {
+                        // With effort limits on, a non-finite command is clamped, not refused.
+                        if passive == Passive::all() && tau.len() == nv {
+                            continue;
+                        }
+                        let expected = forward_dynamics(
+                            &model,
+                            &mut ws,
+                            q,
+                            v,
+                            tau,
+                            method,
+                            &Externals::default(),
+                        )
+                        .map(|_| ())
+                        .unwrap_err();
+                        let mut state = State {
+                            t: 0.25,
+                            q: q.clone(),
+                            v: v.clone(),
+                        };
+                        match sim.step(&model, &mut state, tau) {
+                            Err(SimError::Dynamics { t, source }) => {
+                                // Compared as text: a NaN value is not equal to itself.
+                                assert_eq!(t, 0.25);
+                                assert_eq!(
+                                    format!("{source:?}"),
+                                    format!("{expected:?}"),
+                                    "{integrator} {method} {passive:?}"
+                                )
+                            }
+                            other => panic!("{integrator} {method} {passive:?}: {other:?}"),
+                        }
+                    }
+                }
+            }
         }
     }
 }
