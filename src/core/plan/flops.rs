@@ -23,9 +23,10 @@
 //! without LLVM's vectorisers (`--scalar`, one operation per instruction), the count executed
 //! is this table's for every building block below, and for `rnea`, `crba`, `gravity` and
 //! `fd_rnea_columns` on the default arm (fixed and floating), a 12-link chain,
-//! `src/core/tests/models/tree.urdf` and the mimic gripper; `fd_aba` executes an addition a
-//! body more than the table (5 to 12), and `fd_crba`'s sparse `LᵀL` from one addition fewer to 30 more, both within 1 %. The input and result checks are arithmetic too
-//! ([`all_finite`], [`MOTION_FINITE`]). The
+//! `src/core/tests/models/tree.urdf` and the mimic gripper; `fd_aba` executes an addition a body
+//! more than the table (5 to 12), and `fd_crba`'s sparse `LᵀL` from one addition fewer to 30
+//! more, both within 1 %. The input and result checks are arithmetic too ([`all_finite`],
+//! [`MOTION_FINITE`]). The
 //! release build executes more, since its packed instructions compute lanes nobody needs
 //! (`docs/performance.md` lists how much more per kernel).
 //!
