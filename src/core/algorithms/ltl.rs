@@ -26,6 +26,10 @@ use nalgebra::{DMatrix, DVector};
 /// triangle along the tree pattern (entry `(k, j)` is `L_kj`; column `j` of `L` is contiguous in
 /// memory), with `H = Lᵀ L`. Other entries of `factor` are left as they were.
 ///
+/// Row `k` takes its descendants' entries of column `k`, `c = L[D(k), k]` (`s = |D(k)|` of
+/// them), once: `L_kk = √(H_kk − c·c)`, then `L_kj = (H_kj − c·L[D(k), j]) / L_kk` for each
+/// ancestor `j`, multiplied by `1 / L_kk` taken once ([`row_of_l`]).
+///
 /// Fails, naming the coordinate, when a pivot is not positive, or is so small against the
 /// original diagonal entry that every digit was lost (`H` singular or indefinite).
 pub(crate) fn ltl_factor(
@@ -38,85 +42,160 @@ pub(crate) fn ltl_factor(
     let (h, l) = (h.as_slice(), factor.as_mut_slice());
     // Column-major storage: entry (r, c) of the n × n matrix is at r + c n.
     for k in (0..n).rev() {
-        let below = ancestors.below(k);
-        let pivot = h[k + k * n] - column_dot(l, n, k, k, below.clone());
-        if !pivot_is_sound(pivot, h[k + k * n]) {
+        // The columns before k (where row k's entries go) apart from column k (read).
+        let (before, from_k) = l.split_at_mut(k * n);
+        let (l_kk, c) = from_k[k..ancestors.below(k).end]
+            .split_first_mut()
+            .expect("k < e(k)");
+        let h_kk = h[k + k * n];
+        let pivot = subtract_dot(h_kk, c, c);
+        if !pivot_is_sound(pivot, h_kk) {
             return Err(DynamicsError::SingularMassMatrix {
                 coordinate: model.v_name(k),
                 pivot,
             });
         }
-        let l_kk = pivot.sqrt();
-        l[k + k * n] = l_kk;
-        for &j in ancestors.of(k) {
-            l[k + j * n] = (h[k + j * n] - column_dot(l, n, k, j, below.clone())) / l_kk;
-        }
+        *l_kk = pivot.sqrt();
+        let row = RowOfL {
+            l: &mut before[k..],
+            h: &h[k..],
+            n,
+            scale: 1.0 / *l_kk,
+        };
+        row_of_l(row, ancestors.of(k), c);
     }
     Ok(())
 }
 
-/// `Σ_{m ∈ rows} L_ma L_mb`: two contiguous column segments ([`dot`]).
-#[inline(always)]
-fn column_dot(l: &[f64], n: usize, a: usize, b: usize, rows: std::ops::Range<usize>) -> f64 {
-    if rows.is_empty() {
-        return 0.0; // a leaf: nothing below it
-    }
-    dot(&l[a * n..][rows.clone()], &l[b * n..][rows])
+/// Row `k` of `L` at its ancestors' columns, from rows `k..` of the columns before `k`
+/// (`l[j n]` is `L_kj`, `l[j n + 1 ..]` is `L[D(k), j]`) and of `H` (`h[j n]` is `H_kj`).
+struct RowOfL<'a> {
+    l: &'a mut [f64],
+    h: &'a [f64],
+    n: usize,
+    /// `1 / L_kk`.
+    scale: f64,
 }
 
-/// `Σ x_m y_m` in four interleaved partial sums (independent additions that pair up in SIMD
-/// registers, where one running sum would wait on each addition).
-#[inline(always)]
-fn dot(x: &[f64], y: &[f64]) -> f64 {
-    let mut acc = [0.0; 4];
-    let (x4, y4) = (x.chunks_exact(4), y.chunks_exact(4));
-    let (x_rest, y_rest) = (x4.remainder(), y4.remainder());
-    for (p, q) in x4.zip(y4) {
-        for t in 0..4 {
-            acc[t] += p[t] * q[t];
-        }
-    }
-    for (t, (p, q)) in x_rest.iter().zip(y_rest).enumerate() {
-        acc[t] += p * q;
-    }
-    (acc[0] + acc[2]) + (acc[1] + acc[3])
-}
-
-/// Solves `Lᵀ L x = b` in place (`x` holds `b` on entry), `factor` as [`ltl_factor`] left it.
-pub(crate) fn ltl_solve(ancestors: &Ancestors, factor: &DMatrix<f64>, x: &mut DVector<f64>) {
-    ltl_solve_columns(ancestors, factor, x.as_mut_slice());
-}
-
-/// [`ltl_solve`] on every column of the column-major `n × k` matrix `x` (its `k` right-hand
-/// sides side by side). The loops run coordinate outside, column inside: each column's solve
-/// is a chain of dependent divisions, and interleaving the columns lets them overlap.
-pub(crate) fn ltl_solve_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, x: &mut [f64]) {
-    let n = ancestors.len();
-    if n == 0 {
-        return; // no columns (and `chunks_exact_mut(0)` would panic)
-    }
-    let l = factor.as_slice();
-    // Lᵀ y = b, from the leaves inward: y_i = (b_i − Σ_{m ∈ D(i)} L_mi y_m) / L_ii.
-    for i in (0..n).rev() {
-        let below = ancestors.below(i);
-        let column_i = &l[i * n..(i + 1) * n];
-        let (l_below, l_ii) = (&column_i[below.clone()], column_i[i]);
-        for x in x.chunks_exact_mut(n) {
-            x[i] = (x[i] - dot(l_below, &x[below.clone()])) / l_ii;
-        }
-    }
-    // L x = y, from the root outward: x_i = y_i / L_ii, then y_m −= L_mi x_i below i.
-    for i in 0..n {
-        let below = ancestors.below(i);
-        let column_i = &l[i * n..(i + 1) * n];
-        let (l_below, l_ii) = (&column_i[below.clone()], column_i[i]);
-        for x in x.chunks_exact_mut(n) {
-            x[i] /= l_ii;
-            let x_i = x[i];
-            for (y, a) in x[below.clone()].iter_mut().zip(l_below) {
-                *y -= a * x_i;
+/// `L_kj = (H_kj − c·L[D(k), j]) / L_kk` for each ancestor `j` of `k` (`c = L[D(k), k]`). The
+/// descendants of a coordinate near the leaves are few (none, one or two on a leg), so those
+/// lengths have their own loops with `c` held in registers ([`row_of_l_short`]); a longer
+/// `c` goes through [`subtract_dot`].
+fn row_of_l(row: RowOfL<'_>, ancestors: &[usize], c: &[f64]) {
+    match *c {
+        [] => row_of_l_short(row, ancestors, []),
+        [c0] => row_of_l_short(row, ancestors, [c0]),
+        [c0, c1] => row_of_l_short(row, ancestors, [c0, c1]),
+        [c0, c1, c2] => row_of_l_short(row, ancestors, [c0, c1, c2]),
+        _ => {
+            let (l, s) = (row.l, c.len());
+            for &j in ancestors {
+                let at = j * row.n;
+                let (l_kj, below) = l[at..=at + s].split_first_mut().expect("s + 1 entries");
+                *l_kj = subtract_dot(row.h[at], c, below) * row.scale;
             }
         }
+    }
+}
+
+/// [`row_of_l`] for `S < 4` descendants: `L_kj = (H_kj − Σ_t c_t L_{k+1+t, j}) / L_kk`.
+#[inline(always)]
+fn row_of_l_short<const S: usize>(row: RowOfL<'_>, ancestors: &[usize], c: [f64; S]) {
+    let l = row.l;
+    for &j in ancestors {
+        let at = j * row.n;
+        let column = &mut l[at..=at + S];
+        let mut sum = row.h[at];
+        for t in 0..S {
+            sum -= c[t] * column[1 + t];
+        }
+        column[0] = sum * row.scale;
+    }
+}
+
+/// `b − Σ x_m y_m` over the entries of `x` (`y` exactly as long): `s` multiplications and `s`
+/// subtractions for `s` entries. Up to three entries are subtracted one by one; from four on
+/// the products are summed in four interleaved partial sums (independent additions that pair
+/// up in SIMD registers, where one running sum would wait on each addition), each starting
+/// from its first product, and the sum subtracted.
+#[inline(always)]
+fn subtract_dot(b: f64, x: &[f64], y: &[f64]) -> f64 {
+    match (x, y) {
+        ([], _) => b,
+        ([x0], [y0]) => b - x0 * y0,
+        ([x0, x1], [y0, y1]) => b - x0 * y0 - x1 * y1,
+        ([x0, x1, x2], [y0, y1, y2]) => b - x0 * y0 - x1 * y1 - x2 * y2,
+        _ => {
+            let ((x_first, x), (y_first, y)) = (x.split_at(4), y.split_at(4));
+            let mut acc: [f64; 4] = std::array::from_fn(|t| x_first[t] * y_first[t]);
+            let (x4, y4) = (x.chunks_exact(4), y.chunks_exact(4));
+            let (x_rest, y_rest) = (x4.remainder(), y4.remainder());
+            for (p, q) in x4.zip(y4) {
+                for t in 0..4 {
+                    acc[t] += p[t] * q[t];
+                }
+            }
+            for (t, (p, q)) in x_rest.iter().zip(y_rest).enumerate() {
+                acc[t] += p * q;
+            }
+            b - ((acc[0] + acc[2]) + (acc[1] + acc[3]))
+        }
+    }
+}
+
+/// `y ← y − a x` over the entries of `y` (`x` exactly as long): `s` multiplications and `s`
+/// subtractions. Up to three entries one by one; from four on, four at a time.
+#[inline(always)]
+fn subtract_scaled(y: &mut [f64], a: f64, x: &[f64]) {
+    match (y, x) {
+        ([], _) => {}
+        ([y0], [x0]) => *y0 -= a * x0,
+        ([y0, y1], [x0, x1]) => {
+            *y0 -= a * x0;
+            *y1 -= a * x1;
+        }
+        ([y0, y1, y2], [x0, x1, x2]) => {
+            *y0 -= a * x0;
+            *y1 -= a * x1;
+            *y2 -= a * x2;
+        }
+        (y, x) => {
+            let (mut y4, mut x4) = (y.chunks_exact_mut(4), x.chunks_exact(4));
+            for (p, q) in (&mut y4).zip(&mut x4) {
+                for t in 0..4 {
+                    p[t] -= a * q[t];
+                }
+            }
+            for (p, q) in y4.into_remainder().iter_mut().zip(x4.remainder()) {
+                *p -= a * q;
+            }
+        }
+    }
+}
+
+/// Solves `Lᵀ L x = b` in place (`x` holds `b` on entry), `factor` as [`ltl_factor`] left it:
+///
+/// ```text
+/// Lᵀ y = b, leaves inward:  y_i = (b_i − L[D(i), i]·y[D(i)]) / L_ii
+/// L x = y, root outward:    x_i = y_i / L_ii, then y[D(i)] −= L[D(i), i] x_i
+/// ```
+///
+/// each step on the contiguous segment of column `i` below its diagonal (none for a leaf).
+pub(crate) fn ltl_solve(ancestors: &Ancestors, factor: &DMatrix<f64>, x: &mut DVector<f64>) {
+    let n = ancestors.len();
+    let (l, x) = (factor.as_slice(), x.as_mut_slice());
+    // Rows i..e(i) of column i of L, and of x.
+    let rows = |i: usize| i..ancestors.below(i).end;
+    for i in (0..n).rev() {
+        let (l_ii, l_below) = l[i * n..][rows(i)].split_first().expect("i < e(i)");
+        let (x_i, x_below) = x[rows(i)].split_first_mut().expect("i < e(i)");
+        *x_i = subtract_dot(*x_i, l_below, x_below) / l_ii;
+    }
+    for i in 0..n {
+        let (l_ii, l_below) = l[i * n..][rows(i)].split_first().expect("i < e(i)");
+        let (x_i, x_below) = x[rows(i)].split_first_mut().expect("i < e(i)");
+        *x_i /= l_ii;
+        subtract_scaled(x_below, *x_i, l_below);
     }
 }
 
@@ -418,16 +497,32 @@ mod tests {
         assert!(Ancestors::new(&breadth_first).is_none());
     }
 
-    /// On a branched model, `Lᵀ L` rebuilds `H` and the solve inverts it.
+    /// On a branched model (planar base) and chains (fixed and floating bases), `Lᵀ L` rebuilds
+    /// `H` and the solve inverts it. Between them the models have coordinates with 0, 1, 2, 3
+    /// and more descendants, each length of column segment the factor and the solves treat
+    /// apart ([`subtract_dot`], [`row_of_l_short`]), with and without ancestors.
     #[test]
     fn factor_rebuilds_h_and_solve_inverts_it() {
         let text = include_str!("../tests/models/tree.urdf");
-        for model in [
+        let floating = ModelOptions {
+            floating_base: true,
+            ..ModelOptions::default()
+        };
+        let mut lengths = std::collections::BTreeSet::new();
+        let models = [
             urdf::model_from_str(text, &ModelOptions::default()).unwrap(),
             urdf::model_from_str(examples::DEFAULT_ARM_URDF, &ModelOptions::default()).unwrap(),
-        ] {
+            urdf::model_from_str(examples::DEFAULT_ARM_URDF, &floating).unwrap(),
+        ];
+        // Short chains: a root with one, two, three descendants.
+        let chains = (2..=4).map(crate::plan::flops::tests::chain);
+        for model in models.into_iter().chain(chains) {
             let n = model.nv;
             let ancestors = Ancestors::new(model.dof_parent.as_ref().unwrap()).unwrap();
+            for k in 0..n {
+                let with_ancestors = !ancestors.of(k).is_empty();
+                lengths.insert((ancestors.below(k).len().min(4), with_ancestors));
+            }
             let mut ws = crate::Workspace::new(&model);
             let q = crate::sampling::random_q(&model, &mut crate::sampling::Rng::new(3));
             let h = crate::algorithms::crba(&model, &mut ws, &q)
@@ -484,5 +579,13 @@ mod tests {
                 model.name
             );
         }
+        let every = (0..=4).flat_map(|s| [(s, false), (s, true)]);
+        let missing: Vec<_> = every.filter(|l| !lengths.contains(l)).collect();
+        // A root with no descendant is a model of one coordinate: not among these.
+        assert_eq!(
+            missing,
+            [(0, false)],
+            "(descendants, has ancestors) not covered"
+        );
     }
 }
