@@ -28,7 +28,9 @@ use nalgebra::{DMatrix, DVector};
 ///
 /// Row `k` takes its descendants' entries of column `k`, `c = L[D(k), k]` (`s = |D(k)|` of
 /// them), once: `L_kk = √(H_kk − c·c)`, then `L_kj = (H_kj − c·L[D(k), j]) / L_kk` for each
-/// ancestor `j`, multiplied by `1 / L_kk` taken once ([`row_of_l`]).
+/// ancestor `j`, multiplied by `1 / L_kk` taken once. The descendants of a coordinate near the
+/// leaves are few (none, one or two on a leg), so those lengths have their own loops with `c`
+/// held in registers ([`short_row`]); a longer `c` is read in place ([`long_row`]).
 ///
 /// Fails, naming the coordinate, when a pivot is not positive, or is so small against the
 /// original diagonal entry that every digit was lost (`H` singular or indefinite).
@@ -40,77 +42,91 @@ pub(crate) fn ltl_factor(
 ) -> Result<(), DynamicsError> {
     let n = ancestors.len();
     let (h, l) = (h.as_slice(), factor.as_mut_slice());
-    // Column-major storage: entry (r, c) of the n × n matrix is at r + c n.
     for k in (0..n).rev() {
-        // The columns before k (where row k's entries go) apart from column k (read).
-        let (before, from_k) = l.split_at_mut(k * n);
-        let (l_kk, c) = from_k[k..ancestors.below(k).end]
-            .split_first_mut()
-            .expect("k < e(k)");
-        let h_kk = h[k + k * n];
-        let pivot = subtract_dot(h_kk, c, c);
-        if !pivot_is_sound(pivot, h_kk) {
+        let row = Row {
+            k,
+            n,
+            ancestors: ancestors.of(k),
+        };
+        let done = match ancestors.below(k).len() {
+            0 => short_row::<0>(l, h, row),
+            1 => short_row::<1>(l, h, row),
+            2 => short_row::<2>(l, h, row),
+            3 => short_row::<3>(l, h, row),
+            s => long_row(l, h, row, s),
+        };
+        if let Err(pivot) = done {
             return Err(DynamicsError::SingularMassMatrix {
                 coordinate: model.v_name(k),
                 pivot,
             });
         }
-        *l_kk = pivot.sqrt();
-        let row = RowOfL {
-            l: &mut before[k..],
-            h: &h[k..],
-            n,
-            scale: 1.0 / *l_kk,
-        };
-        row_of_l(row, ancestors.of(k), c);
     }
     Ok(())
 }
 
-/// Row `k` of `L` at its ancestors' columns, from rows `k..` of the columns before `k`
-/// (`l[j n]` is `L_kj`, `l[j n + 1 ..]` is `L[D(k), j]`) and of `H` (`h[j n]` is `H_kj`).
-struct RowOfL<'a> {
-    l: &'a mut [f64],
-    h: &'a [f64],
+/// Which row of `L` to compute: row `k` of `n`, with its ancestors. Column-major storage: entry
+/// `(r, c)` of the `n × n` matrices is at `r + c n`, so `L_kj` and `H_kj` are at `k + j n`
+/// and `L[D(k), j]` follows `L_kj`.
+#[derive(Clone, Copy)]
+struct Row<'a> {
+    k: usize,
     n: usize,
-    /// `1 / L_kk`.
-    scale: f64,
+    ancestors: &'a [usize],
 }
 
-/// `L_kj = (H_kj − c·L[D(k), j]) / L_kk` for each ancestor `j` of `k` (`c = L[D(k), k]`). The
-/// descendants of a coordinate near the leaves are few (none, one or two on a leg), so those
-/// lengths have their own loops with `c` held in registers ([`row_of_l_short`]); a longer
-/// `c` goes through [`subtract_dot`].
-fn row_of_l(row: RowOfL<'_>, ancestors: &[usize], c: &[f64]) {
-    match *c {
-        [] => row_of_l_short(row, ancestors, []),
-        [c0] => row_of_l_short(row, ancestors, [c0]),
-        [c0, c1] => row_of_l_short(row, ancestors, [c0, c1]),
-        [c0, c1, c2] => row_of_l_short(row, ancestors, [c0, c1, c2]),
-        _ => {
-            let (l, s) = (row.l, c.len());
-            for &j in ancestors {
-                let at = j * row.n;
-                let (l_kj, below) = l[at..=at + s].split_first_mut().expect("s + 1 entries");
-                *l_kj = subtract_dot(row.h[at], c, below) * row.scale;
-            }
-        }
-    }
-}
-
-/// [`row_of_l`] for `S < 4` descendants: `L_kj = (H_kj − Σ_t c_t L_{k+1+t, j}) / L_kk`.
+/// `L_kk = √pivot` into `l_kk`, and `1 / L_kk`; the pivot back when it is not sound
+/// ([`pivot_is_sound`] against `H_kk`).
 #[inline(always)]
-fn row_of_l_short<const S: usize>(row: RowOfL<'_>, ancestors: &[usize], c: [f64; S]) {
-    let l = row.l;
+fn set_pivot(l_kk: &mut f64, pivot: f64, h_kk: f64) -> Result<f64, f64> {
+    if !pivot_is_sound(pivot, h_kk) {
+        return Err(pivot);
+    }
+    *l_kk = pivot.sqrt();
+    Ok(1.0 / *l_kk)
+}
+
+/// Row `k` of `L` for `S < 4` descendants, `c` copied out of column `k` first:
+/// `L_kk = √(H_kk − Σ_t c_t²)`, `L_kj = (H_kj − Σ_t c_t L_{k+1+t, j}) / L_kk`.
+#[inline(always)]
+fn short_row<const S: usize>(l: &mut [f64], h: &[f64], row: Row<'_>) -> Result<(), f64> {
+    let Row { k, n, ancestors } = row;
+    let diagonal = k + k * n;
+    let c: [f64; S] = l[diagonal + 1..][..S].try_into().expect("S entries");
+    let h_kk = h[diagonal];
+    let mut pivot = h_kk;
+    for c in c {
+        pivot -= c * c;
+    }
+    let scale = set_pivot(&mut l[diagonal], pivot, h_kk)?;
     for &j in ancestors {
-        let at = j * row.n;
+        let at = k + j * n;
         let column = &mut l[at..=at + S];
-        let mut sum = row.h[at];
+        let mut sum = h[at];
         for t in 0..S {
             sum -= c[t] * column[1 + t];
         }
-        column[0] = sum * row.scale;
+        column[0] = sum * scale;
     }
+    Ok(())
+}
+
+/// Row `k` of `L` for `s ≥ 4` descendants, `c` read in place from column `k` (after the
+/// columns of the ancestors, where the row's entries go).
+fn long_row(l: &mut [f64], h: &[f64], row: Row<'_>, s: usize) -> Result<(), f64> {
+    let Row { k, n, ancestors } = row;
+    let (before, from_k) = l.split_at_mut(k * n);
+    let (l_kk, c) = from_k[k..=k + s].split_first_mut().expect("s + 1 entries");
+    let h_kk = h[k + k * n];
+    let scale = set_pivot(l_kk, subtract_dot(h_kk, c, c), h_kk)?;
+    for &j in ancestors {
+        let at = k + j * n;
+        let (l_kj, below) = before[at..=at + s]
+            .split_first_mut()
+            .expect("s + 1 entries");
+        *l_kj = subtract_dot(h[at], c, below) * scale;
+    }
+    Ok(())
 }
 
 /// `b − Σ x_m y_m` over the entries of `x` (`y` exactly as long): `s` multiplications and `s`
@@ -500,7 +516,7 @@ mod tests {
     /// On a branched model (planar base) and chains (fixed and floating bases), `Lᵀ L` rebuilds
     /// `H` and the solve inverts it. Between them the models have coordinates with 0, 1, 2, 3
     /// and more descendants, each length of column segment the factor and the solves treat
-    /// apart ([`subtract_dot`], [`row_of_l_short`]), with and without ancestors.
+    /// apart ([`short_row`], [`subtract_dot`]), with and without ancestors.
     #[test]
     fn factor_rebuilds_h_and_solve_inverts_it() {
         let text = include_str!("../tests/models/tree.urdf");
