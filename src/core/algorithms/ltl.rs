@@ -40,8 +40,17 @@ pub(crate) fn ltl_factor(
     h: &DMatrix<f64>,
     factor: &mut DMatrix<f64>,
 ) -> Result<(), DynamicsError> {
+    factor_rows(model, ancestors, h.as_slice(), factor.as_mut_slice())
+}
+
+/// [`ltl_factor`] on the storage (slices, which the compiler knows not to overlap).
+fn factor_rows(
+    model: &Model,
+    ancestors: &Ancestors,
+    h: &[f64],
+    l: &mut [f64],
+) -> Result<(), DynamicsError> {
     let n = ancestors.len();
-    let (h, l) = (h.as_slice(), factor.as_mut_slice());
     for k in (0..n).rev() {
         let row = Row {
             k,
@@ -198,8 +207,13 @@ fn subtract_scaled(y: &mut [f64], a: f64, x: &[f64]) {
 ///
 /// each step on the contiguous segment of column `i` below its diagonal (none for a leaf).
 pub(crate) fn ltl_solve(ancestors: &Ancestors, factor: &DMatrix<f64>, x: &mut DVector<f64>) {
+    solve(ancestors, factor.as_slice(), x.as_mut_slice());
+}
+
+/// [`ltl_solve`] on the storage: slices passed in, which the compiler then knows not to
+/// overlap (the matrices' buffers, reached through their structs, could as far as it knows).
+fn solve(ancestors: &Ancestors, l: &[f64], x: &mut [f64]) {
     let n = ancestors.len();
-    let (l, x) = (factor.as_slice(), x.as_mut_slice());
     // Rows i..e(i) of column i of L, and of x.
     let rows = |i: usize| i..ancestors.below(i).end;
     for i in (0..n).rev() {
