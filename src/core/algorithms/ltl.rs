@@ -95,7 +95,8 @@ fn set_pivot(l_kk: &mut f64, pivot: f64, h_kk: f64) -> Result<f64, f64> {
     Ok(1.0 / *l_kk)
 }
 
-/// Row `k` of `L` for `S < 4` descendants, `c` copied out of column `k` first:
+/// Row `k` of `L` for `S < 4` descendants, `c` copied out of column `k` first (the terms
+/// subtracted from the last to the first, as in [`subtract_dot`]):
 /// `L_kk = √(H_kk − Σ_t c_t²)`, `L_kj = (H_kj − Σ_t c_t L_{k+1+t, j}) / L_kk`.
 #[inline(always)]
 fn short_row<const S: usize>(l: &mut [f64], h: &[f64], row: Row<'_>) -> Result<(), f64> {
@@ -103,8 +104,10 @@ fn short_row<const S: usize>(l: &mut [f64], h: &[f64], row: Row<'_>) -> Result<(
     let diagonal = k + k * n;
     let c: [f64; S] = l[diagonal + 1..][..S].try_into().expect("S entries");
     let h_kk = h[diagonal];
+    // The nearest descendant's entries (t = 0, computed just before) last, as in
+    // [`subtract_dot`].
     let mut pivot = h_kk;
-    for c in c {
+    for c in c.into_iter().rev() {
         pivot -= c * c;
     }
     let scale = set_pivot(&mut l[diagonal], pivot, h_kk)?;
@@ -112,7 +115,7 @@ fn short_row<const S: usize>(l: &mut [f64], h: &[f64], row: Row<'_>) -> Result<(
         let at = k + j * n;
         let column = &mut l[at..=at + S];
         let mut sum = h[at];
-        for t in 0..S {
+        for t in (0..S).rev() {
             sum -= c[t] * column[1 + t];
         }
         column[0] = sum * scale;
@@ -139,33 +142,42 @@ fn long_row(l: &mut [f64], h: &[f64], row: Row<'_>, s: usize) -> Result<(), f64>
 }
 
 /// `b − Σ x_m y_m` over the entries of `x` (`y` exactly as long): `s` multiplications and `s`
-/// subtractions for `s` entries. Up to three entries are subtracted one by one; from four on
-/// the products are summed in four interleaved partial sums (independent additions that pair
-/// up in SIMD registers, where one running sum would wait on each addition), each starting
-/// from its first product, and the sum subtracted.
+/// subtractions for `s` entries. The first term goes last: in the solves and the factor it
+/// holds the value computed just before (the nearest descendant's), so the other terms are
+/// subtracted while it is still on its way. Up to four entries are subtracted one by one; from
+/// five on the other terms are summed in four interleaved partial sums (independent additions
+/// that pair up in SIMD registers, where one running sum would wait on each addition), each
+/// starting from its first product, and the sum subtracted.
 #[inline(always)]
 fn subtract_dot(b: f64, x: &[f64], y: &[f64]) -> f64 {
     match (x, y) {
         ([], _) => b,
         ([x0], [y0]) => b - x0 * y0,
-        ([x0, x1], [y0, y1]) => b - x0 * y0 - x1 * y1,
-        ([x0, x1, x2], [y0, y1, y2]) => b - x0 * y0 - x1 * y1 - x2 * y2,
-        _ => {
-            let ((x_first, x), (y_first, y)) = (x.split_at(4), y.split_at(4));
-            let mut acc: [f64; 4] = std::array::from_fn(|t| x_first[t] * y_first[t]);
-            let (x4, y4) = (x.chunks_exact(4), y.chunks_exact(4));
-            let (x_rest, y_rest) = (x4.remainder(), y4.remainder());
-            for (p, q) in x4.zip(y4) {
-                for t in 0..4 {
-                    acc[t] += p[t] * q[t];
-                }
-            }
-            for (t, (p, q)) in x_rest.iter().zip(y_rest).enumerate() {
-                acc[t] += p * q;
-            }
-            b - ((acc[0] + acc[2]) + (acc[1] + acc[3]))
+        ([x0, x1], [y0, y1]) => b - x1 * y1 - x0 * y0,
+        ([x0, x1, x2], [y0, y1, y2]) => b - x2 * y2 - x1 * y1 - x0 * y0,
+        ([x0, x1, x2, x3], [y0, y1, y2, y3]) => b - x3 * y3 - x2 * y2 - x1 * y1 - x0 * y0,
+        ([x0, x @ ..], [y0, y @ ..]) => b - dot(x, y) - x0 * y0,
+        _ => unreachable!("x and y have the same length"),
+    }
+}
+
+/// `Σ x_m y_m` for at least four entries (`y` exactly as long as `x`), in four interleaved
+/// partial sums: `s` multiplications, `s − 1` additions.
+#[inline(always)]
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    let ((x_first, x), (y_first, y)) = (x.split_at(4), y.split_at(4));
+    let mut acc: [f64; 4] = std::array::from_fn(|t| x_first[t] * y_first[t]);
+    let (x4, y4) = (x.chunks_exact(4), y.chunks_exact(4));
+    let (x_rest, y_rest) = (x4.remainder(), y4.remainder());
+    for (p, q) in x4.zip(y4) {
+        for t in 0..4 {
+            acc[t] += p[t] * q[t];
         }
     }
+    for (t, (p, q)) in x_rest.iter().zip(y_rest).enumerate() {
+        acc[t] += p * q;
+    }
+    (acc[0] + acc[2]) + (acc[1] + acc[3])
 }
 
 /// `y ← y − a x` over the entries of `y` (`x` exactly as long): `s` multiplications and `s`
