@@ -15,6 +15,10 @@
 //! ```
 //!
 //! each sum a product of two contiguous column segments of `L`, as are the solves.
+//!
+//! The diagonal of the stored factor holds `1 / L_kk` instead of `L_kk`: the factor needs
+//! the reciprocal anyway, and the solves then multiply by it where each would otherwise wait on
+//! a division.
 
 use super::pivot_is_sound;
 use crate::error::DynamicsError;
@@ -22,9 +26,10 @@ use crate::model::Model;
 use crate::plan::Ancestors;
 use nalgebra::{DMatrix, DVector};
 
-/// Factorises `h` (full symmetric) into `factor`: afterwards `factor` holds `L` in its lower
-/// triangle along the tree pattern (entry `(k, j)` is `L_kj`; column `j` of `L` is contiguous in
-/// memory), with `H = Lᵀ L`. Other entries of `factor` are left as they were.
+/// Factorises `h` (full symmetric) into `factor`: afterwards `factor` holds `L` strictly below
+/// its diagonal along the tree pattern (entry `(k, j)` is `L_kj`; column `j` of `L` is
+/// contiguous in memory) and `1 / L_kk` on it, with `H = Lᵀ L`. Other entries of `factor` are
+/// left as they were.
 ///
 /// Row `k` takes its descendants' entries of column `k`, `c = L[D(k), k]` (`s = |D(k)|` of
 /// them), once: `L_kk = √(H_kk − c·c)`, then `L_kj = (H_kj − c·L[D(k), j]) / L_kk` for each
@@ -84,15 +89,15 @@ struct Row<'a> {
     ancestors: &'a [usize],
 }
 
-/// `L_kk = √pivot` into `l_kk`, and `1 / L_kk`; the pivot back when it is not sound
-/// ([`pivot_is_sound`] against `H_kk`).
+/// `1 / L_kk = 1 / √pivot` into the diagonal entry `inverse`, and returned; the pivot back
+/// when it is not sound ([`pivot_is_sound`] against `H_kk`).
 #[inline(always)]
-fn set_pivot(l_kk: &mut f64, pivot: f64, h_kk: f64) -> Result<f64, f64> {
+fn set_pivot(inverse: &mut f64, pivot: f64, h_kk: f64) -> Result<f64, f64> {
     if !pivot_is_sound(pivot, h_kk) {
         return Err(pivot);
     }
-    *l_kk = pivot.sqrt();
-    Ok(1.0 / *l_kk)
+    *inverse = 1.0 / pivot.sqrt();
+    Ok(*inverse)
 }
 
 /// Row `k` of `L` for `S < 4` descendants, `c` copied out of column `k` first (the terms
@@ -128,9 +133,9 @@ fn short_row<const S: usize>(l: &mut [f64], h: &[f64], row: Row<'_>) -> Result<(
 fn long_row(l: &mut [f64], h: &[f64], row: Row<'_>, s: usize) -> Result<(), f64> {
     let Row { k, n, ancestors } = row;
     let (before, from_k) = l.split_at_mut(k * n);
-    let (l_kk, c) = from_k[k..=k + s].split_first_mut().expect("s + 1 entries");
+    let (inverse, c) = from_k[k..=k + s].split_first_mut().expect("s + 1 entries");
     let h_kk = h[k + k * n];
-    let scale = set_pivot(l_kk, subtract_dot(h_kk, c, c), h_kk)?;
+    let scale = set_pivot(inverse, subtract_dot(h_kk, c, c), h_kk)?;
     for &j in ancestors {
         let at = k + j * n;
         let (l_kj, below) = before[at..=at + s]
@@ -217,7 +222,8 @@ fn subtract_scaled(y: &mut [f64], a: f64, x: &[f64]) {
 /// L x = y, root outward:    x_i = y_i / L_ii, then y[D(i)] −= L[D(i), i] x_i
 /// ```
 ///
-/// each step on the contiguous segment of column `i` below its diagonal (none for a leaf).
+/// each step on the contiguous segment of column `i` below its diagonal (none for a leaf), the
+/// division a multiplication by the stored `1 / L_ii`.
 pub(crate) fn ltl_solve(ancestors: &Ancestors, factor: &DMatrix<f64>, x: &mut DVector<f64>) {
     solve(ancestors, factor.as_slice(), x.as_mut_slice());
 }
@@ -229,14 +235,14 @@ fn solve(ancestors: &Ancestors, l: &[f64], x: &mut [f64]) {
     // Rows i..e(i) of column i of L, and of x.
     let rows = |i: usize| i..ancestors.below(i).end;
     for i in (0..n).rev() {
-        let (l_ii, l_below) = l[i * n..][rows(i)].split_first().expect("i < e(i)");
+        let (inverse, l_below) = l[i * n..][rows(i)].split_first().expect("i < e(i)");
         let (x_i, x_below) = x[rows(i)].split_first_mut().expect("i < e(i)");
-        *x_i = subtract_dot(*x_i, l_below, x_below) / l_ii;
+        *x_i = subtract_dot(*x_i, l_below, x_below) * inverse;
     }
     for i in 0..n {
-        let (l_ii, l_below) = l[i * n..][rows(i)].split_first().expect("i < e(i)");
+        let (inverse, l_below) = l[i * n..][rows(i)].split_first().expect("i < e(i)");
         let (x_i, x_below) = x[rows(i)].split_first_mut().expect("i < e(i)");
-        *x_i /= l_ii;
+        *x_i *= inverse;
         subtract_scaled(x_below, *x_i, l_below);
     }
 }
@@ -253,7 +259,8 @@ fn solve(ancestors: &Ancestors, l: &[f64], x: &mut [f64]) {
 /// L X = Y, root outward:    X_m = (Y_m − Σ_{a ∈ A(m)} L_ma X_a) / L_mm      (A(m): m's ancestors)
 /// ```
 ///
-/// Each row gathers its sum four rows at a time and divides in the last sweep
+/// Each row gathers its sum four rows at a time and multiplies by the stored `1 / L_ii` in the
+/// last sweep
 /// ([`subtract_combinations`]), reading and writing its own entries once per four terms. Two
 /// coordinates in a chain (`p` the parent of `c = p + 1`) go together ([`ChainPair`]): in the
 /// first pass when `c` is `p`'s only child (`D(p) = {c} ∪ D(c)`), in the second always
@@ -313,7 +320,7 @@ pub(crate) fn ltl_solve_rows(
                 let mut pair = ChainPair {
                     y: [&mut row_c[columns.clone()], &mut row_p[columns.clone()]],
                     link: entry(c, p),
-                    scale: [1.0 / entry(c, c), 1.0 / entry(p, p)],
+                    scale: [entry(c, c), entry(p, p)],
                 };
                 let terms = rows_below(columns.start)
                     .map(|(m, x, len)| ([entry(m, c), entry(m, p)], x, len));
@@ -323,7 +330,7 @@ pub(crate) fn ltl_solve_rows(
             _ => {
                 let mut row = OneRow {
                     y: &mut head[c * k..][c..to(c)],
-                    scale: 1.0 / entry(c, c),
+                    scale: entry(c, c),
                 };
                 let terms = rows_below(c).map(|(m, x, len)| (entry(m, c), x, len));
                 subtract_combinations(&mut row, terms);
@@ -348,7 +355,7 @@ pub(crate) fn ltl_solve_rows(
             let mut pair = ChainPair {
                 y: [&mut row_p[p..], &mut row_c[p..k]],
                 link: entry(c, p),
-                scale: [1.0 / entry(p, p), 1.0 / entry(c, c)],
+                scale: [entry(p, p), entry(c, c)],
             };
             let terms = rows_above(p).map(|(a, x, len)| ([entry(p, a), entry(c, a)], x, len));
             subtract_combinations(&mut pair, terms);
@@ -356,7 +363,7 @@ pub(crate) fn ltl_solve_rows(
         } else {
             let mut row = OneRow {
                 y: &mut tail[p..k],
-                scale: 1.0 / entry(p, p),
+                scale: entry(p, p),
             };
             subtract_combinations(
                 &mut row,
@@ -572,9 +579,12 @@ mod tests {
                 .clone();
             let mut factor = DMatrix::from_element(n, n, f64::NAN);
             ltl_factor(&model, &ancestors, &h, &mut factor).unwrap();
-            // L: the pattern's entries of the lower triangle, zero elsewhere.
+            // L: the pattern's entries below the diagonal, the reciprocals of the diagonal's,
+            // zero elsewhere.
             let l = DMatrix::from_fn(n, n, |r, c| {
-                if r == c || ancestors.of(r).contains(&c) {
+                if r == c {
+                    1.0 / factor[(r, c)]
+                } else if ancestors.of(r).contains(&c) {
                     factor[(r, c)]
                 } else {
                     0.0
