@@ -109,8 +109,7 @@ fn short_row<const S: usize>(l: &mut [f64], h: &[f64], row: Row<'_>) -> Result<(
     let diagonal = k + k * n;
     let c: [f64; S] = l[diagonal + 1..][..S].try_into().expect("S entries");
     let h_kk = h[diagonal];
-    // The nearest descendant's entries (t = 0, computed just before) last, as in
-    // [`subtract_dot`].
+    // The nearest descendant's entry (t = 0, computed just before) last, as in `subtract_dot`.
     let mut pivot = h_kk;
     for c in c.into_iter().rev() {
         pivot -= c * c;
