@@ -131,6 +131,8 @@ fn velocities(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>)
         .iter()
         .zip(plan.anchors.iter().zip(anchor_shift.iter()));
     let outputs = s_world.iter_mut().zip(c_world.iter_mut());
+    // The previous body's velocity, kept for a child that follows its parent (a chain).
+    let mut v_previous = ext.root_velocity;
     for (i, (((body, s), axes), ((x, (&anchor, shift)), (s_world, c_i)))) in
         bodies.zip(frames.zip(outputs)).enumerate()
     {
@@ -138,11 +140,16 @@ fn velocities(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>)
         let rates = &v[coords.v_index..coords.v_index + s.nv];
         // v_J = S_i q̇_i   (RBDA Table 7.1's jcalc), with S_i ← ⁰X_i S_i in world coordinates
         let v_joint = world_axes(x, s, axes, s_world, rates, coords.scale);
-        let v_parent = body.parent.map_or(ext.root_velocity, |p| v_world[p]);
+        let v_parent = match body.parent {
+            Some(p) if p + 1 == i => v_previous,
+            Some(p) => v_world[p],
+            None => ext.root_velocity,
+        };
         // v_i = ⁱX_λ(i) v_λ(i) + v_J   (RBDA Table 7.1): in world coordinates ⁱX_λ(i) is the
         // identity, xlt(r_i) where body i anchors a frame
         let v_i = motion_across_anchor(anchor, shift, v_parent) + v_joint;
         v_world[i] = v_i;
+        v_previous = v_i;
         // c_i = c_J + v_i × v_J   (RBDA Table 7.1), c_J carried into world coordinates
         *c_i = v_i.cross_motion(&v_joint);
         // Only a planar joint's S moves in its child frame: the others' c_J is zero, known
@@ -485,14 +492,21 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
         .iter()
         .zip(plan.anchors.iter().zip(anchor_shift.iter()));
     let slots = (c.iter().zip(s_world.iter())).zip(u.iter().zip(d_inv.iter()).zip(u_bias.iter()));
+    // The previous body's acceleration, kept for a child that follows its parent (a chain):
+    // not read back from `a_world` just after it was stored.
+    let mut a_previous = a_root;
     for (i, ((body, (&anchor, shift)), ((c_i, s), ((u, d_inv), u_bias)))) in
         bodies.zip(slots).enumerate()
     {
-        let a_parent = body.parent.map_or(a_root, |p| a_world[p]);
+        let a_parent = match body.parent {
+            Some(p) if p + 1 == i => a_previous,
+            Some(p) => a_world[p],
+            None => a_root,
+        };
         // a' = ⁱX_λ(i) a_λ(i) + c_i   (RBDA Table 7.1; ⁱX_λ(i) as for v_i)
         let a_prime = motion_across_anchor(anchor, shift, a_parent) + *c_i;
         let v_index = body.joint.coords.v_index;
-        a_world[i] = if s.nv == 1 {
+        a_previous = if s.nv == 1 {
             accelerate_one_dof(
                 s,
                 &u[0],
@@ -513,6 +527,7 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
                 &mut qdd.as_mut_slice()[v_index..],
             )
         };
+        a_world[i] = a_previous;
     }
 }
 
