@@ -392,7 +392,7 @@ fn is_floating_root(body: &Body) -> bool {
 /// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a') = S_i⁻¹ (I^A_i)⁻¹ S_i⁻ᵀ u_i − S_i⁻¹ a'`, so
 /// `a_i = a' + S_i q̈_i = (I^A_i)⁻¹ S_i⁻ᵀ u_i = (I^A_i)⁻¹ (S_i⁻ᵀ τ_i − p^A_i)`: the root's
 /// acceleration is its articulated inertia's answer to the forces alone, and `S_i⁻ᵀ = S_i`. It
-/// is solved by one Cholesky factorisation ([`spd_solve`]) of `I^A_i` with its translations
+/// is solved by one Cholesky factorisation ([`cholesky_by_blocks`]) of `I^A_i` with its translations
 /// first (`[C Bᵀ; B A]` for `I^A_i = [A B; Bᵀ C]`, angular rows first), as the joint orders its
 /// coordinates: no 3×3 block is turned into the body's axes. A pivot that fails is named as
 /// `D_i` in the body's axes names it ([`floating_root_pivot`]). Not inlined: once per call, it
@@ -411,18 +411,130 @@ fn articulate_floating_root(
         .zip(&tau[1..6])
         .fold(s.cols[0] * tau[0], |sum, (col, t)| sum + *col * *t);
     let b = Force::new(s_tau.ang, s_tau.lin) - slots.pa[i];
-    let mut d = Matrix6::zeros();
-    d.fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&ia.fixed_view::<3, 3>(3, 3));
-    d.fixed_view_mut::<3, 3>(3, 0)
-        .copy_from(&ia.fixed_view::<3, 3>(0, 3));
-    d.fixed_view_mut::<3, 3>(3, 3)
-        .copy_from(&ia.fixed_view::<3, 3>(0, 0));
     let y = &mut slots.u_bias[i];
     *y = [b.lin.x, b.lin.y, b.lin.z, b.ang.x, b.ang.y, b.ang.z];
-    // Only the lower triangle of d is read.
-    let solved = spd_solve(&d, 6, |pivot| pivot_is_sound_for(pivot, ia), y);
+    let solved = cholesky_by_blocks::solve(ia, |pivot| pivot_is_sound_for(pivot, ia), y);
     solved.map_err(|world| floating_root_pivot(slots, i).unwrap_or(world))
+}
+
+/// The floating root's `I^A y = b` with its translations first, `[C Bᵀ; B A] y = b` for
+/// `I^A = [A B; Bᵀ C]` (angular rows first), by the Cholesky factorisation of
+/// [`spd_solve`] taken in blocks of three, so that every loop has a fixed length of at most
+/// three and unrolls: with `M = [P Qᵀ; Q R]` (`P = C`, `Q = B`, `R = A`),
+/// ```text
+/// P = L₁ L₁ᵀ,   L₂₁ = Q L₁⁻ᵀ,   R − L₂₁ L₂₁ᵀ = L₂ L₂ᵀ,
+/// L₁ y₁ = b₁,   L₂ y₂ = b₂ − L₂₁ y₁,   L₂ᵀ x₂ = y₂,   L₁ᵀ x₁ = y₁ − L₂₁ᵀ x₂
+/// ```
+/// the same operations as the 6×6 factorisation, each pivot tested by `sound` in the same
+/// order (`Err((k, pivot))`, `k` the row of `M`).
+mod cholesky_by_blocks {
+    use crate::spatial::Matrix6;
+
+    /// A lower-triangular 3×3 factor, row by row, and the reciprocals of its diagonal.
+    struct Factor {
+        l: [[f64; 3]; 3],
+        inv_diag: [f64; 3],
+    }
+
+    /// `I^A y = b` in the order of the floating joint's coordinates (see the module above);
+    /// reads the lower triangle of `ia` and its block `B`.
+    #[inline(always)]
+    pub(super) fn solve(
+        ia: &Matrix6,
+        sound: impl Fn(f64) -> bool,
+        b: &mut [f64; 6],
+    ) -> Result<(), (usize, f64)> {
+        // P = C (rows and columns 3..6 of I^A), Q = B (rows 0..3, columns 3..6), R = A.
+        let first = factor(|j, k| ia[(3 + j, 3 + k)], &sound, 0)?;
+        let mut l21 = [[0.0; 3]; 3];
+        for (r, row) in l21.iter_mut().enumerate() {
+            *row = forward(&first, [ia[(r, 3)], ia[(r, 4)], ia[(r, 5)]]);
+        }
+        let schur = |j: usize, k: usize| {
+            let mut s = ia[(j, k)];
+            for m in 0..3 {
+                s -= l21[j][m] * l21[k][m];
+            }
+            s
+        };
+        let second = factor(schur, &sound, 3)?;
+        let y1 = forward(&first, [b[0], b[1], b[2]]);
+        let mut b2 = [b[3], b[4], b[5]];
+        for (r, b2_r) in b2.iter_mut().enumerate() {
+            for k in 0..3 {
+                *b2_r -= l21[r][k] * y1[k];
+            }
+        }
+        let x2 = backward(&second, forward(&second, b2));
+        let mut y1 = y1;
+        for (j, y1_j) in y1.iter_mut().enumerate() {
+            for r in 0..3 {
+                *y1_j -= l21[r][j] * x2[r];
+            }
+        }
+        let x1 = backward(&first, y1);
+        *b = [x1[0], x1[1], x1[2], x2[0], x2[1], x2[2]];
+        Ok(())
+    }
+
+    /// The Cholesky factor of the 3×3 block whose lower triangle `m(j, k)` (`j ≥ k`) gives,
+    /// as [`spd_solve`](super::spd_solve) makes it; `Err((offset + j, pivot))` for the first
+    /// pivot that fails `sound`.
+    #[inline(always)]
+    fn factor(
+        m: impl Fn(usize, usize) -> f64,
+        sound: &impl Fn(f64) -> bool,
+        offset: usize,
+    ) -> Result<Factor, (usize, f64)> {
+        let mut f = Factor {
+            l: [[0.0; 3]; 3],
+            inv_diag: [0.0; 3],
+        };
+        for j in 0..3 {
+            let mut pivot = m(j, j);
+            for k in 0..j {
+                pivot -= f.l[j][k] * f.l[j][k];
+            }
+            if !sound(pivot) {
+                return Err((offset + j, pivot));
+            }
+            f.inv_diag[j] = 1.0 / pivot.sqrt();
+            for i in j + 1..3 {
+                let mut s = m(i, j);
+                for k in 0..j {
+                    s -= f.l[i][k] * f.l[j][k];
+                }
+                f.l[i][j] = s * f.inv_diag[j];
+            }
+        }
+        Ok(f)
+    }
+
+    /// `L⁻¹ b` by forward substitution.
+    #[inline(always)]
+    fn forward(f: &Factor, mut b: [f64; 3]) -> [f64; 3] {
+        for j in 0..3 {
+            let mut s = b[j];
+            for k in 0..j {
+                s -= f.l[j][k] * b[k];
+            }
+            b[j] = s * f.inv_diag[j];
+        }
+        b
+    }
+
+    /// `L⁻ᵀ y` by back substitution.
+    #[inline(always)]
+    fn backward(f: &Factor, mut y: [f64; 3]) -> [f64; 3] {
+        for j in (0..3).rev() {
+            let mut s = y[j];
+            for k in j + 1..3 {
+                s -= f.l[k][j] * y[k];
+            }
+            y[j] = s * f.inv_diag[j];
+        }
+        y
+    }
 }
 
 /// The failed pivot of a floating root's `D_i = S_iᵀ I^A_i S_i` in the body's axes, so that the
@@ -660,6 +772,60 @@ mod tests {
         assert!(!pivot_is_sound_for(f64::MIN_POSITIVE / 2.0, &tiny));
         assert!(pivot_is_sound_for(f64::MIN_POSITIVE, &tiny));
         assert!(!pivot_is_sound_for(f64::INFINITY, &tiny));
+    }
+
+    /// The floating root's solve by blocks of three gives the 6×6 factorisation's answer
+    /// (`spd_solve` of `[C Bᵀ; B A]`), and fails at the same pivot with the same value.
+    #[test]
+    fn the_floating_root_solve_by_blocks_matches_the_six_by_six_factorisation() {
+        let turn = nalgebra::Rotation3::from_euler_angles(0.3, -0.7, 1.1);
+        let inertia = crate::spatial::Inertia::from_com(
+            2.5,
+            &Vector3::new(0.1, -0.2, 0.3),
+            &(turn.matrix()
+                * Matrix3::from_diagonal(&Vector3::new(0.3, 0.2, 0.05))
+                * turn.matrix().transpose()),
+        );
+        let sound = |pivot: f64| pivot > 1e-9;
+        let swapped = |ia: &Matrix6| {
+            let mut d = Matrix6::zeros();
+            d.fixed_view_mut::<3, 3>(0, 0)
+                .copy_from(&ia.fixed_view::<3, 3>(3, 3));
+            d.fixed_view_mut::<3, 3>(3, 0)
+                .copy_from(&ia.fixed_view::<3, 3>(0, 3));
+            d.fixed_view_mut::<3, 3>(0, 3)
+                .copy_from(&ia.fixed_view::<3, 3>(3, 0));
+            d.fixed_view_mut::<3, 3>(3, 3)
+                .copy_from(&ia.fixed_view::<3, 3>(0, 0));
+            d
+        };
+        let ia = inertia.to_matrix();
+        let b = [0.4, -1.3, 2.2, 0.7, 0.1, -0.5];
+        let (mut ours, mut reference) = (b, b);
+        cholesky_by_blocks::solve(&ia, sound, &mut ours).unwrap();
+        spd_solve(&swapped(&ia), 6, sound, &mut reference).unwrap();
+        for (x, r) in ours.iter().zip(&reference) {
+            assert!(
+                (x - r).abs() < 1e-13 * r.abs().max(1.0),
+                "{ours:?} {reference:?}"
+            );
+        }
+        // The answer satisfies [C Bᵀ; B A] y = b.
+        let residual = swapped(&ia) * nalgebra::Vector6::from(ours) - nalgebra::Vector6::from(b);
+        assert!(residual.amax() < 1e-13, "{residual}");
+        // A singular first block (no mass) and a singular second (no rotational inertia about
+        // one axis): the same failed pivot, row and value.
+        for (mass, moments) in [(0.0, [0.3, 0.2, 0.05]), (1.0, [0.3, 0.2, 0.0])] {
+            let singular = crate::spatial::Inertia::from_com(
+                mass,
+                &Vector3::zeros(),
+                &Matrix3::from_diagonal(&Vector3::from(moments)),
+            )
+            .to_matrix();
+            let ours = cholesky_by_blocks::solve(&singular, sound, &mut [1.0; 6]).unwrap_err();
+            let reference = spd_solve(&swapped(&singular), 6, sound, &mut [1.0; 6]).unwrap_err();
+            assert_eq!(ours, reference);
+        }
     }
 
     /// A floating rod with no inertia about its own axis (body z), turned a quarter about y so

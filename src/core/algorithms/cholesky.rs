@@ -172,8 +172,6 @@ pub fn spd_inverse(
 /// ```
 ///
 /// A pivot that fails `sound`: `Err((j, pivot))`, as [`spd_inverse`] (`b` is then unspecified).
-/// Inlined, so that a caller with a constant `n` gets the loops unrolled.
-#[inline(always)]
 pub fn spd_solve(
     d: &Matrix6,
     n: usize,
