@@ -392,9 +392,9 @@ fn is_floating_root(body: &Body) -> bool {
 /// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a') = S_i⁻¹ (I^A_i)⁻¹ S_i⁻ᵀ u_i − S_i⁻¹ a'`, so
 /// `a_i = a' + S_i q̈_i = (I^A_i)⁻¹ S_i⁻ᵀ u_i = (I^A_i)⁻¹ (S_i⁻ᵀ τ_i − p^A_i)`: the root's
 /// acceleration is its articulated inertia's answer to the forces alone, and `S_i⁻ᵀ = S_i`. It
-/// is solved by one Cholesky factorisation ([`cholesky_by_blocks`]) of `I^A_i` with its translations
-/// first (`[C Bᵀ; B A]` for `I^A_i = [A B; Bᵀ C]`, angular rows first), as the joint orders its
-/// coordinates: no 3×3 block is turned into the body's axes. A pivot that fails is named as
+/// is solved by one Cholesky factorisation ([`cholesky_by_blocks`]) of `I^A_i` with its
+/// translations first (`[C Bᵀ; B A]` for `I^A_i = [A B; Bᵀ C]`, angular rows first), as the
+/// joint orders its coordinates: no 3×3 block is turned into the body's axes. A pivot that fails is named as
 /// `D_i` in the body's axes names it ([`floating_root_pivot`]). Not inlined: once per call, it
 /// would only crowd the registers of the one-dof bodies' loop.
 #[inline(never)]
@@ -437,7 +437,7 @@ mod cholesky_by_blocks {
     }
 
     /// `I^A y = b` in the order of the floating joint's coordinates (see the module above);
-    /// reads the lower triangle of `ia` and its block `B`.
+    /// reads the lower triangles of `ia`'s blocks `A` and `C`, and its block `B`.
     #[inline(always)]
     pub(super) fn solve(
         ia: &Matrix6,
