@@ -394,9 +394,9 @@ fn is_floating_root(body: &Body) -> bool {
 /// acceleration is its articulated inertia's answer to the forces alone, and `S_i⁻ᵀ = S_i`. It
 /// is solved by one Cholesky factorisation ([`cholesky_by_blocks`]) of `I^A_i` with its
 /// translations first (`[C Bᵀ; B A]` for `I^A_i = [A B; Bᵀ C]`, angular rows first), as the
-/// joint orders its coordinates: no 3×3 block is turned into the body's axes. A pivot that fails is named as
-/// `D_i` in the body's axes names it ([`floating_root_pivot`]). Not inlined: once per call, it
-/// would only crowd the registers of the one-dof bodies' loop.
+/// joint orders its coordinates: no 3×3 block is turned into the body's axes. A pivot that
+/// fails is named as `D_i` in the body's axes names it ([`floating_root_pivot`]). Not inlined:
+/// once per call, it would only crowd the registers of the one-dof bodies' loop.
 #[inline(never)]
 fn articulate_floating_root(
     slots: &mut Slots<'_>,
