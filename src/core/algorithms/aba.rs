@@ -107,7 +107,8 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
     // ⁱX_0 = ⁱX_λ(i) λ(i)X_0   (RBDA Table 7.1), from each body's aligned frame
     update_aligned_placements(model, ws, Anchors::Spaced);
     velocities(model, ws, v, ext);
-    rigid_inertias(model, ws, ext);
+    rigid_inertias(model, ws);
+    rigid_bias_forces(model, ws, ext);
 }
 
 /// Pass 1's world-frame axes `S_i`, velocities `v_i` and velocity-product accelerations `c_i`
@@ -163,18 +164,32 @@ fn velocities(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>)
     }
 }
 
-/// Pass 1's initial articulated quantities, `I^A_i = I_i` and `p^A_i`, from the placements and
-/// velocities. A function of its own, not inlined: with the kinematics of [`velocity_pass`] in
-/// the same body, the processor's registers overflow to the stack.
+/// Pass 1's initial articulated inertias, `I^A_i = I_i` in world coordinates, from the
+/// placements: each as the 6×6 `ws.ia[i]` and, for [`rigid_bias_forces`], in its compact form
+/// `(m, h, Ī)` in `ws.ic[i]`. A function of its own, not inlined, and apart from the bias
+/// forces: with the kinematics of [`velocity_pass`] or the products of `p^A_i` in the same
+/// loop, the processor's registers overflow to the stack.
 #[inline(never)]
-fn rigid_inertias(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
+fn rigid_inertias(model: &Model, ws: &mut Workspace) {
     // Zipped slices: one pointer step per body, no index arithmetic or bounds checks.
-    let bodies = model.bodies.iter().zip(&ws.x_aligned).zip(&ws.v_world);
-    let outputs = ws.ia.iter_mut().zip(ws.pa.iter_mut());
-    for (i, (((body, x), v_i), (ia, pa))) in bodies.zip(outputs).enumerate() {
+    let bodies = model.bodies.iter().zip(&ws.x_aligned);
+    let outputs = ws.ia.iter_mut().zip(ws.ic.iter_mut());
+    for ((body, x), (ia, ic)) in bodies.zip(outputs) {
+        // I^A_i = I_i   (RBDA Table 7.1): ⁰X_i⁻ᵀ I_i ⁱX_0, in world coordinates
         let inertia = x.transpose_apply_inertia(&body.inertia);
-        // I^A_i = I_i   (RBDA Table 7.1), in world coordinates
         inertia.write_matrix(ia);
+        *ic = inertia;
+    }
+}
+
+/// Pass 1's initial articulated bias forces `p^A_i` from the velocities and the rigid inertias
+/// in world coordinates ([`rigid_inertias`]).
+#[inline(never)]
+fn rigid_bias_forces(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
+    let n = model.bodies.len();
+    // Zipped slices: one pointer step per body.
+    let bodies = ws.x_aligned[..n].iter().zip(&ws.ic).zip(&ws.v_world);
+    for (i, (((x, inertia), v_i), pa)) in bodies.zip(ws.pa.iter_mut()).enumerate() {
         // p^A_i = v_i ×* I_i v_i − ⁱX*_0 f^x_i   (RBDA Table 7.1): f^x_i is given in body i's
         // frame, carried into world coordinates by ⁱX_0ᵀ
         *pa = v_i.cross_force(&inertia.apply(v_i));
