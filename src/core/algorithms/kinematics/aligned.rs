@@ -81,44 +81,19 @@ pub(crate) fn world_axes(
     scale: f64,
 ) -> Motion {
     s_world.nv = s.nv;
+    let column = |k: usize| match axes[k] {
+        Some((j, sign)) => x.inverse_apply_axis(j, sign),
+        None => x.inverse_apply_motion(&s.cols[k]),
+    };
     if s.nv == 1 {
         // One column, without the loop's bookkeeping (most joints).
-        let col = world_column(x, s, axes, 0);
+        let col = column(0);
         s_world.cols[0] = col;
         return rates.first().map_or(Motion::zero(), |r| col * (r * scale));
     }
-    world_axes_of_several(x, s, axes, s_world, rates, scale)
-}
-
-/// Column `k` of `⁰S_i`: a row of the rotation for a column along a coordinate axis, any other
-/// by a general inverse transform ([`world_axes`]).
-#[inline(always)]
-fn world_column(
-    x: &Transform,
-    s: &MotionSubspace,
-    axes: &[Option<(usize, f64)>; 6],
-    k: usize,
-) -> Motion {
-    match axes[k] {
-        Some((j, sign)) => x.inverse_apply_axis(j, sign),
-        None => x.inverse_apply_motion(&s.cols[k]),
-    }
-}
-
-/// [`world_axes`] for a joint of several degrees of freedom. Not inlined: few joints have
-/// several, and their loop would crowd the registers of the one-column bodies' loop.
-#[inline(never)]
-fn world_axes_of_several(
-    x: &Transform,
-    s: &MotionSubspace,
-    axes: &[Option<(usize, f64)>; 6],
-    s_world: &mut MotionSubspace,
-    rates: &[f64],
-    scale: f64,
-) -> Motion {
     let mut v = Motion::zero();
     for k in 0..s.nv {
-        let col = world_column(x, s, axes, k);
+        let col = column(k);
         s_world.cols[k] = col;
         if let Some(r) = rates.get(k) {
             v += col * (r * scale);
