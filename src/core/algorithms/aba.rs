@@ -272,10 +272,7 @@ fn add_to_parent(slots: &mut Slots<'_>, i: usize, p: usize) {
 /// Pass 2 at body `i` with a joint of any number of degrees of freedom: `U_i`, `D_i⁻¹`, `u_i`
 /// into `slots.u`, `slots.d_inv`, `slots.u_bias` and, below a parent, `I^a`, `p^a` over
 /// `I^A_i`, `p^A_i` (which body `i` no longer needs), added to the parent's
-/// ([`add_to_parent`]). `tau` starts at the joint's first coordinate. `Err((k, pivot))` for a
-/// pivot of `D_i` that fails ([`invert_spd`]). Not inlined: few joints take this form, and
-/// inlined its loops would crowd the registers of the one-dof bodies' loop.
-#[inline(never)]
+/// ([`add_to_parent`]). `tau` starts at the joint's first coordinate. `Err((k, pivot))` for a pivot of `D_i` that fails ([`invert_spd`]).
 fn articulate(
     slots: &mut Slots<'_>,
     i: usize,
@@ -663,9 +660,7 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
 
 /// Pass 3 at a joint of any number of degrees of freedom, from `a' = ⁱX_λ(i) a_λ(i) + c_i` and
 /// body `i`'s `S_i`, `U_i`, `D_i⁻¹`, `u_i`: `q̈_i = D_i⁻¹ (u_i − U_iᵀ a')` into `qdd` (from the
-/// joint's first coordinate) and `a_i = a' + S_i q̈_i` returned   (RBDA Table 7.1). Not
-/// inlined, as [`articulate`].
-#[inline(never)]
+/// joint's first coordinate) and `a_i = a' + S_i q̈_i` returned   (RBDA Table 7.1).
 fn accelerate(
     s: &MotionSubspace,
     u: &[Force; 6],
