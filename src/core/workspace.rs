@@ -56,7 +56,7 @@ pub struct Workspace {
     /// Net spatial forces `f_i` transmitted by each body's joint.
     pub(crate) f: Vec<Force>,
     /// Composite rigid-body inertias `I^c_i` (CRBA), in world (root) or body coordinates
-    /// (`crba_frames`).
+    /// (`crba_frames`); in ABA's first pass, each body's own inertia in world coordinates.
     pub(crate) ic: Vec<Inertia>,
     /// World-frame forces `[f_i, f^g_i]` of
     /// [`joint_state_outputs`](crate::algorithms::joint_state_outputs): the inverse-dynamics force

@@ -107,7 +107,8 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
     // ⁱX_0 = ⁱX_λ(i) λ(i)X_0   (RBDA Table 7.1), from each body's aligned frame
     update_aligned_placements(model, ws, Anchors::Spaced);
     velocities(model, ws, v, ext);
-    rigid_inertias(model, ws, ext);
+    rigid_inertias(model, ws);
+    rigid_bias_forces(model, ws, ext);
 }
 
 /// Pass 1's world-frame axes `S_i`, velocities `v_i` and velocity-product accelerations `c_i`
@@ -131,6 +132,8 @@ fn velocities(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>)
         .iter()
         .zip(plan.anchors.iter().zip(anchor_shift.iter()));
     let outputs = s_world.iter_mut().zip(c_world.iter_mut());
+    // The previous body's velocity, kept for a child that follows its parent (a chain).
+    let mut v_previous = ext.root_velocity;
     for (i, (((body, s), axes), ((x, (&anchor, shift)), (s_world, c_i)))) in
         bodies.zip(frames.zip(outputs)).enumerate()
     {
@@ -138,11 +141,16 @@ fn velocities(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>)
         let rates = &v[coords.v_index..coords.v_index + s.nv];
         // v_J = S_i q̇_i   (RBDA Table 7.1's jcalc), with S_i ← ⁰X_i S_i in world coordinates
         let v_joint = world_axes(x, s, axes, s_world, rates, coords.scale);
-        let v_parent = body.parent.map_or(ext.root_velocity, |p| v_world[p]);
+        let v_parent = match body.parent {
+            Some(p) if p + 1 == i => v_previous,
+            Some(p) => v_world[p],
+            None => ext.root_velocity,
+        };
         // v_i = ⁱX_λ(i) v_λ(i) + v_J   (RBDA Table 7.1): in world coordinates ⁱX_λ(i) is the
         // identity, xlt(r_i) where body i anchors a frame
         let v_i = motion_across_anchor(anchor, shift, v_parent) + v_joint;
         v_world[i] = v_i;
+        v_previous = v_i;
         // c_i = c_J + v_i × v_J   (RBDA Table 7.1), c_J carried into world coordinates
         *c_i = v_i.cross_motion(&v_joint);
         // Only a planar joint's S moves in its child frame: the others' c_J is zero, known
@@ -156,18 +164,32 @@ fn velocities(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>)
     }
 }
 
-/// Pass 1's initial articulated quantities, `I^A_i = I_i` and `p^A_i`, from the placements and
-/// velocities. A function of its own, not inlined: with the kinematics of [`velocity_pass`] in
-/// the same body, the processor's registers overflow to the stack.
+/// Pass 1's initial articulated inertias, `I^A_i = I_i` in world coordinates, from the
+/// placements: each as the 6×6 `ws.ia[i]` and, for [`rigid_bias_forces`], in its compact form
+/// `(m, h, Ī)` in `ws.ic[i]`. A function of its own, not inlined, and apart from the bias
+/// forces: with the kinematics of [`velocity_pass`] or the products of `p^A_i` in the same
+/// loop, the processor's registers overflow to the stack.
 #[inline(never)]
-fn rigid_inertias(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
+fn rigid_inertias(model: &Model, ws: &mut Workspace) {
     // Zipped slices: one pointer step per body, no index arithmetic or bounds checks.
-    let bodies = model.bodies.iter().zip(&ws.x_aligned).zip(&ws.v_world);
-    let outputs = ws.ia.iter_mut().zip(ws.pa.iter_mut());
-    for (i, (((body, x), v_i), (ia, pa))) in bodies.zip(outputs).enumerate() {
+    let bodies = model.bodies.iter().zip(&ws.x_aligned);
+    let outputs = ws.ia.iter_mut().zip(ws.ic.iter_mut());
+    for ((body, x), (ia, ic)) in bodies.zip(outputs) {
+        // I^A_i = I_i   (RBDA Table 7.1): ⁰X_i⁻ᵀ I_i ⁱX_0, in world coordinates
         let inertia = x.transpose_apply_inertia(&body.inertia);
-        // I^A_i = I_i   (RBDA Table 7.1), in world coordinates
         inertia.write_matrix(ia);
+        *ic = inertia;
+    }
+}
+
+/// Pass 1's initial articulated bias forces `p^A_i` from the velocities and the rigid inertias
+/// in world coordinates ([`rigid_inertias`]).
+#[inline(never)]
+fn rigid_bias_forces(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
+    let n = model.bodies.len();
+    // Zipped slices: one pointer step per body.
+    let bodies = ws.x_aligned[..n].iter().zip(&ws.ic).zip(&ws.v_world);
+    for (i, (((x, inertia), v_i), pa)) in bodies.zip(ws.pa.iter_mut()).enumerate() {
         // p^A_i = v_i ×* I_i v_i − ⁱX*_0 f^x_i   (RBDA Table 7.1): f^x_i is given in body i's
         // frame, carried into world coordinates by ⁱX_0ᵀ
         *pa = v_i.cross_force(&inertia.apply(v_i));
@@ -385,11 +407,11 @@ fn is_floating_root(body: &Body) -> bool {
 /// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a') = S_i⁻¹ (I^A_i)⁻¹ S_i⁻ᵀ u_i − S_i⁻¹ a'`, so
 /// `a_i = a' + S_i q̈_i = (I^A_i)⁻¹ S_i⁻ᵀ u_i = (I^A_i)⁻¹ (S_i⁻ᵀ τ_i − p^A_i)`: the root's
 /// acceleration is its articulated inertia's answer to the forces alone, and `S_i⁻ᵀ = S_i`. It
-/// is solved by one Cholesky factorisation ([`spd_solve`]) of `I^A_i` with its translations
-/// first (`[C Bᵀ; B A]` for `I^A_i = [A B; Bᵀ C]`, angular rows first), as the joint orders its
-/// coordinates: no 3×3 block is turned into the body's axes. A pivot that fails is named as
-/// `D_i` in the body's axes names it ([`floating_root_pivot`]). Not inlined: once per call, it
-/// would only crowd the registers of the one-dof bodies' loop.
+/// is solved by one Cholesky factorisation ([`cholesky_by_blocks`]) of `I^A_i` with its
+/// translations first (`[C Bᵀ; B A]` for `I^A_i = [A B; Bᵀ C]`, angular rows first), as the
+/// joint orders its coordinates: no 3×3 block is turned into the body's axes. A pivot that
+/// fails is named as `D_i` in the body's axes names it ([`floating_root_pivot`]). Not inlined:
+/// once per call, it would only crowd the registers of the one-dof bodies' loop.
 #[inline(never)]
 fn articulate_floating_root(
     slots: &mut Slots<'_>,
@@ -404,18 +426,130 @@ fn articulate_floating_root(
         .zip(&tau[1..6])
         .fold(s.cols[0] * tau[0], |sum, (col, t)| sum + *col * *t);
     let b = Force::new(s_tau.ang, s_tau.lin) - slots.pa[i];
-    let mut d = Matrix6::zeros();
-    d.fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&ia.fixed_view::<3, 3>(3, 3));
-    d.fixed_view_mut::<3, 3>(3, 0)
-        .copy_from(&ia.fixed_view::<3, 3>(0, 3));
-    d.fixed_view_mut::<3, 3>(3, 3)
-        .copy_from(&ia.fixed_view::<3, 3>(0, 0));
     let y = &mut slots.u_bias[i];
     *y = [b.lin.x, b.lin.y, b.lin.z, b.ang.x, b.ang.y, b.ang.z];
-    // Only the lower triangle of d is read.
-    let solved = spd_solve(&d, 6, |pivot| pivot_is_sound_for(pivot, ia), y);
+    let solved = cholesky_by_blocks::solve(ia, |pivot| pivot_is_sound_for(pivot, ia), y);
     solved.map_err(|world| floating_root_pivot(slots, i).unwrap_or(world))
+}
+
+/// The floating root's `I^A y = b` with its translations first, `[C Bᵀ; B A] y = b` for
+/// `I^A = [A B; Bᵀ C]` (angular rows first), by the Cholesky factorisation of
+/// [`spd_solve`] taken in blocks of three, so that every loop has a fixed length of at most
+/// three and unrolls: with `M = [P Qᵀ; Q R]` (`P = C`, `Q = B`, `R = A`),
+/// ```text
+/// P = L₁ L₁ᵀ,   L₂₁ = Q L₁⁻ᵀ,   R − L₂₁ L₂₁ᵀ = L₂ L₂ᵀ,
+/// L₁ y₁ = b₁,   L₂ y₂ = b₂ − L₂₁ y₁,   L₂ᵀ x₂ = y₂,   L₁ᵀ x₁ = y₁ − L₂₁ᵀ x₂
+/// ```
+/// the same operations as the 6×6 factorisation, each pivot tested by `sound` in the same
+/// order (`Err((k, pivot))`, `k` the row of `M`).
+mod cholesky_by_blocks {
+    use crate::spatial::Matrix6;
+
+    /// A lower-triangular 3×3 factor, row by row, and the reciprocals of its diagonal.
+    struct Factor {
+        l: [[f64; 3]; 3],
+        inv_diag: [f64; 3],
+    }
+
+    /// `I^A y = b` in the order of the floating joint's coordinates (see the module above);
+    /// reads the lower triangles of `ia`'s blocks `A` and `C`, and its block `B`.
+    #[inline(always)]
+    pub(super) fn solve(
+        ia: &Matrix6,
+        sound: impl Fn(f64) -> bool,
+        b: &mut [f64; 6],
+    ) -> Result<(), (usize, f64)> {
+        // P = C (rows and columns 3..6 of I^A), Q = B (rows 0..3, columns 3..6), R = A.
+        let first = factor(|j, k| ia[(3 + j, 3 + k)], &sound, 0)?;
+        let mut l21 = [[0.0; 3]; 3];
+        for (r, row) in l21.iter_mut().enumerate() {
+            *row = forward(&first, [ia[(r, 3)], ia[(r, 4)], ia[(r, 5)]]);
+        }
+        let schur = |j: usize, k: usize| {
+            let mut s = ia[(j, k)];
+            for m in 0..3 {
+                s -= l21[j][m] * l21[k][m];
+            }
+            s
+        };
+        let second = factor(schur, &sound, 3)?;
+        let y1 = forward(&first, [b[0], b[1], b[2]]);
+        let mut b2 = [b[3], b[4], b[5]];
+        for (r, b2_r) in b2.iter_mut().enumerate() {
+            for k in 0..3 {
+                *b2_r -= l21[r][k] * y1[k];
+            }
+        }
+        let x2 = backward(&second, forward(&second, b2));
+        let mut y1 = y1;
+        for (j, y1_j) in y1.iter_mut().enumerate() {
+            for r in 0..3 {
+                *y1_j -= l21[r][j] * x2[r];
+            }
+        }
+        let x1 = backward(&first, y1);
+        *b = [x1[0], x1[1], x1[2], x2[0], x2[1], x2[2]];
+        Ok(())
+    }
+
+    /// The Cholesky factor of the 3×3 block whose lower triangle `m(j, k)` (`j ≥ k`) gives,
+    /// as [`spd_solve`](super::spd_solve) makes it; `Err((offset + j, pivot))` for the first
+    /// pivot that fails `sound`.
+    #[inline(always)]
+    fn factor(
+        m: impl Fn(usize, usize) -> f64,
+        sound: &impl Fn(f64) -> bool,
+        offset: usize,
+    ) -> Result<Factor, (usize, f64)> {
+        let mut f = Factor {
+            l: [[0.0; 3]; 3],
+            inv_diag: [0.0; 3],
+        };
+        for j in 0..3 {
+            let mut pivot = m(j, j);
+            for k in 0..j {
+                pivot -= f.l[j][k] * f.l[j][k];
+            }
+            if !sound(pivot) {
+                return Err((offset + j, pivot));
+            }
+            f.inv_diag[j] = 1.0 / pivot.sqrt();
+            for i in j + 1..3 {
+                let mut s = m(i, j);
+                for k in 0..j {
+                    s -= f.l[i][k] * f.l[j][k];
+                }
+                f.l[i][j] = s * f.inv_diag[j];
+            }
+        }
+        Ok(f)
+    }
+
+    /// `L⁻¹ b` by forward substitution.
+    #[inline(always)]
+    fn forward(f: &Factor, mut b: [f64; 3]) -> [f64; 3] {
+        for j in 0..3 {
+            let mut s = b[j];
+            for k in 0..j {
+                s -= f.l[j][k] * b[k];
+            }
+            b[j] = s * f.inv_diag[j];
+        }
+        b
+    }
+
+    /// `L⁻ᵀ y` by back substitution.
+    #[inline(always)]
+    fn backward(f: &Factor, mut y: [f64; 3]) -> [f64; 3] {
+        for j in (0..3).rev() {
+            let mut s = y[j];
+            for k in j + 1..3 {
+                s -= f.l[k][j] * y[k];
+            }
+            y[j] = s * f.inv_diag[j];
+        }
+        y
+    }
 }
 
 /// The failed pivot of a floating root's `D_i = S_iᵀ I^A_i S_i` in the body's axes, so that the
@@ -485,14 +619,21 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
         .iter()
         .zip(plan.anchors.iter().zip(anchor_shift.iter()));
     let slots = (c.iter().zip(s_world.iter())).zip(u.iter().zip(d_inv.iter()).zip(u_bias.iter()));
+    // The previous body's acceleration, kept for a child that follows its parent (a chain):
+    // not read back from `a_world` just after it was stored.
+    let mut a_previous = a_root;
     for (i, ((body, (&anchor, shift)), ((c_i, s), ((u, d_inv), u_bias)))) in
         bodies.zip(slots).enumerate()
     {
-        let a_parent = body.parent.map_or(a_root, |p| a_world[p]);
+        let a_parent = match body.parent {
+            Some(p) if p + 1 == i => a_previous,
+            Some(p) => a_world[p],
+            None => a_root,
+        };
         // a' = ⁱX_λ(i) a_λ(i) + c_i   (RBDA Table 7.1; ⁱX_λ(i) as for v_i)
         let a_prime = motion_across_anchor(anchor, shift, a_parent) + *c_i;
         let v_index = body.joint.coords.v_index;
-        a_world[i] = if s.nv == 1 {
+        a_previous = if s.nv == 1 {
             accelerate_one_dof(
                 s,
                 &u[0],
@@ -513,6 +654,7 @@ pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externa
                 &mut qdd.as_mut_slice()[v_index..],
             )
         };
+        a_world[i] = a_previous;
     }
 }
 
@@ -645,6 +787,60 @@ mod tests {
         assert!(!pivot_is_sound_for(f64::MIN_POSITIVE / 2.0, &tiny));
         assert!(pivot_is_sound_for(f64::MIN_POSITIVE, &tiny));
         assert!(!pivot_is_sound_for(f64::INFINITY, &tiny));
+    }
+
+    /// The floating root's solve by blocks of three gives the 6×6 factorisation's answer
+    /// (`spd_solve` of `[C Bᵀ; B A]`), and fails at the same pivot with the same value.
+    #[test]
+    fn the_floating_root_solve_by_blocks_matches_the_six_by_six_factorisation() {
+        let turn = nalgebra::Rotation3::from_euler_angles(0.3, -0.7, 1.1);
+        let inertia = crate::spatial::Inertia::from_com(
+            2.5,
+            &Vector3::new(0.1, -0.2, 0.3),
+            &(turn.matrix()
+                * Matrix3::from_diagonal(&Vector3::new(0.3, 0.2, 0.05))
+                * turn.matrix().transpose()),
+        );
+        let sound = |pivot: f64| pivot > 1e-9;
+        let swapped = |ia: &Matrix6| {
+            let mut d = Matrix6::zeros();
+            d.fixed_view_mut::<3, 3>(0, 0)
+                .copy_from(&ia.fixed_view::<3, 3>(3, 3));
+            d.fixed_view_mut::<3, 3>(3, 0)
+                .copy_from(&ia.fixed_view::<3, 3>(0, 3));
+            d.fixed_view_mut::<3, 3>(0, 3)
+                .copy_from(&ia.fixed_view::<3, 3>(3, 0));
+            d.fixed_view_mut::<3, 3>(3, 3)
+                .copy_from(&ia.fixed_view::<3, 3>(0, 0));
+            d
+        };
+        let ia = inertia.to_matrix();
+        let b = [0.4, -1.3, 2.2, 0.7, 0.1, -0.5];
+        let (mut ours, mut reference) = (b, b);
+        cholesky_by_blocks::solve(&ia, sound, &mut ours).unwrap();
+        spd_solve(&swapped(&ia), 6, sound, &mut reference).unwrap();
+        for (x, r) in ours.iter().zip(&reference) {
+            assert!(
+                (x - r).abs() < 1e-13 * r.abs().max(1.0),
+                "{ours:?} {reference:?}"
+            );
+        }
+        // The answer satisfies [C Bᵀ; B A] y = b.
+        let residual = swapped(&ia) * nalgebra::Vector6::from(ours) - nalgebra::Vector6::from(b);
+        assert!(residual.amax() < 1e-13, "{residual}");
+        // A singular first block (no mass) and a singular second (no rotational inertia about
+        // one axis): the same failed pivot, row and value.
+        for (mass, moments) in [(0.0, [0.3, 0.2, 0.05]), (1.0, [0.3, 0.2, 0.0])] {
+            let singular = crate::spatial::Inertia::from_com(
+                mass,
+                &Vector3::zeros(),
+                &Matrix3::from_diagonal(&Vector3::from(moments)),
+            )
+            .to_matrix();
+            let ours = cholesky_by_blocks::solve(&singular, sound, &mut [1.0; 6]).unwrap_err();
+            let reference = spd_solve(&swapped(&singular), 6, sound, &mut [1.0; 6]).unwrap_err();
+            assert_eq!(ours, reference);
+        }
     }
 
     /// A floating rod with no inertia about its own axis (body z), turned a quarter about y so
