@@ -39,7 +39,7 @@
 //! run whole at `(q, q̇, q̈)`.
 
 use super::rnea_derivatives::{
-    acceleration_terms, ancestors, backward_pass, check_matrix, derivative_passes, dot_in_halves,
+    acceleration_terms, backward_pass, check_matrix, derivative_passes, dot_in_halves,
     parent_motion, velocity_terms, RootMotion, Target,
 };
 use super::DerivativeScratch;
@@ -174,10 +174,16 @@ fn bias_pass(model: &Model, ws: &mut Workspace, v: &[f64], root: &RootMotion, ex
 
 /// Backward pass A: sums `I^C_i` in `ws.derivatives.composite` and `F⁰_i` in
 /// `ws.derivatives.f_bias`, writes the bias forces `C_i = S_iᵀ F⁰_i` into `ws.tau`, `τ − C`
-/// into `ws.qdd`, `I^C_i S_ik` into `ws.f_cols` (for backward pass B) and
-/// `H_ij = S_iᵀ I^C_i S_j` with its mirror into `ws.mass_matrix` (zero off the tree's pattern).
+/// into `ws.qdd`, the column forces `F_c = I^C_i S_c` of `i`'s coordinates `c` into
+/// `ws.f_cols` (also for backward pass B) and `H` into `ws.mass_matrix`, full on the tree's
+/// pattern (off it the entries are zero from the workspace's allocation on, as CRBA leaves
+/// them: on a tree no algorithm writes there). Coordinates are numbered depth-first, so `i`'s own and its subtree's
+/// columns are one range `ci .. e(ci)`, their forces made by then, and row `r` of `i` is
+/// `H_rc = S_rᵀ F_c` over that range (the composite-rigid-body recursion in world axes, where
+/// a force needs no transform on its way up); `H_cr` is its mirror.
 fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
     let Workspace {
+        plan,
         s_world,
         f_cols,
         tau: bias,
@@ -186,6 +192,7 @@ fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
         derivatives,
         ..
     } = ws;
+    let tree = plan.dof_ancestors.as_ref().expect("a tree");
     let DerivativeScratch {
         f_bias: f0,
         composite: ic,
@@ -194,36 +201,32 @@ fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
     } = derivatives;
     let n = model.nv;
     let h = mass_matrix.as_mut_slice();
-    h.fill(0.0);
-    // H_rc and H_cr (column-major storage).
-    let mut put = |r: usize, c: usize, x: f64| {
-        h[c * n + r] = x;
-        h[r * n + c] = x;
-    };
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let ci = body.joint.coords.v_index;
         let cols = &s_world[i].cols[..s_world[i].nv];
         for (k, s_k) in cols.iter().enumerate() {
-            let row = ci + k;
-            let ic_s = ic[i].apply(s_k);
-            f_cols[row] = ic_s;
+            let r = ci + k;
+            f_cols[r] = ic[i].apply(s_k);
             let c = s_k.dot(&f0[i]);
-            bias[row] = c;
-            qdd[row] = tau[row] - c;
-            for (m, s_m) in cols[..=k].iter().enumerate() {
-                put(row, ci + m, s_m.dot(&ic_s));
-            }
-            for j in ancestors(model, i) {
-                let cj = model.bodies[j].joint.coords.v_index;
-                let s_j = &s_world[j];
-                for (m, s_m) in s_j.cols[..s_j.nv].iter().enumerate() {
-                    let h_ij = if halves[j] {
-                        dot_in_halves(m, s_m, &ic_s)
-                    } else {
-                        s_m.dot(&ic_s)
-                    };
-                    put(row, cj + m, h_ij);
+            bias[r] = c;
+            qdd[r] = tau[r] - c;
+        }
+        for (k, s_k) in cols.iter().enumerate() {
+            let r = ci + k;
+            let end = tree.below(ci).end;
+            let column = &mut h[r * n + ci..r * n + end];
+            let forces = &f_cols[ci..end];
+            if halves[i] {
+                for (x, f) in column.iter_mut().zip(forces) {
+                    *x = dot_in_halves(k, s_k, f);
                 }
+            } else {
+                for (x, f) in column.iter_mut().zip(forces) {
+                    *x = s_k.dot(f);
+                }
+            }
+            for c in ci..end {
+                h[c * n + r] = h[r * n + c];
             }
         }
         if let Some(p) = body.parent {
@@ -309,7 +312,8 @@ mod tests {
     /// The shared passes leave what CRBA, a bias RNEA and the solve would: `ws.mass_matrix()`
     /// is `crba`'s `H`, `ws.tau()` the bias forces `C = RNEA(q, q̇, 0)` and `ws.qdd()` the
     /// forward dynamics by CRBA, with external wrenches and a moving base, on a branched tree
-    /// on a planar and on a floating joint (relative to each quantity's largest entry).
+    /// on a planar and on a floating joint (relative to each quantity's largest entry), after
+    /// every other algorithm that writes `H` ran on the workspace at another state.
     #[test]
     fn the_shared_passes_leave_h_the_bias_forces_and_the_accelerations() {
         let tree = include_str!("../../tests/models/tree.urdf");
@@ -346,6 +350,13 @@ mod tests {
                     Vector3::new(1.0, -2.0, 0.5),
                 ),
             };
+            // Every other writer of `H` first, at another state (the shared passes write only
+            // the tree's pattern of `H`).
+            let q_before = random_q(&model, &mut rng);
+            for method in ForwardDynamicsMethod::ALL {
+                forward_dynamics(&model, &mut ws, &q_before, &v, &tau, method, &ext).unwrap();
+            }
+            rnea_derivatives(&model, &mut ws, &q_before, &v, &tau).unwrap();
             aba_derivatives(&model, &mut ws, &q, &v, &tau, &ext).unwrap();
             let (h, c, qdd) = (
                 ws.mass_matrix().clone(),
