@@ -142,8 +142,9 @@ fn shared_passes(
     ltl_solve(ancestors, factor, qdd);
     check_result(model, "acceleration", qdd.as_slice())?;
     let qdd = lend_qdd(ws);
-    for i in 0..model.bodies.len() {
-        acceleration_terms(model, ws, i, v, qdd.as_slice(), &root);
+    for (i, body) in model.bodies.iter().enumerate() {
+        let v_parent = parent_motion(ws, &ws.v_world, i, body.parent, &root.v);
+        acceleration_terms(model, ws, i, v, qdd.as_slice(), v_parent, &root.a);
     }
     ws.qdd = qdd;
     backward_pass(model, ws, Target::SolveRowsOnComposites);
@@ -179,8 +180,9 @@ fn bias_pass(model: &Model, ws: &mut Workspace, v: &[f64], root: &RootMotion, ex
 /// pattern (off it the entries are zero from the workspace's allocation on, as CRBA leaves
 /// them: on a tree no algorithm writes there). Coordinates are numbered depth-first, so `i`'s own and its subtree's
 /// columns are one range `ci .. e(ci)`, their forces made by then, and row `r` of `i` is
-/// `H_rc = S_rᵀ F_c` over that range (the composite-rigid-body recursion in world axes, where
-/// a force needs no transform on its way up); `H_cr` is its mirror.
+/// `H_rc = S_rᵀ F_c` from the diagonal to the end of that range (the composite-rigid-body
+/// recursion in world axes, where a force needs no transform on its way up); `H_cr` is its
+/// mirror.
 fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
     let Workspace {
         plan,
@@ -214,8 +216,10 @@ fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
         for (k, s_k) in cols.iter().enumerate() {
             let r = ci + k;
             let end = tree.below(ci).end;
-            let column = &mut h[r * n + ci..r * n + end];
-            let forces = &f_cols[ci..end];
+            // H_cr (column r, rows r .. e) and, in the columns after r, its mirror H_rc.
+            let (to_r, after_r) = h.split_at_mut((r + 1) * n);
+            let column = &mut to_r[r * n + r..r * n + end];
+            let forces = &f_cols[r..end];
             if halves[i] {
                 for (x, f) in column.iter_mut().zip(forces) {
                     *x = dot_in_halves(k, s_k, f);
@@ -225,8 +229,8 @@ fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
                     *x = s_k.dot(f);
                 }
             }
-            for c in ci..end {
-                h[c * n + r] = h[r * n + c];
+            for (x, column_c) in column[1..].iter().zip(after_r.chunks_exact_mut(n)) {
+                column_c[r] = *x;
             }
         }
         if let Some(p) = body.parent {

@@ -129,8 +129,8 @@ fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64], ext: &E
     update_aligned_placements(model, ws, Anchors::Roots);
     let root = RootMotion::of(model, ext);
     for i in 0..model.bodies.len() {
-        velocity_terms(model, ws, i, v, &root, ext);
-        acceleration_terms(model, ws, i, v, a, &root);
+        let v_parent = velocity_terms(model, ws, i, v, &root, ext);
+        acceleration_terms(model, ws, i, v, a, v_parent, &root.a);
     }
 }
 
@@ -169,7 +169,7 @@ pub(super) fn parent_motion(
 /// The terms of body `i` that do not depend on accelerations, its parent's already made and
 /// its aligned placement updated: `S_i` (scaled) into `ws.s_world`, `v_i = v_λ + S_i q̇_i` into
 /// `ws.v_world`, `ψ_i`, `β_i` and `B_i` into `ws.derivatives`, `I_i` into `ws.ic` and the
-/// velocity-dependent force `v_i ×* I_i v_i − f^x_i` into `ws.f`.
+/// velocity-dependent force `v_i ×* I_i v_i − f^x_i` into `ws.f`. Returns the parent's `v_λ`.
 #[inline(always)]
 pub(super) fn velocity_terms(
     model: &Model,
@@ -178,7 +178,7 @@ pub(super) fn velocity_terms(
     v: &[f64],
     root: &RootMotion,
     ext: &Externals<'_>,
-) {
+) -> Motion {
     let body = &model.bodies[i];
     let c = body.joint.coords;
     update_world_axes(ws, i, &[], 1.0);
@@ -218,10 +218,12 @@ pub(super) fn velocity_terms(
     ws.ic[i] = inertia;
     ws.f[i] = f_v;
     ws.v_world[i] = v_i;
+    v_parent
 }
 
 /// The terms of body `i` that depend on accelerations, after its [`velocity_terms`] and its
-/// parent's acceleration: `a_i = a_λ + Σ_k (S_ik q̈_ik + ψ_ik q̇_ik)` into `ws.a_world`, `α_i`
+/// parent's acceleration, with `v_parent` its parent's velocity `v_λ` and `a_root` the roots'
+/// acceleration `a_0` (about the world origin): `a_i = a_λ + Σ_k (S_ik q̈_ik + ψ_ik q̇_ik)` into `ws.a_world`, `α_i`
 /// into `ws.derivatives` and `I_i a_i` added to the force in `ws.f`, making it `f_i`.
 #[inline(always)]
 pub(super) fn acceleration_terms(
@@ -230,16 +232,17 @@ pub(super) fn acceleration_terms(
     i: usize,
     v: &[f64],
     a: &[f64],
-    root: &RootMotion,
+    v_parent: Motion,
+    a_root: &Motion,
 ) {
     let body = &model.bodies[i];
     let c = body.joint.coords;
     let s = &ws.s_world[i];
     let nv = s.nv;
     let (rates, accelerations) = (&v[c.v_index..c.v_index + nv], &a[c.v_index..c.v_index + nv]);
-    let a_parent = parent_motion(ws, &ws.a_world, i, body.parent, &root.a);
+    let a_parent = parent_motion(ws, &ws.a_world, i, body.parent, a_root);
     // The motion of what column k moves from: the parent, or in series the columns before.
-    let mut v_above = parent_motion(ws, &ws.v_world, i, body.parent, &root.v);
+    let mut v_above = v_parent;
     let series = in_series(&body.joint.kind);
     let d = &mut ws.derivatives;
     let (mut a_above, mut a_i) = (a_parent, a_parent);
