@@ -39,7 +39,7 @@
 //! run whole at `(q, q̇, q̈)`.
 
 use super::rnea_derivatives::{
-    acceleration_terms, backward_pass, check_matrix, derivative_passes, dot_in_halves,
+    acceleration_terms, ancestors, backward_pass, check_matrix, derivative_passes, dot_in_halves,
     parent_motion, velocity_terms, RootMotion, Target,
 };
 use super::DerivativeScratch;
@@ -175,17 +175,13 @@ fn bias_pass(model: &Model, ws: &mut Workspace, v: &[f64], root: &RootMotion, ex
 
 /// Backward pass A: sums `I^C_i` in `ws.derivatives.composite` and `F⁰_i` in
 /// `ws.derivatives.f_bias`, writes the bias forces `C_i = S_iᵀ F⁰_i` into `ws.tau`, `τ − C`
-/// into `ws.qdd`, the column forces `F_c = I^C_i S_c` of `i`'s coordinates `c` into
-/// `ws.f_cols` (also for backward pass B) and `H` into `ws.mass_matrix`, full on the tree's
-/// pattern (off it the entries are zero from the workspace's allocation on, as CRBA leaves
-/// them: on a tree no algorithm writes there). Coordinates are numbered depth-first, so `i`'s own and its subtree's
-/// columns are one range `ci .. e(ci)`, their forces made by then, and row `r` of `i` is
-/// `H_rc = S_rᵀ F_c` from the diagonal to the end of that range (the composite-rigid-body
-/// recursion in world axes, where a force needs no transform on its way up); `H_cr` is its
-/// mirror.
+/// into `ws.qdd`, `I^C_i S_ik` into `ws.f_cols` (for backward pass B) and
+/// `H_ij = S_iᵀ I^C_i S_j` with its mirror into `ws.mass_matrix`, for `j` = `i` or an ancestor
+/// (the composite-rigid-body recursion in world axes, where a force needs no transform on its
+/// way up). That is `H`'s tree pattern; off it the entries stay zero from the workspace's
+/// allocation on, as CRBA leaves them (on a tree no algorithm writes there).
 fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
     let Workspace {
-        plan,
         s_world,
         f_cols,
         tau: bias,
@@ -194,7 +190,6 @@ fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
         derivatives,
         ..
     } = ws;
-    let tree = plan.dof_ancestors.as_ref().expect("a tree");
     let DerivativeScratch {
         f_bias: f0,
         composite: ic,
@@ -203,34 +198,35 @@ fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
     } = derivatives;
     let n = model.nv;
     let h = mass_matrix.as_mut_slice();
+    // H_rc and H_cr (column-major storage).
+    let mut put = |r: usize, c: usize, x: f64| {
+        h[c * n + r] = x;
+        h[r * n + c] = x;
+    };
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let ci = body.joint.coords.v_index;
         let cols = &s_world[i].cols[..s_world[i].nv];
         for (k, s_k) in cols.iter().enumerate() {
-            let r = ci + k;
-            f_cols[r] = ic[i].apply(s_k);
+            let row = ci + k;
+            let ic_s = ic[i].apply(s_k);
+            f_cols[row] = ic_s;
             let c = s_k.dot(&f0[i]);
-            bias[r] = c;
-            qdd[r] = tau[r] - c;
-        }
-        for (k, s_k) in cols.iter().enumerate() {
-            let r = ci + k;
-            let end = tree.below(ci).end;
-            // H_cr (column r, rows r .. e) and, in the columns after r, its mirror H_rc.
-            let (to_r, after_r) = h.split_at_mut((r + 1) * n);
-            let column = &mut to_r[r * n + r..r * n + end];
-            let forces = &f_cols[r..end];
-            if halves[i] {
-                for (x, f) in column.iter_mut().zip(forces) {
-                    *x = dot_in_halves(k, s_k, f);
-                }
-            } else {
-                for (x, f) in column.iter_mut().zip(forces) {
-                    *x = s_k.dot(f);
-                }
+            bias[row] = c;
+            qdd[row] = tau[row] - c;
+            for (m, s_m) in cols[..=k].iter().enumerate() {
+                put(row, ci + m, s_m.dot(&ic_s));
             }
-            for (x, column_c) in column[1..].iter().zip(after_r.chunks_exact_mut(n)) {
-                column_c[r] = *x;
+            for j in ancestors(model, i) {
+                let cj = model.bodies[j].joint.coords.v_index;
+                let s_j = &s_world[j];
+                for (m, s_m) in s_j.cols[..s_j.nv].iter().enumerate() {
+                    let h_ij = if halves[j] {
+                        dot_in_halves(m, s_m, &ic_s)
+                    } else {
+                        s_m.dot(&ic_s)
+                    };
+                    put(row, cj + m, h_ij);
+                }
             }
         }
         if let Some(p) = body.parent {
