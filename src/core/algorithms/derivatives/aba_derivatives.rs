@@ -40,7 +40,7 @@
 
 use super::rnea_derivatives::{
     acceleration_terms, ancestors, backward_pass, check_matrix, derivative_passes, dot_in_halves,
-    parent_motion, velocity_terms, RootMotion, Target,
+    forward_terms, Accelerations, RootMotion, Target,
 };
 use super::DerivativeScratch;
 use crate::algorithms::cholesky::cholesky_solve_rows;
@@ -142,34 +142,20 @@ fn shared_passes(
     ltl_solve(ancestors, factor, qdd);
     check_result(model, "acceleration", qdd.as_slice())?;
     let qdd = lend_qdd(ws);
-    for (i, body) in model.bodies.iter().enumerate() {
-        let v_parent = parent_motion(ws, &ws.v_world, i, body.parent, &root.v);
-        acceleration_terms(model, ws, i, v, qdd.as_slice(), v_parent, &root.a);
+    for i in 0..model.bodies.len() {
+        acceleration_terms(model, ws, i, v, qdd.as_slice(), &root);
     }
     ws.qdd = qdd;
     backward_pass(model, ws, Target::SolveRowsOnComposites);
     Ok(())
 }
 
-/// Forward pass A: each body's `velocity_terms` (`S_i`, `v_i`, `ψ_i`, `β_i`, `B_i`, `I_i`), its
-/// bias acceleration `a⁰_i = a⁰_λ + Σ_k ψ_ik q̇_ik` into `ws.a_world`, its force there
-/// `f⁰_i = I_i a⁰_i + v_i ×* I_i v_i − f^x_i` into `ws.derivatives.f_bias` and `I_i` into
-/// `ws.derivatives.composite` (to be summed).
+/// Forward pass A: each body's `forward_terms` at `q̈ = 0` (`S_i`, `v_i`, `ψ_i`, `β_i`, `B_i`,
+/// `I_i`, the bias acceleration `a⁰_i` and its force `f⁰_i`).
 fn bias_pass(model: &Model, ws: &mut Workspace, v: &[f64], root: &RootMotion, ext: &Externals<'_>) {
     update_aligned_placements(model, ws, Anchors::Roots);
-    for (i, body) in model.bodies.iter().enumerate() {
-        velocity_terms(model, ws, i, v, root, ext);
-        let (c, nv) = (body.joint.coords, ws.s_world[i].nv);
-        let rates = &v[c.v_index..c.v_index + nv];
-        let a_parent = parent_motion(ws, &ws.a_world, i, body.parent, &root.a);
-        let a0 = ws.derivatives.psi[i][..nv]
-            .iter()
-            .zip(rates)
-            .fold(a_parent, |a, (psi, r)| a + *psi * *r);
-        let d = &mut ws.derivatives;
-        d.f_bias[i] = ws.f[i] + ws.ic[i].apply(&a0);
-        d.composite[i] = ws.ic[i];
-        ws.a_world[i] = a0;
+    for i in 0..model.bodies.len() {
+        forward_terms(model, ws, i, v, Accelerations::Zero, root, ext);
     }
 }
 

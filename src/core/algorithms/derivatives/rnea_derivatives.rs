@@ -124,13 +124,12 @@ fn in_series(kind: &JointKind) -> bool {
     matches!(kind, JointKind::Planar { .. })
 }
 
-/// Forward pass, root outward: [`velocity_terms`] then [`acceleration_terms`] of each body.
+/// Forward pass, root outward: [`forward_terms`] of each body.
 fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64], ext: &Externals<'_>) {
     update_aligned_placements(model, ws, Anchors::Roots);
     let root = RootMotion::of(model, ext);
     for i in 0..model.bodies.len() {
-        let v_parent = velocity_terms(model, ws, i, v, &root, ext);
-        acceleration_terms(model, ws, i, v, a, v_parent, &root.a);
+        forward_terms(model, ws, i, v, Accelerations::Given(a), &root, ext);
     }
 }
 
@@ -166,19 +165,22 @@ pub(super) fn parent_motion(
     }
 }
 
-/// The terms of body `i` that do not depend on accelerations, its parent's already made and
-/// its aligned placement updated: `S_i` (scaled) into `ws.s_world`, `v_i = v_λ + S_i q̇_i` into
-/// `ws.v_world`, `ψ_i`, `β_i` and `B_i` into `ws.derivatives`, `I_i` into `ws.ic` and the
-/// velocity-dependent force `v_i ×* I_i v_i − f^x_i` into `ws.f`. Returns the parent's `v_λ`.
+/// Body `i`'s terms of the forward pass, its parent's already made and its aligned placement
+/// updated: `S_i` (scaled) into `ws.s_world`, `v_i = v_λ + S_i q̇_i` into `ws.v_world`, `ψ_i`,
+/// `β_i` and `B_i` into `ws.derivatives`, `I_i` into `ws.ic`, and the acceleration terms
+/// [`Accelerations`] says. All in one sweep over the columns, from the values in hand: read
+/// back from the workspace just after they are stored, they would be loaded across the stores
+/// that wrote them, which the processor does not forward (a stall per load).
 #[inline(always)]
-pub(super) fn velocity_terms(
+pub(super) fn forward_terms(
     model: &Model,
     ws: &mut Workspace,
     i: usize,
     v: &[f64],
+    accelerations: Accelerations<'_>,
     root: &RootMotion,
     ext: &Externals<'_>,
-) -> Motion {
+) {
     let body = &model.bodies[i];
     let c = body.joint.coords;
     update_world_axes(ws, i, &[], 1.0);
@@ -188,13 +190,15 @@ pub(super) fn velocity_terms(
         *col = *col * c.scale;
     }
     let v_parent = parent_motion(ws, &ws.v_world, i, body.parent, &root.v);
+    let a_parent = parent_motion(ws, &ws.a_world, i, body.parent, &root.a);
     let rates = &v[c.v_index..c.v_index + nv];
     let s = &ws.s_world[i];
     let v_i = v_parent + s.apply(rates, 1.0);
     let series = in_series(&body.joint.kind);
     let d = &mut ws.derivatives;
-    // The velocity of what column k moves from: the parent, or in series the columns before.
-    let mut v_above = v_parent;
+    // The motion of what column k moves from: the parent, or in series the columns before.
+    let (mut v_above, mut a_above) = (v_parent, a_parent);
+    let mut a_i = a_parent;
     for k in 0..nv {
         let s_k = s.cols[k];
         let psi = v_above.cross_motion(&s_k);
@@ -202,8 +206,18 @@ pub(super) fn velocity_terms(
         let v_after = if series { v_k } else { v_i };
         d.psi[i][k] = psi;
         d.beta[i][k] = psi + v_after.cross_motion(&s_k);
+        match accelerations {
+            Accelerations::Given(a) => {
+                let qdd = a[c.v_index + k];
+                let (share, alpha) =
+                    column_acceleration(&s_k, &psi, rates[k], qdd, &v_above, &a_above);
+                a_i += share;
+                d.alpha[i][k] = alpha;
+            }
+            Accelerations::Zero => a_i += psi * rates[k],
+        }
         if series {
-            v_above = v_k;
+            (v_above, a_above) = (v_k, a_i);
         }
     }
     let x = &ws.x_aligned[i];
@@ -216,15 +230,55 @@ pub(super) fn velocity_terms(
     d.b[i] = VelocityProduct::new(&inertia, &v_i, &momentum);
     d.halves[i] = matches!(body.joint.kind, JointKind::Floating) && in_halves(s);
     ws.ic[i] = inertia;
-    ws.f[i] = f_v;
     ws.v_world[i] = v_i;
-    v_parent
+    ws.a_world[i] = a_i;
+    match accelerations {
+        Accelerations::Given(_) => ws.f[i] = inertia.apply(&a_i) + f_v,
+        Accelerations::Zero => {
+            ws.f[i] = f_v;
+            d.f_bias[i] = inertia.apply(&a_i) + f_v;
+            d.composite[i] = inertia;
+        }
+    }
 }
 
-/// The terms of body `i` that depend on accelerations, after its [`velocity_terms`] and its
-/// parent's acceleration, with `v_parent` its parent's velocity `v_λ` and `a_root` the roots'
-/// acceleration `a_0` (about the world origin): `a_i = a_λ + Σ_k (S_ik q̈_ik + ψ_ik q̇_ik)` into `ws.a_world`, `α_i`
-/// into `ws.derivatives` and `I_i a_i` added to the force in `ws.f`, making it `f_i`.
+/// Which acceleration terms [`forward_terms`] makes.
+#[derive(Clone, Copy)]
+pub(super) enum Accelerations<'a> {
+    /// The accelerations `q̈` (in `v` order) given: `a_i = a_λ + Σ_k (S_ik q̈_ik + ψ_ik q̇_ik)`
+    /// into `ws.a_world`, `α_i` into `ws.derivatives` and the force
+    /// `f_i = I_i a_i + v_i ×* I_i v_i − f^x_i` into `ws.f`.
+    Given(&'a [f64]),
+    /// `q̈ = 0` (`aba_derivatives`' bias pass): the bias acceleration
+    /// `a⁰_i = a⁰_λ + Σ_k ψ_ik q̇_ik` into `ws.a_world`, its force
+    /// `f⁰_i = I_i a⁰_i + v_i ×* I_i v_i − f^x_i` into `ws.derivatives.f_bias`, the
+    /// velocity-dependent part `v_i ×* I_i v_i − f^x_i` into `ws.f` (for [`acceleration_terms`]
+    /// to complete) and `I_i` into `ws.derivatives.composite` (to be summed); no `α`.
+    Zero,
+}
+
+/// Column `k`'s share of body `i`'s acceleration, `S_ik q̈_ik + ψ_ik q̇_ik`, and its
+/// `α_ik = a_above × S_ik + v_above × ψ_ik`, with `v_above`, `a_above` the motion the column
+/// moves from (the parent's, or in series the motion after the columns before).
+#[inline(always)]
+fn column_acceleration(
+    s_k: &Motion,
+    psi: &Motion,
+    rate: f64,
+    qdd: f64,
+    v_above: &Motion,
+    a_above: &Motion,
+) -> (Motion, Motion) {
+    (
+        *s_k * qdd + *psi * rate,
+        a_above.cross_motion(s_k) + v_above.cross_motion(psi),
+    )
+}
+
+/// The terms of body `i` that depend on accelerations, after its [`forward_terms`] at
+/// [`Accelerations::Zero`] and its parent's acceleration, with `a_root` the roots' acceleration `a_0` (about the
+/// world origin): `a_i = a_λ + Σ_k (S_ik q̈_ik + ψ_ik q̇_ik)` into `ws.a_world`, `α_i` into
+/// `ws.derivatives` and `I_i a_i` added to the force in `ws.f`, making it `f_i`.
 #[inline(always)]
 pub(super) fn acceleration_terms(
     model: &Model,
@@ -232,24 +286,25 @@ pub(super) fn acceleration_terms(
     i: usize,
     v: &[f64],
     a: &[f64],
-    v_parent: Motion,
-    a_root: &Motion,
+    root: &RootMotion,
 ) {
     let body = &model.bodies[i];
     let c = body.joint.coords;
     let s = &ws.s_world[i];
     let nv = s.nv;
     let (rates, accelerations) = (&v[c.v_index..c.v_index + nv], &a[c.v_index..c.v_index + nv]);
-    let a_parent = parent_motion(ws, &ws.a_world, i, body.parent, a_root);
+    let a_parent = parent_motion(ws, &ws.a_world, i, body.parent, &root.a);
     // The motion of what column k moves from: the parent, or in series the columns before.
-    let mut v_above = v_parent;
+    let mut v_above = parent_motion(ws, &ws.v_world, i, body.parent, &root.v);
     let series = in_series(&body.joint.kind);
     let d = &mut ws.derivatives;
     let (mut a_above, mut a_i) = (a_parent, a_parent);
     for k in 0..nv {
         let (s_k, psi) = (s.cols[k], d.psi[i][k]);
-        a_i += s_k * accelerations[k] + psi * rates[k];
-        d.alpha[i][k] = a_above.cross_motion(&s_k) + v_above.cross_motion(&psi);
+        let (share, alpha) =
+            column_acceleration(&s_k, &psi, rates[k], accelerations[k], &v_above, &a_above);
+        a_i += share;
+        d.alpha[i][k] = alpha;
         if series {
             v_above += s_k * rates[k];
             a_above = a_i;
