@@ -164,8 +164,8 @@ fn bias_pass(model: &Model, ws: &mut Workspace, v: &[f64], root: &RootMotion, ex
 /// into `ws.qdd`, `I^C_i S_ik` into `ws.f_cols` (for backward pass B) and
 /// `H_ij = S_iᵀ I^C_i S_j` with its mirror into `ws.mass_matrix`, for `j` = `i` or an ancestor
 /// (the composite-rigid-body recursion in world axes, where a force needs no transform on its
-/// way up). That is `H`'s tree pattern; off it the entries stay zero from the workspace's
-/// allocation on, as CRBA leaves them (on a tree no algorithm writes there).
+/// way up). That is `H`'s tree pattern; `H` is zeroed first (one memset: measured faster than
+/// writing only the pattern, as `rnea_derivatives` does).
 fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
     let Workspace {
         s_world,
@@ -184,6 +184,7 @@ fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
     } = derivatives;
     let n = model.nv;
     let h = mass_matrix.as_mut_slice();
+    h.fill(0.0);
     // H_rc and H_cr (column-major storage).
     let mut put = |r: usize, c: usize, x: f64| {
         h[c * n + r] = x;
@@ -336,8 +337,8 @@ mod tests {
                     Vector3::new(1.0, -2.0, 0.5),
                 ),
             };
-            // Every other writer of `H` first, at another state (the shared passes write only
-            // the tree's pattern of `H`).
+            // Every other writer of `H` and of the workspace's scratch first, at another state:
+            // nothing they leave may show.
             let q_before = random_q(&model, &mut rng);
             for method in ForwardDynamicsMethod::ALL {
                 forward_dynamics(&model, &mut ws, &q_before, &v, &tau, method, &ext).unwrap();

@@ -368,11 +368,13 @@ pub(crate) fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
                 dtau_dv.as_mut_slice(),
                 mass_matrix.as_mut_slice(),
             );
+            // `H` is zeroed outside the tree's pattern (other algorithms write it whole), on
+            // the storage slice: one memset, where nalgebra's `fill` walks index by index.
+            // Zeroed whole even where the pattern covers it: measured faster than writing
+            // only the pattern (UR5: about a sixth less CPU time per call).
+            h.fill(0.0);
             if model.has_mimic() {
-                // A mimic follower's entries add to its leader's: sums from zero (on the
-                // storage slices: one memset each, where nalgebra's `fill` walks index by
-                // index).
-                h.fill(0.0);
+                // A mimic follower's entries add to its leader's: sums from zero.
                 dq.fill(0.0);
                 dv.fill(0.0);
                 tau.fill(0.0);
@@ -387,8 +389,7 @@ pub(crate) fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
             } else {
                 // Every entry on the tree's pattern is written once; those off it are zero
                 // from the workspace's allocation on, as only this pass writes `∂τ/∂q`,
-                // `∂τ/∂q̇` (and a workspace serves one model) and on a tree every algorithm
-                // writing `H` leaves them zero (CRBA writes only its pattern).
+                // `∂τ/∂q̇` (and a workspace serves one model).
                 let mut out = Matrices::<true> {
                     dq,
                     dv,
