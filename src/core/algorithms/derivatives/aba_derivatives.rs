@@ -8,9 +8,10 @@
 //!
 //! with `∂τ/∂q`, `∂τ/∂q̇` from the passes of [`rnea_derivatives`](super::rnea_derivatives) at
 //! `(q, q̇, q̈)`. Those passes make, on the way, what `q̈` itself needs (the placements, `S_i`,
-//! `v_i`, `I_i`, the composite inertias `I^C_i`), so `q̈` and the derivatives share them, in the
-//! order Pinocchio's `computeABADerivatives` shares its work. Every quantity is in the aligned
-//! frame of its tree (world axes, origin at the root body's origin), as in `rnea_derivatives`.
+//! `v_i`, `I_i`, the composite inertias `I^C_i`), so `q̈` and the derivatives share them: a
+//! first forward and backward pass (A) make what does not depend on `q̈`, and `q̈` from it; a
+//! second pair (B) what does. Every quantity is in the aligned frame of its tree (world axes,
+//! origin at the root body's origin), as in `rnea_derivatives`.
 //!
 //! Forward pass A, root outward (what does not depend on `q̈`; `a⁰_0 = a_base − g`):
 //! ```text
