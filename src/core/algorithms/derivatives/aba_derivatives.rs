@@ -241,12 +241,12 @@ fn identity_and_zeros(rows: &mut [f64], nv: usize) {
 /// `ws.derivatives.rhs_rows`, `nv` rows of `3 nv`, the columns of `−∂τ/∂q` and `−∂τ/∂q̇` side by
 /// side: column `c` of each at `nv + 2 c` and `nv + 2 c + 1`) with the factor of `H` in
 /// `ws.factor`. Row `i` of `∂τ/∂q`, `∂τ/∂q̇` is zero outside `i`'s branch (its ancestors and
-/// subtree: turning or moving a joint elsewhere changes no force on `i`), so in particular at
-/// every column from `e(i)` on, as the tree solve takes it. The `3 nv` right-hand sides go row
-/// by row (each step an update of whole rows): along the tree ([`ltl_solve_rows`]) over the non-zeros of `L`, `O(nv d)` per column for depth
-/// `d`, where a product with the dense `H⁻¹` costs `nv²`; with mimic joints through the dense
-/// Cholesky factor ([`cholesky_solve_rows`]). Of the symmetric `H⁻¹` the tree solve computes
-/// the upper triangle, which is mirrored here.
+/// subtree: turning or moving a joint elsewhere changes no force on `i`), so in particular at every
+/// column from `e(i)` on, as the tree solve takes it. The `3 nv` right-hand sides go row by row
+/// (each step an update of whole rows): along the tree ([`ltl_solve_rows`]) over the non-zeros of
+/// `L`, `O(nv d)` per column for depth `d`, where a product with the dense `H⁻¹` costs `nv²`; with
+/// mimic joints through the dense Cholesky factor ([`cholesky_solve_rows`]). Of the symmetric `H⁻¹`
+/// the tree solve computes the upper triangle, which is mirrored here.
 fn solve_with_factor(ws: &mut Workspace) {
     let (plan, factor, d) = (&ws.plan, &ws.factor, &mut ws.derivatives);
     let nv = d.minv.nrows();
