@@ -6,16 +6,49 @@
 //! ∂q̈/∂q = −H⁻¹ ∂τ/∂q,   ∂q̈/∂q̇ = −H⁻¹ ∂τ/∂q̇,   ∂q̈/∂τ = H⁻¹
 //! ```
 //!
-//! with `∂τ/∂q`, `∂τ/∂q̇` from [`rnea_derivatives`](super::rnea_derivatives) at `(q, q̇, q̈)`.
-//! `q̈` comes from `H q̈ = τ − C` (`H` by CRBA, factored as `LᵀL` along the tree or by Cholesky
-//! with mimic joints); `H⁻¹` and both products with it from that factor, one solve per column.
+//! with `∂τ/∂q`, `∂τ/∂q̇` from the passes of [`rnea_derivatives`](super::rnea_derivatives) at
+//! `(q, q̇, q̈)`. Those passes make, on the way, what `q̈` itself needs (the placements, `S_i`,
+//! `v_i`, `I_i`, the composite inertias `I^C_i`), so `q̈` and the derivatives share them: a
+//! first forward and backward pass (A) make what does not depend on `q̈`, and `q̈` from it; a
+//! second pair (B) what does. Every quantity is in the aligned frame of its tree (world axes,
+//! origin at the root body's origin), as in `rnea_derivatives`.
+//!
+//! Forward pass A, root outward (what does not depend on `q̈`; `a⁰_0 = a_base − g`):
+//! ```text
+//! v_i = v_λ + S_i q̇_i,   ψ_ik = v_λ × S_ik,   β_ik = ψ_ik + v_i × S_ik,   B_i,   I_i
+//! a⁰_i = a⁰_λ + Σ_k ψ_ik q̇_ik                     (the acceleration at q̈ = 0)
+//! f⁰_i = I_i a⁰_i + v_i ×* I_i v_i − f^x_i
+//! ```
+//! Backward pass A, leaves inward (`C = τ(q, q̇, 0)` and CRBA's `H` in world axes):
+//! ```text
+//! I^C_i = Σ_{k ∈ subtree(i)} I_k,   F⁰_i = Σ_{k ∈ subtree(i)} f⁰_k
+//! C_i = S_iᵀ F⁰_i,   H_ij = H_jiᵀ = S_iᵀ I^C_i S_j   (j = i or an ancestor of i)
+//! ```
+//! Then `H = Lᵀ L` along the tree and `q̈ = H⁻¹ (τ − C)`. Forward pass B, root outward (what
+//! depends on `q̈`):
+//! ```text
+//! a_i = a_λ + Σ_k (S_ik q̈_ik + ψ_ik q̇_ik),   α_ik = a_λ × S_ik + v_λ × ψ_ik
+//! f_i = I_i a_i + v_i ×* I_i v_i − f^x_i
+//! ```
+//! Backward pass B, leaves inward: the entries of `∂τ/∂q`, `∂τ/∂q̇` of `rnea_derivatives`'
+//! backward pass, with `I^C_i` and `I^C_i S_i` from pass A and `B^C_i`, `F_i` summed there,
+//! written negated as the right-hand sides `[1 | −∂τ/∂q | −∂τ/∂q̇]` of `H X = B`, solved with
+//! the factor of `H`, one solve per column.
+//!
+//! With mimic joints (whose shared coordinates break the tree pattern of `H`) `q̈` comes from
+//! CRBA, a bias RNEA and a dense Cholesky factor instead, and the passes of `rnea_derivatives`
+//! run whole at `(q, q̇, q̈)`.
 
-use super::rnea_derivatives::{check_matrix, derivative_passes, Target};
+use super::rnea_derivatives::{
+    acceleration_terms, ancestors, backward_pass, check_matrix, derivative_passes, dot_in_halves,
+    forward_terms, Accelerations, RootMotion, Target,
+};
+use super::DerivativeScratch;
 use crate::algorithms::cholesky::cholesky_solve_rows;
 use crate::algorithms::forward_dynamics::crba_solve_on_joints;
-use crate::algorithms::kinematics::update_joints;
-use crate::algorithms::ltl::ltl_solve_rows;
-use crate::algorithms::validate::{all_finite, check_forward_inputs};
+use crate::algorithms::kinematics::{update_aligned_placements, update_joints, Anchors};
+use crate::algorithms::ltl::{ltl_factor, ltl_solve, ltl_solve_rows};
+use crate::algorithms::validate::{all_finite, check_forward_inputs, check_result};
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::model::Model;
@@ -36,8 +69,9 @@ pub struct AbaDerivatives<'w> {
 }
 
 /// The derivatives of `q̈ = FD(q, q̇, τ)` with external wrenches and base motion as
-/// [`aba`](crate::algorithms::aba()) takes them. `q̈` itself is left in `ws.qdd()`. Models with
-/// mimic joints are supported (`q̈` by CRBA and a dense Cholesky factor).
+/// [`aba`](crate::algorithms::aba()) takes them. `q̈` itself is left in `ws.qdd()`, `H` in
+/// `ws.mass_matrix()` and the bias forces `C` in `ws.tau()`. Models with mimic joints are
+/// supported (`q̈` by CRBA and a dense Cholesky factor).
 pub fn aba_derivatives<'w>(
     model: &Model,
     ws: &'w mut Workspace,
@@ -48,13 +82,15 @@ pub fn aba_derivatives<'w>(
 ) -> Result<AbaDerivatives<'w>, DynamicsError> {
     check_forward_inputs(model, ws, q, v, tau, ext)?;
     update_joints(model, ws, q);
-    crba_solve_on_joints(model, ws, v, tau, ext)?;
-    // The passes read q̈ while they write the workspace: lend it out (an empty vector holds no
-    // allocation) and put it back.
-    let qdd = std::mem::replace(&mut ws.qdd, DVector::zeros(0));
     identity_and_zeros(&mut ws.derivatives.rhs_rows, model.nv);
-    derivative_passes(model, ws, v, qdd.as_slice(), ext, Target::SolveRows);
-    ws.qdd = qdd;
+    if ws.plan.dof_ancestors.is_some() {
+        shared_passes(model, ws, v, tau, ext)?;
+    } else {
+        crba_solve_on_joints(model, ws, v, tau, ext)?;
+        let qdd = lend_qdd(ws);
+        derivative_passes(model, ws, v, qdd.as_slice(), ext, Target::SolveRows);
+        ws.qdd = qdd;
+    }
     solve_with_factor(ws);
     let d = &ws.derivatives;
     // One branch-free pass over each result; the coordinate is looked for only on failure.
@@ -74,6 +110,121 @@ pub fn aba_derivatives<'w>(
     })
 }
 
+/// `q̈` out of the workspace, for the passes that read it while they write the workspace (an
+/// empty vector in its place holds no allocation); the caller puts it back.
+fn lend_qdd(ws: &mut Workspace) -> DVector<f64> {
+    std::mem::replace(&mut ws.qdd, DVector::zeros(0))
+}
+
+/// The passes of [the module](self) on a tree (`ws.plan.dof_ancestors`), on joints already
+/// updated for `q`: `q̈` into `ws.qdd`, the factor of `H` into `ws.factor` and the right-hand
+/// sides' derivative entries into `ws.derivatives.rhs_rows`. Fails, naming the coordinate, on
+/// a singular `H` or a non-finite `q̈`.
+fn shared_passes(
+    model: &Model,
+    ws: &mut Workspace,
+    v: &[f64],
+    tau: &[f64],
+    ext: &Externals<'_>,
+) -> Result<(), DynamicsError> {
+    let root = RootMotion::of(model, ext);
+    bias_pass(model, ws, v, &root, ext);
+    composite_pass(model, ws, tau);
+    let Workspace {
+        plan,
+        mass_matrix,
+        factor,
+        qdd,
+        ..
+    } = ws;
+    let ancestors = plan.dof_ancestors.as_ref().expect("a tree");
+    // A non-finite H fails the factorisation or shows in q̈.
+    ltl_factor(model, ancestors, mass_matrix, factor)?;
+    ltl_solve(ancestors, factor, qdd);
+    check_result(model, "acceleration", qdd.as_slice())?;
+    let qdd = lend_qdd(ws);
+    for i in 0..model.bodies.len() {
+        acceleration_terms(model, ws, i, v, qdd.as_slice(), &root);
+    }
+    ws.qdd = qdd;
+    backward_pass(model, ws, Target::SolveRowsOnComposites);
+    Ok(())
+}
+
+/// Forward pass A: each body's `forward_terms` at `q̈ = 0` (`S_i`, `v_i`, `ψ_i`, `β_i`, `B_i`,
+/// `I_i`, the bias acceleration `a⁰_i` and its force `f⁰_i`).
+fn bias_pass(model: &Model, ws: &mut Workspace, v: &[f64], root: &RootMotion, ext: &Externals<'_>) {
+    update_aligned_placements(model, ws, Anchors::Roots);
+    for i in 0..model.bodies.len() {
+        forward_terms(model, ws, i, v, Accelerations::Zero, root, ext);
+    }
+}
+
+/// Backward pass A: sums `I^C_i` in `ws.derivatives.composite` and `F⁰_i` in
+/// `ws.derivatives.f_bias`, writes the bias forces `C_i = S_iᵀ F⁰_i` into `ws.tau`, `τ − C`
+/// into `ws.qdd`, `I^C_i S_ik` into `ws.f_cols` (for backward pass B) and
+/// `H_ij = S_iᵀ I^C_i S_j` with its mirror into `ws.mass_matrix`, for `j` = `i` or an ancestor
+/// (the composite-rigid-body recursion in world axes, where a force needs no transform on its
+/// way up). That is `H`'s tree pattern; `H` is zeroed first (one memset: measured faster than
+/// writing only the pattern, as `rnea_derivatives` does).
+fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
+    let Workspace {
+        s_world,
+        f_cols,
+        tau: bias,
+        qdd,
+        mass_matrix,
+        derivatives,
+        ..
+    } = ws;
+    let DerivativeScratch {
+        f_bias: f0,
+        composite: ic,
+        halves,
+        ..
+    } = derivatives;
+    let n = model.nv;
+    let h = mass_matrix.as_mut_slice();
+    h.fill(0.0);
+    // H_rc and H_cr (column-major storage).
+    let mut put = |r: usize, c: usize, x: f64| {
+        h[c * n + r] = x;
+        h[r * n + c] = x;
+    };
+    for (i, body) in model.bodies.iter().enumerate().rev() {
+        let ci = body.joint.coords.v_index;
+        let cols = &s_world[i].cols[..s_world[i].nv];
+        for (k, s_k) in cols.iter().enumerate() {
+            let row = ci + k;
+            let ic_s = ic[i].apply(s_k);
+            f_cols[row] = ic_s;
+            let c = s_k.dot(&f0[i]);
+            bias[row] = c;
+            qdd[row] = tau[row] - c;
+            for (m, s_m) in cols[..=k].iter().enumerate() {
+                put(row, ci + m, s_m.dot(&ic_s));
+            }
+            for j in ancestors(model, i) {
+                let cj = model.bodies[j].joint.coords.v_index;
+                let s_j = &s_world[j];
+                for (m, s_m) in s_j.cols[..s_j.nv].iter().enumerate() {
+                    let h_ij = if halves[j] {
+                        dot_in_halves(m, s_m, &ic_s)
+                    } else {
+                        s_m.dot(&ic_s)
+                    };
+                    put(row, cj + m, h_ij);
+                }
+            }
+        }
+        if let Some(p) = body.parent {
+            let (ic_i, f0_i) = (ic[i], f0[i]);
+            ic[p] += ic_i;
+            f0[p] += f0_i;
+        }
+    }
+}
+
 /// The right-hand sides before the passes add the derivatives: row `i` (of `3 nv` entries) is
 /// `e_iᵀ` then zeros.
 fn identity_and_zeros(rows: &mut [f64], nv: usize) {
@@ -88,14 +239,14 @@ fn identity_and_zeros(rows: &mut [f64], nv: usize) {
 /// `H⁻¹` into `ws.derivatives.minv` and `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` into `ddq_dq`, `ddq_dv`,
 /// solving `H X = B` for `B = [1 | −∂τ/∂q | −∂τ/∂q̇]` (held row by row in
 /// `ws.derivatives.rhs_rows`, `nv` rows of `3 nv`, the columns of `−∂τ/∂q` and `−∂τ/∂q̇` side by
-/// side: column `c` of each at `nv + 2 c` and `nv + 2 c + 1`) with the factor
-/// `crba_solve_on_joints` left in `ws.factor`. Row `i` of `∂τ/∂q`, `∂τ/∂q̇` is zero outside
-/// `i`'s branch (its ancestors and subtree: turning or moving a joint elsewhere changes no force
-/// on `i`), so in particular at every column from `e(i)` on, as the tree solve takes it. The `3 nv` right-hand sides go row by row (each step an update of whole rows):
-/// along the tree ([`ltl_solve_rows`]) over the non-zeros of `L`, `O(nv d)` per column for depth
-/// `d`, where a product with the dense `H⁻¹` costs `nv²`; with mimic joints through the dense
-/// Cholesky factor ([`cholesky_solve_rows`]). Of the symmetric `H⁻¹` the tree solve computes
-/// the upper triangle, which is mirrored here.
+/// side: column `c` of each at `nv + 2 c` and `nv + 2 c + 1`) with the factor of `H` in
+/// `ws.factor`. Row `i` of `∂τ/∂q`, `∂τ/∂q̇` is zero outside `i`'s branch (its ancestors and
+/// subtree: turning or moving a joint elsewhere changes no force on `i`), so in particular at every
+/// column from `e(i)` on, as the tree solve takes it. The `3 nv` right-hand sides go row by row
+/// (each step an update of whole rows): along the tree ([`ltl_solve_rows`]) over the non-zeros of
+/// `L`, `O(nv d)` per column for depth `d`, where a product with the dense `H⁻¹` costs `nv²`; with
+/// mimic joints through the dense Cholesky factor ([`cholesky_solve_rows`]). Of the symmetric `H⁻¹`
+/// the tree solve computes the upper triangle, which is mirrored here.
 fn solve_with_factor(ws: &mut Workspace) {
     let (plan, factor, d) = (&ws.plan, &ws.factor, &mut ws.derivatives);
     let nv = d.minv.nrows();
@@ -135,11 +286,135 @@ fn solve_with_factor(ws: &mut Workspace) {
 
 #[cfg(test)]
 mod tests {
-    use crate::algorithms::rnea_derivatives;
+    use super::aba_derivatives;
+    use crate::algorithms::{
+        crba, forward_dynamics, rnea_derivatives, rnea_with, Externals, ForwardDynamicsMethod,
+    };
+    use crate::error::DynamicsError;
     use crate::model::ModelOptions;
     use crate::sampling::{random_q, Rng};
+    use crate::spatial::{Force, Motion, Vector3};
     use crate::urdf::model_from_str;
     use crate::Workspace;
+
+    /// The shared passes leave what CRBA, a bias RNEA and the solve would: `ws.mass_matrix()`
+    /// is `crba`'s `H`, `ws.tau()` the bias forces `C = RNEA(q, q̇, 0)` and `ws.qdd()` the
+    /// forward dynamics by CRBA, with external wrenches and a moving base, on a branched tree
+    /// on a planar and on a floating joint (relative to each quantity's largest entry), after
+    /// every other algorithm that writes `H` ran on the workspace at another state.
+    #[test]
+    fn the_shared_passes_leave_h_the_bias_forces_and_the_accelerations() {
+        let tree = include_str!("../../tests/models/tree.urdf");
+        for text in [
+            tree.to_string(),
+            tree.replace(r#"type="planar""#, r#"type="floating""#),
+        ] {
+            let model = model_from_str(&text, &ModelOptions::default()).unwrap();
+            let mut ws = Workspace::new(&model);
+            assert!(ws.plan.dof_ancestors.is_some(), "{}: a tree", model.name);
+            let mut rng = Rng::new(5);
+            let q = random_q(&model, &mut rng);
+            let nv = model.nv();
+            let (v, tau): (Vec<f64>, Vec<f64>) = (0..nv)
+                .map(|i| ((i as f64 * 0.7).sin(), 3.0 * (i as f64 * 1.1).cos()))
+                .unzip();
+            let wrenches: Vec<Force> = (0..model.nbodies())
+                .map(|i| {
+                    let x = i as f64;
+                    Force::new(
+                        Vector3::new(0.3 * x.sin(), -0.2, 0.1 * x),
+                        Vector3::new(1.0, x.cos(), -0.5),
+                    )
+                })
+                .collect();
+            let ext = Externals {
+                wrenches: Some(&wrenches),
+                root_velocity: Motion::new(
+                    Vector3::new(0.3, -0.2, 0.1),
+                    Vector3::new(0.5, 0.4, -0.6),
+                ),
+                root_acceleration: Motion::new(
+                    Vector3::new(-0.1, 0.2, 0.4),
+                    Vector3::new(1.0, -2.0, 0.5),
+                ),
+            };
+            // Every other writer of `H` and of the workspace's scratch first, at another state:
+            // nothing they leave may show.
+            let q_before = random_q(&model, &mut rng);
+            for method in ForwardDynamicsMethod::ALL {
+                forward_dynamics(&model, &mut ws, &q_before, &v, &tau, method, &ext).unwrap();
+            }
+            rnea_derivatives(&model, &mut ws, &q_before, &v, &tau).unwrap();
+            aba_derivatives(&model, &mut ws, &q, &v, &tau, &ext).unwrap();
+            let (h, c, qdd) = (
+                ws.mass_matrix().clone(),
+                ws.tau().to_vec(),
+                ws.qdd().to_vec(),
+            );
+            let mut other = Workspace::new(&model);
+            let close = |name: &str, got: &[f64], want: &[f64]| {
+                let scale = want.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+                for (k, (g, w)) in got.iter().zip(want).enumerate() {
+                    assert!(
+                        (g - w).abs() <= 1e-12 * scale,
+                        "{} {name}[{k}]: {g} against {w}",
+                        model.name
+                    );
+                }
+            };
+            close(
+                "H",
+                h.as_slice(),
+                crba(&model, &mut other, &q).unwrap().as_slice(),
+            );
+            close(
+                "C",
+                &c,
+                rnea_with(&model, &mut other, &q, &v, &vec![0.0; nv], &ext).unwrap(),
+            );
+            let by_crba = forward_dynamics(
+                &model,
+                &mut other,
+                &q,
+                &v,
+                &tau,
+                ForwardDynamicsMethod::Crba,
+                &ext,
+            )
+            .unwrap();
+            close("qdd", &qdd, by_crba);
+        }
+    }
+
+    /// A massless leaf behind a prismatic joint makes `H` singular at that joint's coordinate:
+    /// the factor of the shared passes names it, as forward dynamics by CRBA does.
+    #[test]
+    fn a_singular_mass_matrix_names_its_coordinate() {
+        let text = r#"<robot name="a"><link name="world"/>
+  <joint name="shoulder" type="revolute"><parent link="world"/><child link="l1"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="5" velocity="1"/></joint>
+  <link name="l1"><inertial><origin xyz="0 0 -0.2"/><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.001"/></inertial></link>
+  <joint name="slide" type="prismatic"><parent link="l1"/><child link="l2"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="5" velocity="1"/></joint>
+  <link name="l2"/></robot>"#;
+        let model = model_from_str(text, &ModelOptions::default()).unwrap();
+        let mut ws = Workspace::new(&model);
+        let (q, v, tau) = ([0.3, 0.1], [0.2, -0.1], [1.0, 1.0]);
+        let none = Externals::none();
+        let err = aba_derivatives(&model, &mut ws, &q, &v, &tau, &none).unwrap_err();
+        assert!(
+            matches!(&err, DynamicsError::SingularMassMatrix { coordinate, .. } if coordinate == "slide"),
+            "{err:?}"
+        );
+        let by_crba = forward_dynamics(
+            &model,
+            &mut ws,
+            &q,
+            &v,
+            &tau,
+            ForwardDynamicsMethod::Crba,
+            &none,
+        );
+        assert_eq!(err, by_crba.unwrap_err());
+    }
 
     /// The tree solve takes row `i` of `∂τ/∂q`, `∂τ/∂q̇` as zero in every column from `e(i)`
     /// (the end of `i`'s subtree) on: it is, exactly, on a branched tree with a fixed, a

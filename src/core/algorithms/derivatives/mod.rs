@@ -29,7 +29,7 @@ pub use linearize::{linearize, Linearization};
 pub use rnea_derivatives::{rnea_derivatives, rnea_derivatives_with, RneaDerivatives};
 
 use crate::model::Model;
-use crate::spatial::Motion;
+use crate::spatial::{Force, Inertia, Motion};
 use nalgebra::DMatrix;
 use velocity_product::VelocityProduct;
 
@@ -50,6 +50,12 @@ pub(crate) struct DerivativeScratch {
     /// `B_i`, then its sum over the subtree `B^C_i`: the velocity-product matrix of the body
     /// forces (`∂f/∂v` through the velocity-dependent terms), in its sparse form.
     pub(crate) b: Vec<VelocityProduct>,
+    /// `f⁰_i`, the force of body `i` at the bias acceleration `a⁰_i` (`q̈ = 0`), then its sum
+    /// over the subtree `F⁰_i` (`aba_derivatives`' bias pass).
+    pub(crate) f_bias: Vec<Force>,
+    /// `I_i`, then its sum over the subtree `I^C_i` (`aba_derivatives`' bias pass; the body's
+    /// own `I_i` stays in `Workspace::ic` for its forces).
+    pub(crate) composite: Vec<Inertia>,
     /// `∂τ/∂q` (nv × nv). Only `rnea_derivatives` writes it, and only on the tree's pattern
     /// (row and column on one branch): the entries off it stay zero from allocation on.
     pub(crate) dtau_dq: DMatrix<f64>,
@@ -81,6 +87,8 @@ impl DerivativeScratch {
             alpha: vec![[Motion::zero(); 6]; n],
             beta: vec![[Motion::zero(); 6]; n],
             b: vec![VelocityProduct::zero(); n],
+            f_bias: vec![Force::zero(); n],
+            composite: vec![Inertia::zero(); n],
             dtau_dq: square(),
             dtau_dv: square(),
             ddq_dq: square(),

@@ -124,78 +124,217 @@ fn in_series(kind: &JointKind) -> bool {
     matches!(kind, JointKind::Planar { .. })
 }
 
-/// Forward pass: `S_i` (scaled) into `ws.s_world`, `v_i`, `a_i` into `ws.v_world`,
-/// `ws.a_world`, `I_i` into `ws.ic`, `f_i` into `ws.f`, `ψ`, `α`, `β` and `B_i` into
-/// `ws.derivatives`.
+/// Forward pass, root outward: [`forward_terms`] of each body.
 fn forward_pass(model: &Model, ws: &mut Workspace, v: &[f64], a: &[f64], ext: &Externals<'_>) {
     update_aligned_placements(model, ws, Anchors::Roots);
-    let a_root = ext.root_acceleration - Motion::new(Vector3::zeros(), model.gravity);
-    for (i, body) in model.bodies.iter().enumerate() {
-        let c = body.joint.coords;
-        update_world_axes(ws, i, &[], 1.0);
-        let s = &mut ws.s_world[i];
-        let nv = s.nv;
-        for col in &mut s.cols[..nv] {
-            *col = *col * c.scale;
-        }
-        let (v_parent, a_parent) = match body.parent {
-            Some(p) => (ws.v_world[p], ws.a_world[p]),
-            None => {
-                let x = Translation(ws.anchor_shift[i]);
-                (x.apply_motion(&ext.root_velocity), x.apply_motion(&a_root))
-            }
-        };
-        let (rates, accelerations) = (&v[c.v_index..c.v_index + nv], &a[c.v_index..c.v_index + nv]);
-        let s = &ws.s_world[i];
-        let v_i = v_parent + s.apply(rates, 1.0);
-        let series = in_series(&body.joint.kind);
-        let d = &mut ws.derivatives;
-        // The motion of what column k moves from: the parent, or in series the columns before.
-        let (mut v_above, mut a_above) = (v_parent, a_parent);
-        let mut a_i = a_parent;
-        for k in 0..nv {
-            let s_k = s.cols[k];
-            let psi = v_above.cross_motion(&s_k);
-            let v_k = v_above + s_k * rates[k];
-            a_i += s_k * accelerations[k] + psi * rates[k];
-            let v_after = if series { v_k } else { v_i };
-            d.psi[i][k] = psi;
-            d.alpha[i][k] = a_above.cross_motion(&s_k) + v_above.cross_motion(&psi);
-            d.beta[i][k] = psi + v_after.cross_motion(&s_k);
-            if series {
-                (v_above, a_above) = (v_k, a_i);
-            }
-        }
-        let x = &ws.x_aligned[i];
-        let inertia = x.transpose_apply_inertia(&body.inertia);
-        let mut f_i = inertia.apply(&a_i) + v_i.cross_force(&inertia.apply(&v_i));
-        if let Some(w) = ext.wrenches {
-            f_i -= x.transpose_apply_force(&w[i]);
-        }
-        d.b[i] = VelocityProduct::new(&inertia, &v_i);
-        d.halves[i] = matches!(body.joint.kind, JointKind::Floating) && in_halves(s);
-        ws.ic[i] = inertia;
-        ws.f[i] = f_i;
-        ws.v_world[i] = v_i;
-        ws.a_world[i] = a_i;
+    let root = RootMotion::of(model, ext);
+    for i in 0..model.bodies.len() {
+        forward_terms(model, ws, i, v, Accelerations::Given(a), &root, ext);
     }
 }
 
-/// Where the backward pass writes: the matrices of [`RneaDerivatives`] with `τ`, or the rows
-/// of [`SolveRows`].
-#[derive(Clone, Copy)]
-pub(crate) enum Target {
-    Matrices,
-    SolveRows,
+/// The motion of the roots' parent (the world) in the forward pass, about the world origin:
+/// the base's velocity `v_0 = v_base` and `a_0 = a_base − g`.
+pub(super) struct RootMotion {
+    pub(super) v: Motion,
+    pub(super) a: Motion,
 }
 
-/// Backward pass: sums `I^C`, `B^C`, `F` over each subtree and fills the entries of `∂τ/∂q`,
-/// `∂τ/∂q̇` (and of `τ` and `H` into [`Matrices`]), each from the row's and the column's bodies
-/// (one an ancestor of the other).
-fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
+impl RootMotion {
+    pub(super) fn of(model: &Model, ext: &Externals<'_>) -> Self {
+        RootMotion {
+            v: ext.root_velocity,
+            a: ext.root_acceleration - Motion::new(Vector3::zeros(), model.gravity),
+        }
+    }
+}
+
+/// The motion of body `i`'s parent from `motions` (one per body), or for a root `root` (about
+/// the world origin) in `i`'s aligned frame.
+#[inline(always)]
+pub(super) fn parent_motion(
+    ws: &Workspace,
+    motions: &[Motion],
+    i: usize,
+    parent: Option<usize>,
+    root: &Motion,
+) -> Motion {
+    match parent {
+        Some(p) => motions[p],
+        None => Translation(ws.anchor_shift[i]).apply_motion(root),
+    }
+}
+
+/// Body `i`'s terms of the forward pass, its parent's already made and its aligned placement
+/// updated: `S_i` (scaled) into `ws.s_world`, `v_i = v_λ + S_i q̇_i` into `ws.v_world`, `ψ_i`,
+/// `β_i` and `B_i` into `ws.derivatives`, `I_i` into `ws.ic`, and the acceleration terms
+/// [`Accelerations`] says. All in one sweep over the columns, from the values in hand: read
+/// back from the workspace just after they are stored, they would be loaded across the stores
+/// that wrote them, which the processor does not forward (a stall per load).
+#[inline(always)]
+pub(super) fn forward_terms(
+    model: &Model,
+    ws: &mut Workspace,
+    i: usize,
+    v: &[f64],
+    accelerations: Accelerations<'_>,
+    root: &RootMotion,
+    ext: &Externals<'_>,
+) {
+    let body = &model.bodies[i];
+    let c = body.joint.coords;
+    update_world_axes(ws, i, &[], 1.0);
+    let s = &mut ws.s_world[i];
+    let nv = s.nv;
+    for col in &mut s.cols[..nv] {
+        *col = *col * c.scale;
+    }
+    let v_parent = parent_motion(ws, &ws.v_world, i, body.parent, &root.v);
+    let a_parent = parent_motion(ws, &ws.a_world, i, body.parent, &root.a);
+    let rates = &v[c.v_index..c.v_index + nv];
+    let s = &ws.s_world[i];
+    let v_i = v_parent + s.apply(rates, 1.0);
+    let series = in_series(&body.joint.kind);
+    let d = &mut ws.derivatives;
+    // The motion of what column k moves from: the parent, or in series the columns before.
+    let (mut v_above, mut a_above) = (v_parent, a_parent);
+    let mut a_i = a_parent;
+    for k in 0..nv {
+        let s_k = s.cols[k];
+        let psi = v_above.cross_motion(&s_k);
+        let v_k = v_above + s_k * rates[k];
+        let v_after = if series { v_k } else { v_i };
+        d.psi[i][k] = psi;
+        d.beta[i][k] = psi + v_after.cross_motion(&s_k);
+        match accelerations {
+            Accelerations::Given(a) => {
+                let qdd = a[c.v_index + k];
+                let (share, alpha) =
+                    column_acceleration(&s_k, &psi, rates[k], qdd, &v_above, &a_above);
+                a_i += share;
+                d.alpha[i][k] = alpha;
+            }
+            Accelerations::Zero => a_i += psi * rates[k],
+        }
+        if series {
+            (v_above, a_above) = (v_k, a_i);
+        }
+    }
+    let x = &ws.x_aligned[i];
+    let inertia = x.transpose_apply_inertia(&body.inertia);
+    let momentum = inertia.apply(&v_i);
+    let mut f_v = v_i.cross_force(&momentum);
+    if let Some(w) = ext.wrenches {
+        f_v -= x.transpose_apply_force(&w[i]);
+    }
+    d.b[i] = VelocityProduct::new(&inertia, &v_i, &momentum);
+    d.halves[i] = matches!(body.joint.kind, JointKind::Floating) && in_halves(s);
+    ws.ic[i] = inertia;
+    ws.v_world[i] = v_i;
+    ws.a_world[i] = a_i;
+    match accelerations {
+        Accelerations::Given(_) => ws.f[i] = inertia.apply(&a_i) + f_v,
+        Accelerations::Zero => {
+            ws.f[i] = f_v;
+            d.f_bias[i] = inertia.apply(&a_i) + f_v;
+            d.composite[i] = inertia;
+        }
+    }
+}
+
+/// Which acceleration terms [`forward_terms`] makes.
+#[derive(Clone, Copy)]
+pub(super) enum Accelerations<'a> {
+    /// The accelerations `q̈` (in `v` order) given: `a_i = a_λ + Σ_k (S_ik q̈_ik + ψ_ik q̇_ik)`
+    /// into `ws.a_world`, `α_i` into `ws.derivatives` and the force
+    /// `f_i = I_i a_i + v_i ×* I_i v_i − f^x_i` into `ws.f`.
+    Given(&'a [f64]),
+    /// `q̈ = 0` (`aba_derivatives`' bias pass): the bias acceleration
+    /// `a⁰_i = a⁰_λ + Σ_k ψ_ik q̇_ik` into `ws.a_world`, its force
+    /// `f⁰_i = I_i a⁰_i + v_i ×* I_i v_i − f^x_i` into `ws.derivatives.f_bias`, the
+    /// velocity-dependent part `v_i ×* I_i v_i − f^x_i` into `ws.f` (for [`acceleration_terms`]
+    /// to complete) and `I_i` into `ws.derivatives.composite` (to be summed); no `α`.
+    Zero,
+}
+
+/// Column `k`'s share of body `i`'s acceleration, `S_ik q̈_ik + ψ_ik q̇_ik`, and its
+/// `α_ik = a_above × S_ik + v_above × ψ_ik`, with `v_above`, `a_above` the motion the column
+/// moves from (the parent's, or in series the motion after the columns before).
+#[inline(always)]
+fn column_acceleration(
+    s_k: &Motion,
+    psi: &Motion,
+    rate: f64,
+    qdd: f64,
+    v_above: &Motion,
+    a_above: &Motion,
+) -> (Motion, Motion) {
+    (
+        *s_k * qdd + *psi * rate,
+        a_above.cross_motion(s_k) + v_above.cross_motion(psi),
+    )
+}
+
+/// The terms of body `i` that depend on accelerations, after its [`forward_terms`] at
+/// [`Accelerations::Zero`] and its parent's acceleration, with `a_root` the roots' acceleration `a_0` (about the
+/// world origin): `a_i = a_λ + Σ_k (S_ik q̈_ik + ψ_ik q̇_ik)` into `ws.a_world`, `α_i` into
+/// `ws.derivatives` and `I_i a_i` added to the force in `ws.f`, making it `f_i`.
+#[inline(always)]
+pub(super) fn acceleration_terms(
+    model: &Model,
+    ws: &mut Workspace,
+    i: usize,
+    v: &[f64],
+    a: &[f64],
+    root: &RootMotion,
+) {
+    let body = &model.bodies[i];
+    let c = body.joint.coords;
+    let s = &ws.s_world[i];
+    let nv = s.nv;
+    let (rates, accelerations) = (&v[c.v_index..c.v_index + nv], &a[c.v_index..c.v_index + nv]);
+    let a_parent = parent_motion(ws, &ws.a_world, i, body.parent, &root.a);
+    // The motion of what column k moves from: the parent, or in series the columns before.
+    let mut v_above = parent_motion(ws, &ws.v_world, i, body.parent, &root.v);
+    let series = in_series(&body.joint.kind);
+    let d = &mut ws.derivatives;
+    let (mut a_above, mut a_i) = (a_parent, a_parent);
+    for k in 0..nv {
+        let (s_k, psi) = (s.cols[k], d.psi[i][k]);
+        let (share, alpha) =
+            column_acceleration(&s_k, &psi, rates[k], accelerations[k], &v_above, &a_above);
+        a_i += share;
+        d.alpha[i][k] = alpha;
+        if series {
+            v_above += s_k * rates[k];
+            a_above = a_i;
+        }
+    }
+    ws.f[i] += ws.ic[i].apply(&a_i);
+    ws.a_world[i] = a_i;
+}
+
+/// Where the backward pass writes, and what it finds made.
+#[derive(Clone, Copy)]
+pub(crate) enum Target {
+    /// The matrices of [`RneaDerivatives`] with `τ` and `H`.
+    Matrices,
+    /// The rows of [`SolveRows`].
+    SolveRows,
+    /// The rows of [`SolveRows`], on the composite inertias `aba_derivatives`' bias pass
+    /// summed: `ws.derivatives.composite` holds `I^C_i` and `ws.f_cols` `I^C_i S_ik` for each
+    /// coordinate.
+    SolveRowsOnComposites,
+}
+
+/// Backward pass: sums `I^C` (unless [`Target::SolveRowsOnComposites`]), `B^C`, `F` over each
+/// subtree and fills the entries of `∂τ/∂q`, `∂τ/∂q̇` (and of `τ` and `H` into [`Matrices`]),
+/// each from the row's and the column's bodies (one an ancestor of the other).
+pub(crate) fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
     let Workspace {
         s_world,
         ic,
+        f_cols,
         f,
         tau,
         mass_matrix,
@@ -211,6 +350,7 @@ fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
         dtau_dv,
         rhs_rows,
         halves,
+        composite,
         ..
     } = derivatives;
     let parts = Parts {
@@ -230,6 +370,8 @@ fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
             );
             // `H` is zeroed outside the tree's pattern (other algorithms write it whole), on
             // the storage slice: one memset, where nalgebra's `fill` walks index by index.
+            // Zeroed whole even where the pattern covers it: measured faster than writing
+            // only the pattern (UR5: about a sixth less CPU time per call).
             h.fill(0.0);
             if model.has_mimic() {
                 // A mimic follower's entries add to its leader's: sums from zero.
@@ -243,7 +385,7 @@ fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
                     tau: tau.as_mut_slice(),
                     n,
                 };
-                sweep(model, &parts, ic, b, f, &mut out);
+                sweep::<_, false>(model, &parts, ic, &[], b, f, &mut out);
             } else {
                 // Every entry on the tree's pattern is written once; those off it are zero
                 // from the workspace's allocation on, as only this pass writes `∂τ/∂q`,
@@ -255,15 +397,19 @@ fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
                     tau: tau.as_mut_slice(),
                     n,
                 };
-                sweep(model, &parts, ic, b, f, &mut out);
+                sweep::<_, false>(model, &parts, ic, &[], b, f, &mut out);
             }
         }
-        Target::SolveRows => {
+        Target::SolveRows | Target::SolveRowsOnComposites => {
             let mut out = SolveRows {
                 rows: &mut rhs_rows[..3 * n * n],
                 nv: n,
             };
-            sweep(model, &parts, ic, b, f, &mut out);
+            if matches!(target, Target::SolveRows) {
+                sweep::<_, false>(model, &parts, ic, &[], b, f, &mut out);
+            } else {
+                sweep::<_, true>(model, &parts, composite, f_cols, b, f, &mut out);
+            }
         }
     }
 }
@@ -285,17 +431,18 @@ impl Parts<'_> {
 }
 
 /// The backward pass proper, into `out`: the loops of the module's equations, leaves inward.
+/// With `COMPOSITES`, `ic` holds the subtree sums `I^C_i` already and `ic_s` the products
+/// `I^C_i S_ik` by coordinate; else `ic` holds each body's own `I_i`, summed here.
 #[inline(always)]
-fn sweep<O: Entries>(
+fn sweep<O: Entries, const COMPOSITES: bool>(
     model: &Model,
     parts: &Parts<'_>,
     ic: &mut [Inertia],
+    ic_s: &[Force],
     b: &mut [VelocityProduct],
     f: &mut [Force],
     out: &mut O,
 ) {
-    let above =
-        |i: usize| std::iter::successors(model.bodies[i].parent, |&j| model.bodies[j].parent);
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let ci = body.joint.coords.v_index;
         let series = in_series(&body.joint.kind);
@@ -309,7 +456,11 @@ fn sweep<O: Entries>(
             // Row (i, n) against the columns of i and its ancestors: I^C_i S and B^C_iᵀ S.
             // Column (i, n) against the rows above it: the forces its motion adds to F_i.
             let r = RowVectors {
-                ic_s: ic[i].apply(&s),
+                ic_s: if COMPOSITES {
+                    ic_s[row]
+                } else {
+                    ic[i].apply(&s)
+                },
                 bt_s: b[i].tr_apply(&s),
                 w_q: s.cross_force(&f[i])
                     + ic[i].apply(&own.alpha[n_i])
@@ -341,7 +492,7 @@ fn sweep<O: Entries>(
             // Each ancestor column (j, m): the left entry in row (i, n), the right one in
             // column (i, n), and H's two (equal) entries from one product. Entries add up: a
             // mimic follower's row and column are its leader's.
-            for j in above(i) {
+            for j in ancestors(model, i) {
                 let (cj, c) = (model.bodies[j].joint.coords.v_index, parts.columns(j));
                 if parts.halves[j] {
                     columns_in_halves(row, cj, &c, &r, out);
@@ -352,10 +503,29 @@ fn sweep<O: Entries>(
         }
         if let Some(p) = body.parent {
             let (ic_i, b_i, f_i) = (ic[i], b[i], f[i]);
-            ic[p] += ic_i;
+            if !COMPOSITES {
+                ic[p] += ic_i;
+            }
             b[p] += b_i;
             f[p] += f_i;
         }
+    }
+}
+
+/// The ancestors of body `i`, its parent first.
+#[inline(always)]
+pub(super) fn ancestors(model: &Model, i: usize) -> impl Iterator<Item = usize> + '_ {
+    std::iter::successors(model.bodies[i].parent, |&j| model.bodies[j].parent)
+}
+
+/// `S_m · w` for column `m` of a floating joint's `S` [`in_halves`]: over the linear parts for
+/// the first three columns, the angular ones for the last three (the other half is zero).
+#[inline(always)]
+pub(super) fn dot_in_halves(m: usize, s: &Motion, w: &Force) -> f64 {
+    if m < 3 {
+        s.lin.dot(&w.lin)
+    } else {
+        s.ang.dot(&w.ang)
     }
 }
 

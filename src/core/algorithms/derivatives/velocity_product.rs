@@ -42,10 +42,10 @@ impl VelocityProduct {
         }
     }
 
-    /// `B` of a body of inertia `inertia` moving with `v` (both in the same frame).
-    pub(crate) fn new(inertia: &Inertia, v: &Motion) -> Self {
+    /// `B` of a body of inertia `inertia` moving with `v` (both in the same frame), its
+    /// momentum `momentum = I v` already made.
+    pub(crate) fn new(inertia: &Inertia, v: &Motion, momentum: &Force) -> Self {
         let (omega, u, h) = (&v.ang, &v.lin, &inertia.h);
-        let momentum = inertia.apply(v);
         let p_mat = inertia.i_bar * skew(omega);
         let uh = u * h.transpose();
         let ww = -(p_mat + p_mat.transpose()) - (uh + uh.transpose())
@@ -116,7 +116,7 @@ mod tests {
         let mut sum = VelocityProduct::zero();
         let mut dense_sum = Matrix6::zeros();
         for (inertia, v) in &bodies {
-            sum += VelocityProduct::new(inertia, v);
+            sum += VelocityProduct::new(inertia, v, &inertia.apply(v));
             dense_sum += dense(inertia, v);
         }
         let x = Motion::new(Vector3::new(0.3, -0.8, 0.5), Vector3::new(1.1, 0.4, -0.9));
