@@ -278,6 +278,10 @@ fn solve(ancestors: &Ancestors, l: &[f64], x: &mut [f64]) {
 ///   rows at the same columns (`c ≥ m > a`), so the second pass computes only the upper
 ///   triangle of that block (a pair from `p` on); the entries below the diagonal are left as
 ///   scratch, not `H⁻¹`.
+///
+/// The zeros `B` must hold are read all the same: the first pass takes each row `m` of `D(i)`
+/// as a term over row `i`'s columns, from `i` (or `p`) on, zeros of `m`'s identity row left of
+/// `m` included. So row `i` of `B` is read from the column of its tree's root on.
 pub(crate) fn ltl_solve_rows(
     ancestors: &Ancestors,
     factor: &DMatrix<f64>,
@@ -623,9 +627,10 @@ mod tests {
                     x4[(r, c)] = x4[(c, r)]; // H⁻¹ from its upper triangle
                 }
             }
+            // (`amax` passes over NaN: the finiteness is checked on its own.)
             let err = (&h * &x4 - &b4).amax();
             assert!(
-                err < 1e-12 * (h.amax() * x4.amax()),
+                x4.iter().all(|x| x.is_finite()) && err < 1e-12 * (h.amax() * x4.amax()),
                 "{}: |H X − [1 | B]| = {err:e} (rows, identity first)",
                 model.name
             );
