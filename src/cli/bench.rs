@@ -28,7 +28,9 @@ use spatial_dynamics_core::algorithms::{
 };
 use spatial_dynamics_core::flop_table;
 use spatial_dynamics_core::sampling::{random_q, Rng};
-use spatial_dynamics_core::{DynamicsError, Externals, ForwardDynamicsMethod, Model, Workspace};
+use spatial_dynamics_core::{
+    DynamicsError, Externals, ForwardDynamicsMethod, InstructionSet, Model, Workspace,
+};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
@@ -44,9 +46,22 @@ pub struct Settings {
     /// Minimum duration of one repeat, seconds.
     #[arg(long, value_name = "SECONDS", default_value_t = 0.2)]
     pub min_time: f64,
+    /// Run the library's dispatched passes in the baseline instruction set (SSE2 on x86-64)
+    /// instead of the fastest this processor runs (AVX2 and FMA where it has them).
+    #[arg(long)]
+    pub baseline_instructions: bool,
 }
 
 impl Settings {
+    /// The instruction set the timed workspaces run in.
+    pub fn instruction_set(&self) -> InstructionSet {
+        if self.baseline_instructions {
+            InstructionSet::Baseline
+        } else {
+            InstructionSet::best()
+        }
+    }
+
     /// The error names the flag that is out of range.
     pub fn check(&self) -> Result<(), String> {
         if self.states == 0 || self.repeats == 0 {
@@ -121,12 +136,12 @@ pub fn run(
         .iter()
         .map(|k| {
             let integrator = sim::integrator_of(k).expect("a simulation kernel");
-            sim::time_simulation(&model, integrator, sim_settings, settings.repeats)
+            sim::time_simulation(&model, integrator, sim_settings, settings)
                 .map(|t| (k.as_str(), t))
         })
         .collect::<Result<Vec<_>, String>>()?;
     if only.is_empty() && !sim_runs.is_empty() {
-        return print_sim_only(&model, as_json, &sim_runs);
+        return print_sim_only(&model, as_json, &sim_runs, settings);
     }
     let all: Vec<&str> = KERNELS
         .iter()
@@ -164,6 +179,7 @@ pub fn run(
                 .collect()
         };
         let mut out = json!({"nv": model.nv(), "ns_per_call": per_call(&times), "flops_per_call": flops,
+            "instruction_set": settings.instruction_set().name(),
                              "gflops": gflops, "frame": deepest_link(&model)});
         for (name, run) in &sim_runs {
             out["ns_per_call"][*name] = json!(run.ns_per_step);
@@ -255,9 +271,11 @@ fn print_sim_only(
     model: &Model,
     as_json: bool,
     runs: &[(&str, sim::SimTiming)],
+    settings: &Settings,
 ) -> Result<(), String> {
     if as_json {
-        let mut out = json!({"nv": model.nv(), "ns_per_call": {}, "sim_end": {}});
+        let mut out = json!({"nv": model.nv(), "ns_per_call": {}, "sim_end": {},
+            "instruction_set": settings.instruction_set().name()});
         for (name, run) in runs {
             out["ns_per_call"][*name] = json!(run.ns_per_step);
             out["sim_end"][*name] = run.end_json();
@@ -340,6 +358,7 @@ fn time_kernel(
 ) -> Result<Option<f64>, DynamicsError> {
     use ForwardDynamicsMethod::{Aba, Crba, RneaColumns};
     let mut ws = Workspace::new(model);
+    ws.set_instruction_set(settings.instruction_set());
     let ws = &mut ws;
     let fd = |ws: &mut Workspace, s: &State, method| {
         forward_dynamics(

@@ -21,11 +21,14 @@
 //! RNEA in spatial vectors, eq. 21 gravity as an upward acceleration of the world, §3.1 the
 //! particle example, Appendices A and B the spatial terms and operators (the README says more).
 
-#![forbid(unsafe_code)]
+// One `unsafe` block, in `instruction_set`: the call into passes compiled for AVX2, made only
+// once the processor has been found to run them.
+#![deny(unsafe_code)]
 
 pub mod algorithms;
 pub mod double_double;
 pub mod error;
+pub mod instruction_set;
 pub mod model;
 pub(crate) mod plan;
 pub mod requests;
@@ -37,6 +40,7 @@ mod workspace;
 
 pub use algorithms::{Externals, ForwardDynamicsMethod};
 pub use error::{DynamicsError, ModelError};
+pub use instruction_set::InstructionSet;
 pub use model::{Model, ModelOptions};
 /// The FLOP model the plan chooses by, public for the benchmarks: `flops` prices each spatial
 /// operation, `flop_table::kernel_flops(model, name)` counts a kernel on a model.

@@ -8,6 +8,7 @@ use crate::error::DynamicsError;
 use crate::model::{JointKind, Model, MotionSubspace};
 use crate::plan::Plan;
 use crate::spatial::{Force, Inertia, Matrix6, Motion, Transform, Vector3};
+use crate::InstructionSet;
 use nalgebra::{DMatrix, DVector};
 
 /// Every intermediate quantity of the algorithms, per body and per coordinate. Quantities per
@@ -183,6 +184,18 @@ impl Workspace {
             model: model.name.clone(),
             model_id: model.id,
         }
+    }
+
+    /// The instruction set the dispatched passes run in: the fastest this processor runs
+    /// ([`InstructionSet::best`]) unless [`set_instruction_set`](Self::set_instruction_set) chose
+    /// another. Every set computes the same bits ([`crate::instruction_set`]).
+    pub fn instruction_set(&self) -> InstructionSet {
+        self.plan.instruction_set
+    }
+
+    /// Runs the dispatched passes in `set` from now on (benchmarks and tests compare the sets).
+    pub fn set_instruction_set(&mut self, set: InstructionSet) {
+        self.plan.instruction_set = set;
     }
 
     /// The last generalized forces computed (inverse dynamics, bias or gravity).

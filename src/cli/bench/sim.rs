@@ -90,8 +90,9 @@ pub fn time_simulation(
     model: &Model,
     integrator: Integrator,
     settings: &SimSettings,
-    repeats: usize,
+    timing: &super::Settings,
 ) -> Result<SimTiming, String> {
+    let repeats = timing.repeats;
     let initial = settings.initial(model)?;
     let config = SimConfig {
         integrator,
@@ -100,6 +101,7 @@ pub fn time_simulation(
     };
     let tau = vec![0.0; model.nv()];
     let mut sim = Simulator::new(model, config)?;
+    sim.set_instruction_set(timing.instruction_set());
     let mut state = initial.clone();
     let mut run = |state: &mut State| -> Result<f64, String> {
         state.clone_from(&initial);
@@ -153,7 +155,13 @@ mod tests {
             sim_dt: 1e-3,
             sim_initial: Some(r#"{"q": [0.3], "v": [0.0]}"#.into()),
         };
-        let t = time_simulation(&model, Integrator::Rk4, &settings, 1).unwrap();
+        let timing = crate::cli::bench::Settings {
+            states: 1,
+            repeats: 1,
+            min_time: 1e-3,
+            baseline_instructions: false,
+        };
+        let t = time_simulation(&model, Integrator::Rk4, &settings, &timing).unwrap();
         assert!(t.ns_per_step > 0.0);
         let expected = 0.3 - 0.5 * 1.5 * 9.81 * 0.3f64.sin() * 0.01;
         assert!((t.end.q[0] - expected).abs() < 2e-3, "{}", t.end.q[0]);
@@ -162,7 +170,7 @@ mod tests {
             sim_initial: Some(r#"{"q": [0.3, 1.0]}"#.into()),
             ..settings
         };
-        let err = time_simulation(&model, Integrator::Rk4, &bad, 1)
+        let err = time_simulation(&model, Integrator::Rk4, &bad, &timing)
             .err()
             .unwrap();
         assert!(err.contains("\"q\" must be an array of 1"), "{err}");

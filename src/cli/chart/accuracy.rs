@@ -97,12 +97,14 @@ fn chain_points(chain: &Chain, r: f64, count: usize, quick: bool) -> Result<Vec<
             states: 4,
             repeats: 1,
             min_time: 1e-3,
+            baseline_instructions: false,
         }
     } else {
         Settings {
             states: (8192 / n).clamp(32, 1024),
             repeats: 3,
             min_time: 0.05,
+            baseline_instructions: false,
         }
     };
     let times = bench::time_kernels(&model, &KERNELS, &settings)

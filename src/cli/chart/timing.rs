@@ -65,12 +65,14 @@ fn settings(nv: usize, quick: bool) -> Settings {
             states: 4,
             repeats: 1,
             min_time: 1e-3,
+            baseline_instructions: false,
         };
     }
     Settings {
         states: (8192 / nv.max(1)).clamp(32, 1024),
         repeats: 5,
         min_time: 0.1,
+        baseline_instructions: false,
     }
 }
 

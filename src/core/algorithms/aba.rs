@@ -44,6 +44,7 @@ use super::kinematics::{
 use super::validate::{check_forward_inputs, check_result};
 use super::Externals;
 use crate::error::DynamicsError;
+use crate::instruction_set::run_pass;
 use crate::model::{Body, JointKind, Model, MotionSubspace};
 use crate::spatial::{Force, Matrix3, Matrix6, Motion, Translation, Vector3};
 use crate::Workspace;
@@ -103,6 +104,7 @@ pub(crate) fn refuse_mimic(model: &Model) -> Result<(), DynamicsError> {
 /// Pass 1: placements, world-frame axes, velocities, velocity-product accelerations, initial
 /// articulated quantities (joints already updated). A mimic follower moves with `μ q̇_leader`
 /// (a 1-DOF joint: its `c_J` is zero), so these quantities are right for mimic models too.
+#[inline]
 pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
     // ⁱX_0 = ⁱX_λ(i) λ(i)X_0   (RBDA Table 7.1), from each body's aligned frame
     update_aligned_placements(model, ws, Anchors::Spaced);
@@ -113,8 +115,13 @@ pub(crate) fn velocity_pass(model: &Model, ws: &mut Workspace, v: &[f64], ext: &
 
 /// Pass 1's world-frame axes `S_i`, velocities `v_i` and velocity-product accelerations `c_i`
 /// from the placements.
-#[inline(never)]
 fn velocities(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
+    run_pass!(velocities_in(model, ws, v, ext))
+}
+
+/// [`velocities`]'s body, compiled once per instruction set ([`run_pass`]).
+#[inline(always)]
+fn velocities_in(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>) {
     let Workspace {
         plan,
         s,
@@ -169,8 +176,13 @@ fn velocities(model: &Model, ws: &mut Workspace, v: &[f64], ext: &Externals<'_>)
 /// `(m, h, Ī)` in `ws.ic[i]`. A function of its own, not inlined, and apart from the bias
 /// forces: with the kinematics of [`velocity_pass`] or the products of `p^A_i` in the same
 /// loop, the processor's registers overflow to the stack.
-#[inline(never)]
 fn rigid_inertias(model: &Model, ws: &mut Workspace) {
+    run_pass!(rigid_inertias_in(model, ws))
+}
+
+/// [`rigid_inertias`]'s body, compiled once per instruction set ([`run_pass`]).
+#[inline(always)]
+fn rigid_inertias_in(model: &Model, ws: &mut Workspace) {
     // Zipped slices: one pointer step per body, no index arithmetic or bounds checks.
     let bodies = model.bodies.iter().zip(&ws.x_aligned);
     let outputs = ws.ia.iter_mut().zip(ws.ic.iter_mut());
@@ -184,8 +196,13 @@ fn rigid_inertias(model: &Model, ws: &mut Workspace) {
 
 /// Pass 1's initial articulated bias forces `p^A_i` from the velocities and the rigid inertias
 /// in world coordinates ([`rigid_inertias`]).
-#[inline(never)]
 fn rigid_bias_forces(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
+    run_pass!(rigid_bias_forces_in(model, ws, ext))
+}
+
+/// [`rigid_bias_forces`]'s body, compiled once per instruction set ([`run_pass`]).
+#[inline(always)]
+fn rigid_bias_forces_in(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
     let n = model.bodies.len();
     // Zipped slices: one pointer step per body.
     let bodies = ws.x_aligned[..n].iter().zip(&ws.ic).zip(&ws.v_world);
@@ -216,6 +233,7 @@ struct Slots<'w> {
 
 impl<'w> Slots<'w> {
     /// The slots of the `n` bodies of `ws`.
+    #[inline(always)]
     fn of(ws: &'w mut Workspace, n: usize) -> Self {
         Slots {
             anchors: &ws.plan.anchors[..n],
@@ -233,6 +251,16 @@ impl<'w> Slots<'w> {
 
 /// Pass 2: articulated-body inertias and bias forces, from the leaves inward.
 pub(crate) fn articulated_pass(
+    model: &Model,
+    ws: &mut Workspace,
+    tau: &[f64],
+) -> Result<(), DynamicsError> {
+    run_pass!(articulated_pass_in(model, ws, tau))
+}
+
+/// [`articulated_pass`]'s body, compiled once per instruction set ([`run_pass`]).
+#[inline(always)]
+fn articulated_pass_in(
     model: &Model,
     ws: &mut Workspace,
     tau: &[f64],
@@ -600,6 +628,12 @@ fn accelerate_floating_root(
 /// Pass 3: accelerations, from the root outward, over each body's slots (zipped: one pointer
 /// step per body, only the parent's acceleration indexed).
 pub(crate) fn acceleration_pass(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
+    run_pass!(acceleration_pass_in(model, ws, ext))
+}
+
+/// [`acceleration_pass`]'s body, compiled once per instruction set ([`run_pass`]).
+#[inline(always)]
+fn acceleration_pass_in(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
     // a_0 = −a_g   (RBDA Table 7.1; plus the root's own acceleration)
     let a_root = ext.root_acceleration - Motion::new(Vector3::zeros(), model.gravity);
     let Workspace {

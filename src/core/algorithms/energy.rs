@@ -4,6 +4,7 @@
 use super::kinematics::{update_joints, update_placements, update_velocities};
 use super::validate::{check_q, check_v};
 use crate::error::DynamicsError;
+use crate::instruction_set::run_pass;
 use crate::model::Model;
 use crate::Workspace;
 
@@ -23,6 +24,17 @@ pub fn energy(
 /// the model's sizes, finite values, every floating joint's quaternion not (near) zero. The
 /// sums are checked once at the end: a non-finite term keeps them non-finite.
 pub(crate) fn energy_of_checked(
+    model: &Model,
+    ws: &mut Workspace,
+    q: &[f64],
+    v: &[f64],
+) -> Result<(f64, f64), DynamicsError> {
+    run_pass!(energy_of_checked_in(model, ws, q, v))
+}
+
+/// [`energy_of_checked`]'s body, compiled once per instruction set ([`run_pass`]).
+#[inline(always)]
+fn energy_of_checked_in(
     model: &Model,
     ws: &mut Workspace,
     q: &[f64],

@@ -1,10 +1,11 @@
 //! The choices the algorithms make once per model and then follow on every call: which form
 //! each joint's transform takes, where ABA's aligned frames are anchored, which coordinates CRBA
 //! works in and how it mirrors `H`, the coordinate tree's ancestor lists for the sparse
-//! factorisation, and each body's support for the frame algorithms. Built from the model alone ([`Plan::new`]); every [`Workspace`](crate::Workspace)
+//! factorisation, each body's support for the frame algorithms, and the instruction set the hot passes run in. Built from the model alone ([`Plan::new`]); every [`Workspace`](crate::Workspace)
 //! holds its model's plan beside its scratch buffers.
 
 use crate::model::{Joint, JointKind, Model, UpShape};
+use crate::InstructionSet;
 
 pub mod flop_table;
 pub mod flops;
@@ -48,6 +49,8 @@ pub struct Plan {
     /// (`turn_axes`): the turn angles whose sines and cosines a pass over the tree needs (the
     /// other joints ignore theirs).
     pub turning: std::ops::Range<usize>,
+    /// The instruction set the dispatched passes run in ([`InstructionSet::best`] unless set).
+    pub instruction_set: InstructionSet,
 }
 
 impl Plan {
@@ -78,6 +81,7 @@ impl Plan {
             dof_ancestors: model.dof_parent.as_deref().and_then(Ancestors::new),
             supports: Supports::new(model),
             turning: turning_bodies(model),
+            instruction_set: InstructionSet::best(),
         }
     }
 }

@@ -31,7 +31,7 @@ use crate::algorithms::validate::{all_finite, check_q, check_q_of, check_v};
 use crate::algorithms::{energy, forward_dynamics};
 use crate::error::{check_len, DynamicsError};
 use crate::model::JointKind;
-use crate::{Externals, ForwardDynamicsMethod, Model, Workspace};
+use crate::{Externals, ForwardDynamicsMethod, InstructionSet, Model, Workspace};
 use nalgebra::{DMatrix, DVector};
 use std::fmt;
 
@@ -240,6 +240,11 @@ impl Simulator {
             .contacts
             .as_ref()
             .map_or(0.0, |c| c.max_penetration)
+    }
+
+    /// Runs the dispatched passes in `set` ([`Workspace::set_instruction_set`]).
+    pub fn set_instruction_set(&mut self, set: InstructionSet) {
+        self.eval.ws.set_instruction_set(set);
     }
 
     /// How many effort evaluations were clamped to their limits so far.

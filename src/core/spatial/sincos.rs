@@ -89,12 +89,17 @@ pub fn sin_cos(theta: f64) -> (f64, f64) {
 /// it. When every angle is within the fast reduction's range the loop has no branch, and the
 /// compiler computes two angles at a time in SIMD registers: half the time per angle of the
 /// library's `sin_cos`, which is called one angle at a time.
+#[inline(always)]
 pub fn sin_cos_all(angles: &[f64], sines: &mut [f64], cosines: &mut [f64]) {
     let pairs = angles.iter().zip(sines).zip(cosines);
     if angles.iter().all(|x| x.abs() < REDUCTION_LIMIT) {
-        pairs.for_each(|((x, s), c)| (*s, *c) = kernel(*x));
+        for ((x, s), c) in pairs {
+            (*s, *c) = kernel(*x);
+        }
     } else {
-        pairs.for_each(|((x, s), c)| (*s, *c) = sin_cos(*x));
+        for ((x, s), c) in pairs {
+            (*s, *c) = sin_cos(*x);
+        }
     }
 }
 

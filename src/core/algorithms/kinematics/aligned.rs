@@ -4,6 +4,7 @@
 //! in them.
 
 use super::placements::below_parent;
+use crate::instruction_set::run_pass;
 use crate::model::{Model, MotionSubspace};
 use crate::spatial::{Force, Motion, Transform, Translation, Vector3};
 use crate::Workspace;
@@ -26,6 +27,12 @@ use crate::Workspace;
 /// Quantities cross between an anchor's frame and its parent's by the pure translation
 /// `xlt(anchor_shift)` ([`Translation`](crate::spatial::Translation)).
 pub(crate) fn update_aligned_placements(model: &Model, ws: &mut Workspace, anchors: Anchors) {
+    run_pass!(update_aligned_placements_in(model, ws, anchors))
+}
+
+/// [`update_aligned_placements`]'s body, compiled once per instruction set ([`run_pass`]).
+#[inline(always)]
+fn update_aligned_placements_in(model: &Model, ws: &mut Workspace, anchors: Anchors) {
     let mut previous = Transform::identity();
     for (i, body) in model.bodies.iter().enumerate() {
         let mut x = below_parent(ws, &ws.x_aligned, &previous, i, body.parent);

@@ -1,6 +1,7 @@
 //! Joint transforms: each joint's `jcalc` and `ⁱX_λ(i) = X_J X_tree` from its coordinates, and
 //! the cheapest form each transform acts in ([`with_up_transform`]).
 
+use crate::instruction_set::run_pass;
 use crate::model::{
     floating_up, turn_up, turn_up_unrotated, Body, Joint, JointKind, Model, MotionSubspace, UpShape,
 };
@@ -64,6 +65,12 @@ pub(crate) use with_up_transform;
 /// identity when its placement has no rotation ([`turn_up_unrotated`], `ws.plan.up_shapes`); its `S`
 /// is constant, set when the workspace was made.
 pub(crate) fn update_joints(model: &Model, ws: &mut Workspace, q: &[f64]) {
+    run_pass!(update_joints_in(model, ws, q))
+}
+
+/// [`update_joints`]'s body, compiled once per instruction set ([`run_pass`]).
+#[inline(always)]
+fn update_joints_in(model: &Model, ws: &mut Workspace, q: &[f64]) {
     let Workspace {
         plan,
         q_joint,

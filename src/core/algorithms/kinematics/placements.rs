@@ -46,6 +46,7 @@ pub(super) fn check_bodies(
 }
 
 /// `ws.x_world` from `ws.x_up` (joints already updated): `ⁱX_0 = ⁱX_λ ᵏX_0` for every body.
+#[inline]
 pub(crate) fn update_placements(model: &Model, ws: &mut Workspace) {
     let mut previous = Transform::identity();
     for (i, body) in model.bodies.iter().enumerate() {

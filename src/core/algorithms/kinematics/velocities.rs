@@ -11,6 +11,7 @@ use crate::Workspace;
 
 /// Body spatial velocities `v_i = ⁱX_λ v_λ + S_i q̇_i` into `ws.v` (joints already updated; base
 /// at rest).
+#[inline]
 pub(crate) fn update_velocities(model: &Model, ws: &mut Workspace, v: &[f64]) {
     for (i, body) in model.bodies.iter().enumerate() {
         let c = body.joint.coords;

@@ -1,0 +1,120 @@
+//! The instruction set the hot passes run in, chosen at run time when a workspace is made.
+//!
+//! The library is built for the baseline x86-64 target (SSE2), which every x86-64 processor
+//! runs. Processors since 2013 (Intel Haswell, AMD Zen) also have AVX2's 256-bit registers and
+//! three-operand instructions (`x86-64-v3`); the passes of ABA, of the derivatives and of the
+//! sparse factorisation take less time compiled for them (docs/performance.md). A pass whose
+//! body runs through [`InstructionSet::run`] is compiled twice, once per set, and runs the copy
+//! of the workspace's set; whatever the pass inlines is compiled into both copies.
+//!
+//! **The two copies compute the same bits.** Rust neither contracts a multiplication and an
+//! addition into one fused rounding nor reorders floating-point operations, whatever the target
+//! features, so every operation is the same IEEE operation in either copy: only the instructions
+//! that carry it differ (a test holds every dispatched kernel to exact equality).
+
+use crate::{Model, Workspace};
+
+/// The instruction set a workspace's passes run in ([`Workspace::instruction_set`](crate::Workspace::instruction_set)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InstructionSet {
+    /// The baseline of the build target (SSE2 on x86-64): runs everywhere.
+    Baseline,
+    /// AVX2 and FMA (`x86-64-v3`), on a processor that has them ([`X86V3`]).
+    #[cfg(target_arch = "x86_64")]
+    X86V3(X86V3),
+}
+
+/// Proof that the processor runs AVX2 and FMA: made only by [`InstructionSet::best`] after the
+/// processor said so, which is what makes running the [`InstructionSet::X86V3`] copies sound.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct X86V3 {
+    detected: (),
+}
+
+impl InstructionSet {
+    /// The fastest set this processor runs: [`InstructionSet::X86V3`] where it has AVX2 and
+    /// FMA, else [`InstructionSet::Baseline`].
+    pub fn best() -> InstructionSet {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            return InstructionSet::X86V3(X86V3 { detected: () });
+        }
+        InstructionSet::Baseline
+    }
+
+    /// The set's name: `baseline` or `x86-64-v3`.
+    pub fn name(self) -> &'static str {
+        match self {
+            InstructionSet::Baseline => "baseline",
+            #[cfg(target_arch = "x86_64")]
+            InstructionSet::X86V3(_) => "x86-64-v3",
+        }
+    }
+
+    /// `pass(model, ws, args)`, as a function of its own compiled for this set: the pass and
+    /// what it inlines take the set's instructions. The model, the workspace and the arguments
+    /// are the out-of-line function's own parameters, so the compiler knows, as it does for any
+    /// function taking `&mut Workspace`, that nothing else writes the workspace meanwhile.
+    #[inline(always)]
+    pub(crate) fn run<A, R>(
+        self,
+        model: &Model,
+        ws: &mut Workspace,
+        args: A,
+        pass: impl FnOnce(&Model, &mut Workspace, A) -> R,
+    ) -> R {
+        match self {
+            InstructionSet::Baseline => baseline(model, ws, args, pass),
+            #[cfg(target_arch = "x86_64")]
+            InstructionSet::X86V3(_) => {
+                // SAFETY: an `X86V3` exists only where `best` found AVX2 and FMA.
+                #[allow(unsafe_code)]
+                unsafe {
+                    x86_64_v3(model, ws, args, pass)
+                }
+            }
+        }
+    }
+}
+
+/// `run_pass!(pass(model, ws, args…))`: `pass(model, ws, args…)` in `ws`'s instruction set
+/// ([`InstructionSet::run`]), `pass` taking the model, the workspace and any further arguments
+/// (plain identifiers). `pass` is inlined into each of the set's copies.
+macro_rules! run_pass {
+    ($pass:ident($model:ident, $ws:ident $(, $arg:ident)* $(,)?)) => {
+        $ws.plan.instruction_set.run(
+            $model,
+            $ws,
+            ($($arg,)*),
+            #[inline(always)]
+            |$model, $ws, ($($arg,)*)| $pass($model, $ws $(, $arg)*),
+        )
+    };
+}
+pub(crate) use run_pass;
+
+/// The pass compiled for the build target.
+#[inline(never)]
+fn baseline<A, R>(
+    model: &Model,
+    ws: &mut Workspace,
+    args: A,
+    pass: impl FnOnce(&Model, &mut Workspace, A) -> R,
+) -> R {
+    pass(model, ws, args)
+}
+
+/// The pass compiled with AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline(never)]
+fn x86_64_v3<A, R>(
+    model: &Model,
+    ws: &mut Workspace,
+    args: A,
+    pass: impl FnOnce(&Model, &mut Workspace, A) -> R,
+) -> R {
+    pass(model, ws, args)
+}
