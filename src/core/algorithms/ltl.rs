@@ -39,6 +39,7 @@ use nalgebra::{DMatrix, DVector};
 ///
 /// Fails, naming the coordinate, when a pivot is not positive, or is so small against the
 /// original diagonal entry that every digit was lost (`H` singular or indefinite).
+#[inline(always)]
 pub(crate) fn ltl_factor(
     model: &Model,
     ancestors: &Ancestors,
@@ -49,6 +50,7 @@ pub(crate) fn ltl_factor(
 }
 
 /// [`ltl_factor`] on the storage (slices, which the compiler knows not to overlap).
+#[inline(always)]
 fn factor_rows(
     model: &Model,
     ancestors: &Ancestors,
@@ -129,6 +131,7 @@ fn short_row<const S: usize>(l: &mut [f64], h: &[f64], row: Row<'_>) -> Result<(
 
 /// Row `k` of `L` for `s ≥ 4` descendants, `c` read in place from column `k` (after the
 /// columns of the ancestors, where the row's entries go).
+#[inline(always)]
 fn long_row(l: &mut [f64], h: &[f64], row: Row<'_>, s: usize) -> Result<(), f64> {
     let Row { k, n, ancestors } = row;
     let (before, from_k) = l.split_at_mut(k * n);
@@ -223,12 +226,14 @@ fn subtract_scaled(y: &mut [f64], a: f64, x: &[f64]) {
 ///
 /// each step on the contiguous segment of column `i` below its diagonal (none for a leaf), the
 /// division a multiplication by the stored `1 / L_ii`.
+#[inline(always)]
 pub(crate) fn ltl_solve(ancestors: &Ancestors, factor: &DMatrix<f64>, x: &mut DVector<f64>) {
     solve(ancestors, factor.as_slice(), x.as_mut_slice());
 }
 
 /// [`ltl_solve`] on the storage: slices passed in, which the compiler then knows not to
 /// overlap (the matrices' buffers, reached through their structs, could as far as it knows).
+#[inline(always)]
 fn solve(ancestors: &Ancestors, l: &[f64], x: &mut [f64]) {
     let n = ancestors.len();
     // Rows i..e(i) of column i of L, and of x.
@@ -282,6 +287,7 @@ fn solve(ancestors: &Ancestors, l: &[f64], x: &mut [f64]) {
 /// The zeros `B` must hold are read all the same: the first pass takes each row `m` of `D(i)`
 /// as a term over row `i`'s columns, from `i` (or `p`) on, zeros of `m`'s identity row left of
 /// `m` included. So row `i` of `B` is read from the column of its tree's root on.
+#[inline(always)]
 pub(crate) fn ltl_solve_rows(
     ancestors: &Ancestors,
     factor: &DMatrix<f64>,

@@ -195,6 +195,7 @@ pub(crate) fn check_result(
 
 /// True when every value is finite, without a branch per value: `x · 0` is zero for a finite
 /// `x` and NaN otherwise, summed in four independent lanes (which vectorise).
+#[inline]
 pub(crate) fn all_finite(values: &[f64]) -> bool {
     let mut lanes = [0.0f64; 4];
     let chunks = values.chunks_exact(4);

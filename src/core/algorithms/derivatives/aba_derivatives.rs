@@ -51,6 +51,7 @@ use crate::algorithms::ltl::{ltl_factor, ltl_solve, ltl_solve_rows};
 use crate::algorithms::validate::{all_finite, check_forward_inputs, check_result};
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
+use crate::instruction_set::run_pass;
 use crate::model::Model;
 use crate::Workspace;
 use nalgebra::{DMatrix, DVector};
@@ -81,6 +82,25 @@ pub fn aba_derivatives<'w>(
     ext: &Externals<'_>,
 ) -> Result<AbaDerivatives<'w>, DynamicsError> {
     check_forward_inputs(model, ws, q, v, tau, ext)?;
+    run_pass!(derivatives_of_checked(model, ws, q, v, tau, ext))?;
+    Ok(AbaDerivatives {
+        ddq_dq: &ws.derivatives.ddq_dq,
+        ddq_dv: &ws.derivatives.ddq_dv,
+        minv: &ws.derivatives.minv,
+    })
+}
+
+/// [`aba_derivatives`] on checked inputs, the results checked finite; compiled once per
+/// instruction set ([`run_pass`]).
+#[inline(always)]
+fn derivatives_of_checked(
+    model: &Model,
+    ws: &mut Workspace,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    ext: &Externals<'_>,
+) -> Result<(), DynamicsError> {
     update_joints(model, ws, q);
     identity_and_zeros(&mut ws.derivatives.rhs_rows, model.nv);
     if ws.plan.dof_ancestors.is_some() {
@@ -91,7 +111,7 @@ pub fn aba_derivatives<'w>(
         derivative_passes(model, ws, v, qdd.as_slice(), ext, Target::SolveRows);
         ws.qdd = qdd;
     }
-    solve_with_factor(ws);
+    solve_with_factor(model, ws);
     let d = &ws.derivatives;
     // One branch-free pass over each result; the coordinate is looked for only on failure.
     for (quantity, m) in [
@@ -103,11 +123,7 @@ pub fn aba_derivatives<'w>(
             check_matrix(model, quantity, m)?;
         }
     }
-    Ok(AbaDerivatives {
-        ddq_dq: &ws.derivatives.ddq_dq,
-        ddq_dv: &ws.derivatives.ddq_dv,
-        minv: &ws.derivatives.minv,
-    })
+    Ok(())
 }
 
 /// `q̈` out of the workspace, for the passes that read it while they write the workspace (an
@@ -120,6 +136,7 @@ fn lend_qdd(ws: &mut Workspace) -> DVector<f64> {
 /// updated for `q`: `q̈` into `ws.qdd`, the factor of `H` into `ws.factor` and the right-hand
 /// sides' derivative entries into `ws.derivatives.rhs_rows`. Fails, naming the coordinate, on
 /// a singular `H` or a non-finite `q̈`.
+#[inline(always)]
 fn shared_passes(
     model: &Model,
     ws: &mut Workspace,
@@ -153,6 +170,7 @@ fn shared_passes(
 
 /// Forward pass A: each body's `forward_terms` at `q̈ = 0` (`S_i`, `v_i`, `ψ_i`, `β_i`, `B_i`,
 /// `I_i`, the bias acceleration `a⁰_i` and its force `f⁰_i`).
+#[inline(always)]
 fn bias_pass(model: &Model, ws: &mut Workspace, v: &[f64], root: &RootMotion, ext: &Externals<'_>) {
     update_aligned_placements(model, ws, Anchors::Roots);
     for i in 0..model.bodies.len() {
@@ -167,6 +185,7 @@ fn bias_pass(model: &Model, ws: &mut Workspace, v: &[f64], root: &RootMotion, ex
 /// (the composite-rigid-body recursion in world axes, where a force needs no transform on its
 /// way up). That is `H`'s tree pattern; `H` is zeroed first (one memset: measured faster than
 /// writing only the pattern, as `rnea_derivatives` does).
+#[inline(always)]
 fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
     let Workspace {
         s_world,
@@ -227,6 +246,7 @@ fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
 
 /// The right-hand sides before the passes add the derivatives: row `i` (of `3 nv` entries) is
 /// `e_iᵀ` then zeros.
+#[inline(always)]
 fn identity_and_zeros(rows: &mut [f64], nv: usize) {
     let k = 3 * nv;
     let rows = &mut rows[..k * nv];
@@ -247,9 +267,16 @@ fn identity_and_zeros(rows: &mut [f64], nv: usize) {
 /// `L`, `O(nv d)` per column for depth `d`, where a product with the dense `H⁻¹` costs `nv²`; with
 /// mimic joints through the dense Cholesky factor ([`cholesky_solve_rows`]). Of the symmetric `H⁻¹`
 /// the tree solve computes the upper triangle, which is mirrored here.
-fn solve_with_factor(ws: &mut Workspace) {
+fn solve_with_factor(model: &Model, ws: &mut Workspace) {
+    run_pass!(solve_with_factor_in(model, ws))
+}
+
+/// [`solve_with_factor`]'s body, compiled once per instruction set ([`run_pass`]): a pass of
+/// its own, so that the solve's loops are compiled as a function of their own size.
+#[inline(always)]
+fn solve_with_factor_in(model: &Model, ws: &mut Workspace) {
     let (plan, factor, d) = (&ws.plan, &ws.factor, &mut ws.derivatives);
-    let nv = d.minv.nrows();
+    let nv = model.nv;
     if nv == 0 {
         return; // no columns (and `chunks_exact(0)` would panic)
     }

@@ -45,6 +45,7 @@ use crate::algorithms::kinematics::{
 use crate::algorithms::validate::{all_finite, check_inverse_inputs, check_result};
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
+use crate::instruction_set::run_pass;
 use crate::model::{JointKind, Model, MotionSubspace};
 use crate::spatial::{Force, Inertia, Motion, Translation, Vector3};
 use crate::Workspace;
@@ -86,18 +87,32 @@ pub fn rnea_derivatives_with<'w>(
     ext: &Externals<'_>,
 ) -> Result<RneaDerivatives<'w>, DynamicsError> {
     check_inverse_inputs(model, ws, q, v, a, ext)?;
+    run_pass!(passes_of_checked(model, ws, q, v, a, ext))?;
+    Ok(RneaDerivatives {
+        dtau_dq: &ws.derivatives.dtau_dq,
+        dtau_dv: &ws.derivatives.dtau_dv,
+        mass_matrix: &ws.mass_matrix,
+    })
+}
+
+/// [`rnea_derivatives_with`]'s passes on checked inputs, the results checked finite; compiled
+/// once per instruction set ([`run_pass`]).
+#[inline(always)]
+fn passes_of_checked(
+    model: &Model,
+    ws: &mut Workspace,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    ext: &Externals<'_>,
+) -> Result<(), DynamicsError> {
     update_joints(model, ws, q);
     derivative_passes(model, ws, v, a, ext, Target::Matrices);
     check_result(model, "tau", ws.tau.as_slice())?;
     let d = &ws.derivatives;
     check_matrix(model, "dtau_dq", &d.dtau_dq)?;
     check_matrix(model, "dtau_dv", &d.dtau_dv)?;
-    check_matrix(model, "mass matrix", &ws.mass_matrix)?;
-    Ok(RneaDerivatives {
-        dtau_dq: &ws.derivatives.dtau_dq,
-        dtau_dv: &ws.derivatives.dtau_dv,
-        mass_matrix: &ws.mass_matrix,
-    })
+    check_matrix(model, "mass matrix", &ws.mass_matrix)
 }
 
 /// Both passes, on joints already updated for `q` (inputs already checked), the backward pass
@@ -331,6 +346,12 @@ pub(crate) enum Target {
 /// subtree and fills the entries of `∂τ/∂q`, `∂τ/∂q̇` (and of `τ` and `H` into [`Matrices`]),
 /// each from the row's and the column's bodies (one an ancestor of the other).
 pub(crate) fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
+    run_pass!(backward_pass_in(model, ws, target))
+}
+
+/// [`backward_pass`]'s body, compiled once per instruction set ([`run_pass`]).
+#[inline(always)]
+fn backward_pass_in(model: &Model, ws: &mut Workspace, target: Target) {
     let Workspace {
         s_world,
         ic,

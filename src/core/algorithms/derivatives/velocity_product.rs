@@ -44,6 +44,7 @@ impl VelocityProduct {
 
     /// `B` of a body of inertia `inertia` moving with `v` (both in the same frame), its
     /// momentum `momentum = I v` already made.
+    #[inline(always)]
     pub(crate) fn new(inertia: &Inertia, v: &Motion, momentum: &Force) -> Self {
         let (omega, u, h) = (&v.ang, &v.lin, &inertia.h);
         let p_mat = inertia.i_bar * skew(omega);
