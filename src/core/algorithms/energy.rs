@@ -8,7 +8,7 @@ use super::validate::{check_q, check_v};
 use crate::error::DynamicsError;
 use crate::instruction_set::run_pass;
 use crate::model::Model;
-use crate::spatial::Vector3;
+use crate::spatial::{Inertia, Motion, Vector3};
 use crate::Workspace;
 
 /// `(T, V)` at `(q, v)`, in joules; the base is at rest in the world.
@@ -77,7 +77,7 @@ fn body_energy(model: &Model, ws: &Workspace, i: usize) -> (f64, f64) {
 /// aligned frame's origin (`ws.ic[i]`; `h_i = m_i c_i`, `c_i` its centre of mass from that origin),
 /// both in the same frame, so
 /// ```text
-/// T = ½ Σ_i v_iᵀ I_i v_i
+/// T = ½ Σ_i v_iᵀ I_i v_i             (v_iᵀ I_i v_i by [`twice_kinetic`])
 /// V = −gᵀ Σ_i (m_i p_i + h_i)
 /// ```
 /// with `p_i` the world position of body `i`'s aligned-frame origin: the sum of the shifts `r_a`
@@ -115,7 +115,7 @@ impl AbaEnergy {
         for ((v, inertia), ((&anchor, shift), mass)) in
             bodies.zip(frames.zip(&self.subtree_mass[..n]))
         {
-            kinetic += v.dot(&inertia.apply(v));
+            kinetic += twice_kinetic(inertia, v);
             first_moment += inertia.h;
             if anchor {
                 first_moment += shift * *mass;
@@ -124,6 +124,20 @@ impl AbaEnergy {
         let (kinetic, potential) = (0.5 * kinetic, -model.gravity.dot(&first_moment));
         (kinetic.is_finite() && potential.is_finite()).then_some((kinetic, potential))
     }
+}
+
+/// `vᵀ I v` for a rigid inertia `I = (m, h, Ī)` and a velocity `v = [ω; v_O]` in the same frame,
+/// by its terms: `I v = [Ī ω + h × v_O; m v_O − h × ω]` gives
+/// `vᵀ I v = ωᵀ Ī ω + 2 ω · (h × v_O) + m |v_O|²`, with `ωᵀ Ī ω` over `Ī`'s six distinct
+/// entries (it is symmetric).
+#[inline(always)]
+fn twice_kinetic(inertia: &Inertia, v: &Motion) -> f64 {
+    let (w, i) = (&v.ang, &inertia.i_bar);
+    let diagonal = i[(0, 0)] * w.x * w.x + i[(1, 1)] * w.y * w.y + i[(2, 2)] * w.z * w.z;
+    let off_diagonal = i[(0, 1)] * w.x * w.y + i[(0, 2)] * w.x * w.z + i[(1, 2)] * w.y * w.z;
+    diagonal
+        + 2.0 * (off_diagonal + w.dot(&inertia.h.cross(&v.lin)))
+        + inertia.mass * v.lin.norm_squared()
 }
 
 /// The error for finite inputs whose energy overflows (½ m v² at v = 1e200), naming the joint
