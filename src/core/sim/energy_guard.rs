@@ -10,9 +10,18 @@
 //! joules between `T` and `V`), and it is the size of the bounded `O(h)` energy error a stable
 //! integrator shows, so only a run whose energy grows well past its own swing is stopped.
 //!
-//! The energy takes a kinematics pass, so the guard evaluates it once every
-//! [`ENERGY_CHECK_INTERVAL_S`] of simulated time (and `E(0)` before the first step), not at every
-//! step; a run that diverges is stopped at the first check after its energy passes the bound.
+//! **When the check runs.** The energy is taken once every [`ENERGY_CHECK_INTERVAL_S`] of
+//! simulated time, not at every step: `E(0)` at the state the first step starts from, then, once
+//! the interval has passed, at the state the next sub-step starts from (the state the last one
+//! left, at its time `t`, which the error reports), before that sub-step moves it. There every
+//! integrator but implicit Euler evaluates `a(q, v)` first, and with ABA (and no mimic joint)
+//! the energy comes from what that evaluation leaves in the workspace, a few operations per body
+//! ([`AbaEnergy`](crate::algorithms::energy::AbaEnergy)); with the `crba` or `rnea_columns`
+//! method, a mimic model, implicit Euler, or an evaluation that failed, it takes a kinematics
+//! pass of its own ([`energy`](crate::algorithms::energy::energy)). A run that diverges is
+//! stopped at the first check after its energy passes the bound: in the step after the one that
+//! ended the interval, with the state that step started from (a run whose last step ends an
+//! interval has that check still to come).
 
 use super::SimError;
 
@@ -44,13 +53,25 @@ impl EnergyGuard {
         *self = EnergyGuard::default();
     }
 
-    /// Whether `E(0)` is still to be measured.
-    pub(super) fn needs_initial(&self) -> bool {
-        self.initial.is_none()
+    /// Whether the energy is due at the state the next sub-step starts from: `E(0)` is still to
+    /// be measured, or [`ENERGY_CHECK_INTERVAL_S`] of simulated time has passed since the last
+    /// check.
+    pub(super) fn due(&self) -> bool {
+        self.initial.is_none() || self.since_check >= ENERGY_CHECK_INTERVAL_S * (1.0 - 1e-9)
+    }
+
+    /// Takes `(T, V)` at time `t`, when [`due`](Self::due): as `E(0)` if the run has none yet,
+    /// else checked against the budget.
+    pub(super) fn record(&mut self, t: f64, kinetic: f64, potential: f64) -> Result<(), SimError> {
+        if self.initial.is_none() {
+            self.start(kinetic, potential);
+            return Ok(());
+        }
+        self.check(t, kinetic, potential)
     }
 
     /// Records the initial `(T, V)`.
-    pub(super) fn start(&mut self, kinetic: f64, potential: f64) {
+    fn start(&mut self, kinetic: f64, potential: f64) {
         *self = EnergyGuard {
             initial: Some(kinetic + potential),
             kinetic_max: kinetic,
@@ -60,16 +81,14 @@ impl EnergyGuard {
         };
     }
 
-    /// Adds a sub-step of length `h` under commanded power `Σ|τ_i q̇_i|`; returns whether the
-    /// energy is due for a check.
-    pub(super) fn advance(&mut self, power: f64, h: f64) -> bool {
+    /// Adds a sub-step of length `h` under commanded power `Σ|τ_i q̇_i|`.
+    pub(super) fn advance(&mut self, power: f64, h: f64) {
         self.work += power * h;
         self.since_check += h;
-        self.since_check >= ENERGY_CHECK_INTERVAL_S * (1.0 - 1e-9)
     }
 
     /// Checks `(T, V)` at time `t` against the budget.
-    pub(super) fn check(&mut self, t: f64, kinetic: f64, potential: f64) -> Result<(), SimError> {
+    fn check(&mut self, t: f64, kinetic: f64, potential: f64) -> Result<(), SimError> {
         self.since_check = 0.0;
         self.kinetic_max = self.kinetic_max.max(kinetic);
         self.potential_min = self.potential_min.min(potential);

@@ -8,6 +8,9 @@
 //! | `rk4` | classical Runge–Kutta on `(q, v)`, stages through `⊕`, Munthe-Kaas on a floating base | 4 | order 4 on SE(3) too: stage twists carried to one tangent space by `dexp⁻¹` |
 //! | `implicit_euler` | `v' = v + h a(q ⊕ h v', v')`, `q' = q ⊕ h v'`, Newton on `v'` | 1 | A-stable: for stiff damping |
 //!
+//! Every scheme but implicit Euler starts with `a(q, v)` at the step's start
+//! ([`first_evaluation`]), the rest of the step follows ([`advance`]).
+//!
 //! The implicit scheme's Newton matrix `I − h ∂a/∂v − h² ∂a/∂q` is built by finite differences
 //! (2n extra forward-dynamics calls per iteration), at most 4 iterations.
 
@@ -62,7 +65,27 @@ impl FromStr for Integrator {
     }
 }
 
-/// One step of length `h`.
+/// The first evaluation of a step, `a(q, v)` at the state it starts from, into `s.k_a[0]`:
+/// every scheme but implicit Euler (whose first evaluation is at `q ⊕ h v`) begins with it.
+/// Returns whether this scheme made it. [`advance`] finishes the step; apart, the step can
+/// read what forward dynamics leaves in the workspace at the starting state (the energy
+/// guard's quantities).
+pub(super) fn first_evaluation(
+    integrator: Integrator,
+    eval: &mut Evaluator,
+    s: &mut Scratch,
+    model: &Model,
+    state: &State,
+    tau: &[f64],
+) -> Result<bool, DynamicsError> {
+    if integrator == Integrator::ImplicitEuler {
+        return Ok(false);
+    }
+    eval.acceleration(model, &state.q, &state.v, tau, &mut s.k_a[0])?;
+    Ok(true)
+}
+
+/// One step of length `h`, after its [`first_evaluation`] (`s.k_a[0] = a(q, v)`).
 pub(super) fn advance(
     integrator: Integrator,
     eval: &mut Evaluator,
@@ -74,13 +97,11 @@ pub(super) fn advance(
 ) -> Result<(), DynamicsError> {
     match integrator {
         Integrator::ExplicitEuler => {
-            eval.acceleration(model, &state.q, &state.v, tau, &mut s.k_a[0])?;
             s.configuration
                 .integrate_in_place(&mut state.q, &state.v, h)?;
             axpy(&mut state.v, h, &s.k_a[0]);
         }
         Integrator::SemiImplicitEuler => {
-            eval.acceleration(model, &state.q, &state.v, tau, &mut s.k_a[0])?;
             axpy(&mut state.v, h, &s.k_a[0]);
             s.configuration
                 .integrate_in_place(&mut state.q, &state.v, h)?;
@@ -98,7 +119,8 @@ fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
 }
 
 /// Classical RK4 in the Runge–Kutta–Munthe-Kaas form (Munthe-Kaas 1999; Iserles et al.,
-/// "Lie-group methods", Acta Numerica 2000), of order 4 on the floating base's SE(3) too.
+/// "Lie-group methods", Acta Numerica 2000), of order 4 on the floating base's SE(3) too; its
+/// first stage's evaluation `k_a[0]` is the step's [`first_evaluation`].
 ///
 /// `q` moves as `q ⊕ θ`, with `θ` in the tangent space at the step's start `q`. Stage `i`
 /// (`c = [0, ½, ½, 1]`) is evaluated at `(q ⊕ θ_i, v + c_i h k_a[i−1])` with `θ_1 = 0`,
@@ -115,24 +137,19 @@ fn rk4(
     tau: &[f64],
     h: f64,
 ) -> Result<(), DynamicsError> {
-    for stage in 0..4 {
+    // Stage 1 is at the state itself: k_a[0] is the step's first evaluation.
+    s.k_v[0].copy_from_slice(&state.v);
+    for stage in 1..4 {
         let c = [0.0, 0.5, 0.5, 1.0][stage] * h;
         let (done, rest) = s.k_v.split_at_mut(stage);
-        if stage == 0 {
-            s.q_stage.copy_from_slice(&state.q);
-            rest[0].copy_from_slice(&state.v);
-        } else {
-            s.configuration
-                .integrate(&state.q, &done[stage - 1], c, &mut s.q_stage)?;
-            for ((k, v), a) in rest[0].iter_mut().zip(&state.v).zip(&s.k_a[stage - 1]) {
-                *k = v + c * a;
-            }
+        s.configuration
+            .integrate(&state.q, &done[stage - 1], c, &mut s.q_stage)?;
+        for ((k, v), a) in rest[0].iter_mut().zip(&state.v).zip(&s.k_a[stage - 1]) {
+            *k = v + c * a;
         }
         eval.acceleration(model, &s.q_stage, &rest[0], tau, &mut s.k_a[stage])?;
-        if stage > 0 {
-            // k_v[stage] ← u_stage, with θ_stage = c u_{stage−1}.
-            dexp_inv_in_place(&s.configuration, &done[stage - 1], c, &mut rest[0]);
-        }
+        // k_v[stage] ← u_stage, with θ_stage = c u_{stage−1}.
+        dexp_inv_in_place(&s.configuration, &done[stage - 1], c, &mut rest[0]);
     }
     // Every vector cut to `n` first: the loop indexes without bounds checks.
     let n = state.v.len();

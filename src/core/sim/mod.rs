@@ -25,7 +25,7 @@ pub use forces::{Passive, PassiveForces};
 pub use integrator::Integrator;
 pub use servo::{CommandInterface, Servo, ServoAxis};
 
-use crate::algorithms::energy::energy_of_checked;
+use crate::algorithms::energy::AbaEnergy;
 use crate::algorithms::forward_dynamics::forward_dynamics_on_checked_shapes;
 use crate::algorithms::validate::{all_finite, check_q, check_q_of, check_v};
 use crate::algorithms::{energy, forward_dynamics};
@@ -181,6 +181,8 @@ pub struct Simulator {
     eval: Evaluator,
     scratch: Scratch,
     guard: EnergyGuard,
+    /// The energy from ABA's workspace, for the guard.
+    aba_energy: AbaEnergy,
     /// The bodies of the floating joints with coordinates of their own (quaternions to check).
     floating: Vec<usize>,
 }
@@ -219,6 +221,7 @@ impl Simulator {
             },
             config,
             guard: EnergyGuard::default(),
+            aba_energy: AbaEnergy::new(model),
             floating: (0..model.nbodies())
                 .filter(|&i| {
                     let joint = &model.bodies[i].joint;
@@ -279,10 +282,6 @@ impl Simulator {
     ) -> Result<(), SimError> {
         self.check_shapes(model, state, tau_cmd)
             .map_err(|source| SimError::Dynamics { t: state.t, source })?;
-        if self.guard.needs_initial() {
-            let (kinetic, potential) = self.kinetic_and_potential(model, state)?;
-            self.guard.start(kinetic, potential);
-        }
         self.eval.method = self.config.method;
         self.eval.on = self.config.passive;
         let substeps = self.config.substeps.max(1);
@@ -293,31 +292,61 @@ impl Simulator {
                 .zip(&state.v)
                 .map(|(t, v)| (t * v).abs())
                 .sum();
-            integrator::advance(
-                self.config.integrator,
+            let integrator = self.config.integrator;
+            let evaluated = integrator::first_evaluation(
+                integrator,
                 &mut self.eval,
                 &mut self.scratch,
                 model,
                 state,
                 tau_cmd,
-                h,
-            )
-            .map_err(|source| SimError::Dynamics { t: state.t, source })?;
+            );
+            if self.guard.due() {
+                let evaluated = matches!(evaluated, Ok(true));
+                let (kinetic, potential) = self.energy_at_start(model, state, evaluated)?;
+                self.guard.record(state.t, kinetic, potential)?;
+            }
+            evaluated
+                .and_then(|_| {
+                    integrator::advance(
+                        integrator,
+                        &mut self.eval,
+                        &mut self.scratch,
+                        model,
+                        state,
+                        tau_cmd,
+                        h,
+                    )
+                })
+                .map_err(|source| SimError::Dynamics { t: state.t, source })?;
             state.t += h;
-            let check_energy = self.guard.advance(power, h);
+            self.guard.advance(power, h);
             if !(all_finite(&state.q) && all_finite(&state.v)) {
                 return Err(non_finite(model, state));
             }
-            if check_energy {
-                // The state has the model's sizes (checked at the start), finite values
-                // (above) and unit quaternions (from `⊕`).
-                let (kinetic, potential) =
-                    energy_of_checked(model, &mut self.eval.ws, &state.q, &state.v)
-                        .map_err(|source| SimError::Dynamics { t: state.t, source })?;
-                self.guard.check(state.t, kinetic, potential)?;
-            }
         }
         Ok(())
+    }
+
+    /// `(T, V)` at the state a sub-step starts from, for the energy guard: from what forward
+    /// dynamics by ABA left in the workspace when the sub-step's first evaluation ran at that
+    /// state (`evaluated`, [`AbaEnergy`]), else (the `crba` or `rnea_columns` method, a mimic
+    /// model, implicit Euler, an evaluation that failed, a sum that overflowed) by a kinematics
+    /// pass of its own, which checks the state and names what fails.
+    fn energy_at_start(
+        &mut self,
+        model: &Model,
+        state: &State,
+        evaluated: bool,
+    ) -> Result<(f64, f64), SimError> {
+        let from_aba =
+            evaluated && self.eval.method == ForwardDynamicsMethod::Aba && !self.eval.mimic;
+        if from_aba {
+            if let Some(energy) = self.aba_energy.of(model, &self.eval.ws) {
+                return Ok(energy);
+            }
+        }
+        self.kinetic_and_potential(model, state)
     }
 }
 
