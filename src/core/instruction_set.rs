@@ -53,13 +53,11 @@ impl InstructionSet {
         }
     }
 
-    /// `pass(model, ws, args)` through the set's copy of it: `baseline` or `x86_64_v3`, each
-    /// `pass` compiled as a function of its own for its set ([`run_pass`] makes them). The
-    /// model, the workspace and the arguments are the copy's own parameters, so the compiler
-    /// knows, as it does for any function taking `&mut Workspace`, that nothing else writes the
-    /// workspace meanwhile. `x86_64_v3` is called only under [`InstructionSet::X86V3`], and must
-    /// need nothing more than AVX2 and FMA: the `#[target_feature(enable = "avx2,fma")]` copy
-    /// that [`run_pass`] passes.
+    /// `pass(model, ws, args)` through the set's copy of it, each `pass` compiled as a function
+    /// of its own for its set: `baseline` ([`run_pass`] defines it in the pass's module) or
+    /// [`x86_64_v3`]. The model, the workspace and the arguments are the copy's own parameters,
+    /// so the compiler knows, as it does for any function taking `&mut Workspace`, that nothing
+    /// else writes the workspace meanwhile.
     #[inline(always)]
     pub(crate) fn run<A, R, P: FnOnce(&Model, &mut Workspace, A) -> R>(
         self,
@@ -68,14 +66,12 @@ impl InstructionSet {
         args: A,
         pass: P,
         baseline: fn(&Model, &mut Workspace, A, P) -> R,
-        #[cfg(target_arch = "x86_64")] x86_64_v3: unsafe fn(&Model, &mut Workspace, A, P) -> R,
     ) -> R {
         match self {
             InstructionSet::Baseline => baseline(model, ws, args, pass),
             #[cfg(target_arch = "x86_64")]
             InstructionSet::X86V3(_) => {
-                // SAFETY: an `X86V3` exists only where `best` found AVX2 and FMA, all that
-                // `x86_64_v3` (compiled with `avx2,fma` by `run_pass`) needs.
+                // SAFETY: an `X86V3` exists only where `best` found AVX2 and FMA.
                 #[allow(unsafe_code)]
                 unsafe {
                     x86_64_v3(model, ws, args, pass)
@@ -89,29 +85,20 @@ impl InstructionSet {
 /// ([`InstructionSet::run`]), `pass` taking the model, the workspace and any further arguments
 /// (plain identifiers). `pass` is inlined into each of the set's copies.
 ///
-/// The copies are generic functions defined where the macro is used, not in this module: the
-/// compiler places a generic function's instances in the codegen unit of the module that
-/// defines it, so each copy sits with the pass's own module. There the helpers the pass calls
-/// (not `#[inline]`) can be inlined, and those left out of line carry what the optimiser
-/// learned about them (which arguments they only read), as in a pass not dispatched.
+/// The baseline copy is a generic function defined where the macro is used: the compiler
+/// places a generic function's instances in the codegen unit of the module that defines it, so
+/// it sits with the pass's own module. There the helpers the pass calls (not `#[inline]`) can
+/// be inlined, and those left out of line carry what the optimiser learned about them (which
+/// arguments they only read), as in a pass not dispatched. The AVX2 copy stays in this
+/// module ([`x86_64_v3`]): placed with the pass, the optimiser packs ABA's articulated pass
+/// into lane-crossing 256-bit shuffles (`vperm2f128`, `vpermpd`, `vinsertf128`), fewer
+/// instructions that take longer: `fd_aba` 3–5 % slower on UR5, Solo12 and TALOS (same-run
+/// A/B on the benchmark machine's AMD EPYC, 2026-11-27).
 macro_rules! run_pass {
     ($pass:ident($model:ident, $ws:ident $(, $arg:ident)* $(,)?)) => {{
         /// The pass compiled for the build target.
         #[inline(never)]
         fn baseline<A, R, P: FnOnce(&$crate::Model, &mut $crate::Workspace, A) -> R>(
-            model: &$crate::Model,
-            ws: &mut $crate::Workspace,
-            args: A,
-            pass: P,
-        ) -> R {
-            pass(model, ws, args)
-        }
-
-        /// The pass compiled with AVX2 and FMA.
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = "avx2,fma")]
-        #[inline(never)]
-        fn x86_64_v3<A, R, P: FnOnce(&$crate::Model, &mut $crate::Workspace, A) -> R>(
             model: &$crate::Model,
             ws: &mut $crate::Workspace,
             args: A,
@@ -127,9 +114,20 @@ macro_rules! run_pass {
             #[inline(always)]
             |$model, $ws, ($($arg,)*)| $pass($model, $ws $(, $arg)*),
             baseline,
-            #[cfg(target_arch = "x86_64")]
-            x86_64_v3,
         )
     }};
 }
 pub(crate) use run_pass;
+
+/// The pass compiled with AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline(never)]
+fn x86_64_v3<A, R>(
+    model: &Model,
+    ws: &mut Workspace,
+    args: A,
+    pass: impl FnOnce(&Model, &mut Workspace, A) -> R,
+) -> R {
+    pass(model, ws, args)
+}
