@@ -53,17 +53,19 @@ impl InstructionSet {
         }
     }
 
-    /// `pass(model, ws, args)`, as a function of its own compiled for this set: the pass and
-    /// what it inlines take the set's instructions. The model, the workspace and the arguments
-    /// are the out-of-line function's own parameters, so the compiler knows, as it does for any
-    /// function taking `&mut Workspace`, that nothing else writes the workspace meanwhile.
+    /// `pass(model, ws, args)` through the set's copy of it, each `pass` compiled as a function
+    /// of its own for its set: `baseline` ([`run_pass`] defines it in the pass's module) or
+    /// [`x86_64_v3`]. The model, the workspace and the arguments are the copy's own parameters,
+    /// so the compiler knows, as it does for any function taking `&mut Workspace`, that nothing
+    /// else writes the workspace meanwhile.
     #[inline(always)]
-    pub(crate) fn run<A, R>(
+    pub(crate) fn run<A, R, P: FnOnce(&Model, &mut Workspace, A) -> R>(
         self,
         model: &Model,
         ws: &mut Workspace,
         args: A,
-        pass: impl FnOnce(&Model, &mut Workspace, A) -> R,
+        pass: P,
+        baseline: fn(&Model, &mut Workspace, A, P) -> R,
     ) -> R {
         match self {
             InstructionSet::Baseline => baseline(model, ws, args, pass),
@@ -82,29 +84,40 @@ impl InstructionSet {
 /// `run_pass!(pass(model, ws, args…))`: `pass(model, ws, args…)` in `ws`'s instruction set
 /// ([`InstructionSet::run`]), `pass` taking the model, the workspace and any further arguments
 /// (plain identifiers). `pass` is inlined into each of the set's copies.
+///
+/// The baseline copy is a generic function defined where the macro is used: the compiler
+/// places a generic function's instances in the codegen unit of the module that defines it, so
+/// it sits with the pass's own module. There the helpers the pass calls (not `#[inline]`) can
+/// be inlined, and those left out of line carry what the optimiser learned about them (which
+/// arguments they only read), as in a pass not dispatched. The AVX2 copy stays in this
+/// module ([`x86_64_v3`]): placed with the pass, the optimiser packs ABA's articulated pass
+/// into lane-crossing 256-bit shuffles (`vperm2f128`, `vpermpd`, `vinsertf128`), fewer
+/// instructions that take longer: `fd_aba` 3–5 % slower on UR5, Solo12 and TALOS (same-run
+/// A/B on the benchmark machine's AMD EPYC, 2026-11-27).
 macro_rules! run_pass {
-    ($pass:ident($model:ident, $ws:ident $(, $arg:ident)* $(,)?)) => {
+    ($pass:ident($model:ident, $ws:ident $(, $arg:ident)* $(,)?)) => {{
+        /// The pass compiled for the build target.
+        #[inline(never)]
+        fn baseline<A, R, P: FnOnce(&$crate::Model, &mut $crate::Workspace, A) -> R>(
+            model: &$crate::Model,
+            ws: &mut $crate::Workspace,
+            args: A,
+            pass: P,
+        ) -> R {
+            pass(model, ws, args)
+        }
+
         $ws.plan.instruction_set.run(
             $model,
             $ws,
             ($($arg,)*),
             #[inline(always)]
             |$model, $ws, ($($arg,)*)| $pass($model, $ws $(, $arg)*),
+            baseline,
         )
-    };
+    }};
 }
 pub(crate) use run_pass;
-
-/// The pass compiled for the build target.
-#[inline(never)]
-fn baseline<A, R>(
-    model: &Model,
-    ws: &mut Workspace,
-    args: A,
-    pass: impl FnOnce(&Model, &mut Workspace, A) -> R,
-) -> R {
-    pass(model, ws, args)
-}
 
 /// The pass compiled with AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
