@@ -1,8 +1,8 @@
 //! The instruction set the hot passes run in, chosen at run time when a workspace is made.
 //!
 //! The library is built for the baseline x86-64 target (SSE2), which every x86-64 processor
-//! runs. Processors since 2013 (Intel Haswell, AMD Zen) also have AVX2's 256-bit registers and
-//! three-operand instructions (`x86-64-v3`); the passes of ABA, of the derivatives and of the
+//! runs. Intel's processors since 2013 (Haswell) and AMD's since 2015 (Excavator, then Zen) also
+//! have AVX2's 256-bit registers and three-operand instructions (`x86-64-v3`); the passes of ABA, of the derivatives and of the
 //! sparse factorisation take less time compiled for them (docs/performance.md). A pass whose
 //! body runs through [`InstructionSet::run`] is compiled twice, once per set, and runs the copy
 //! of the workspace's set; whatever the pass inlines is compiled into both copies.
