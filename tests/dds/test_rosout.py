@@ -52,8 +52,14 @@ def test_start_up_info_and_bad_input_warning_on_rosout(nodes, ros):
     warn = provoke_warning(ros, log, "spatial_dynamics")
     assert warn.level == Log.WARN == 30
     assert "no_such_joint" in warn.msg and warn.file.endswith("src/node/health.rs"), warn
-    # The publisher has rcl's rosout QoS (history depth is not part of discovery).
-    infos = [i for i in ros.node.get_publishers_info_by_topic("/rosout") if i.node_name == "spatial_dynamics"]
+    # The publisher has rcl's rosout QoS (history depth is not part of discovery). The graph names
+    # a writer's node once that node's participant entities (ros_discovery_info) have arrived, which
+    # may be after the writer's first lines: the graph is waited for, as `ros2 topic info` would be.
+    def ours():
+        return [i for i in ros.node.get_publishers_info_by_topic("/rosout") if i.node_name == "spatial_dynamics"]
+
+    ros.spin_until(lambda: len(ours()) == 1, sd.EVENT_S)
+    infos = ours()
     assert len(infos) == 1, infos
     qos = infos[0].qos_profile
     assert qos.reliability == ReliabilityPolicy.RELIABLE and qos.durability == DurabilityPolicy.TRANSIENT_LOCAL, qos
