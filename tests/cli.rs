@@ -339,6 +339,30 @@ fn root_and_tip_reduce_the_model_and_say_so() {
     );
 }
 
+/// `bench --json` names the instruction set it timed: the processor's best without a flag (the
+/// library's own detection), the baseline with `--baseline-instructions`, for the kernels and
+/// for the simulation alone.
+#[test]
+fn bench_reports_the_instruction_set_it_timed() {
+    let best = spatial_dynamics_core::InstructionSet::best().name();
+    for (kernels, flags, expected) in [
+        ("fd_aba", &[][..], best),
+        ("fd_aba", &["--baseline-instructions"][..], "baseline"),
+        ("sim_rk4", &[][..], best),
+        ("sim_rk4", &["--baseline-instructions"][..], "baseline"),
+    ] {
+        let args = [
+            &["--builtin", "pendulum:2", "--states", "4", "--repeats", "1"][..],
+            &["--kernels", kernels, "--sim-steps", "10"][..],
+            flags,
+        ]
+        .concat();
+        let (v, out) = bench_json(&args);
+        assert_eq!(v["instruction_set"], expected, "{kernels} {flags:?}: {out}");
+        assert!(v["ns_per_call"][kernels].as_f64().is_some(), "{out}");
+    }
+}
+
 #[test]
 fn bench_prints_the_json_contract() {
     let (v, out) = bench_json(&[

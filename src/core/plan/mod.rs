@@ -1,7 +1,8 @@
 //! The choices the algorithms make once per model and then follow on every call: which form
 //! each joint's transform takes, where ABA's aligned frames are anchored, which coordinates CRBA
 //! works in and how it mirrors `H`, the coordinate tree's ancestor lists for the sparse
-//! factorisation, each body's support for the frame algorithms, and the instruction set the hot passes run in. Built from the model alone ([`Plan::new`]); every [`Workspace`](crate::Workspace)
+//! factorisation, each body's support for the frame algorithms, and the instruction set the hot passes run in. Built from the model alone ([`Plan::new`]), the
+//! instruction set from the processor; every [`Workspace`](crate::Workspace)
 //! holds its model's plan beside its scratch buffers.
 
 use crate::model::{Joint, JointKind, Model, UpShape};
@@ -10,7 +11,9 @@ use crate::InstructionSet;
 pub mod flop_table;
 pub mod flops;
 
-/// What the algorithms decide once for a model. Fixed for the model's lifetime.
+/// What the algorithms decide once for a model. Fixed for the model's lifetime, but for the
+/// instruction set, detected from the processor and open to a caller's choice
+/// ([`Workspace::set_instruction_set`](crate::Workspace::set_instruction_set)).
 #[derive(Clone, Debug)]
 pub struct Plan {
     /// `Some((k, σ))` for a revolute joint about a coordinate axis `σ e_k`
