@@ -48,7 +48,7 @@ use crate::algorithms::cholesky::cholesky_solve_rows;
 use crate::algorithms::forward_dynamics::crba_solve_on_joints;
 use crate::algorithms::kinematics::{update_aligned_placements, update_joints, Anchors};
 use crate::algorithms::ltl::{ltl_factor, ltl_solve, ltl_solve_rows};
-use crate::algorithms::validate::{all_finite, check_forward_inputs, check_result};
+use crate::algorithms::validate::{all_finite_long, check_forward_inputs, check_result};
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::instruction_set::run_pass;
@@ -119,7 +119,7 @@ fn derivatives_of_checked(
         ("ddq_dv", &d.ddq_dv),
         ("Minv", &d.minv),
     ] {
-        if !all_finite(m.as_slice()) {
+        if !all_finite_long(m.as_slice()) {
             check_matrix(model, quantity, m)?;
         }
     }

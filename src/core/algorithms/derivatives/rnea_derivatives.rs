@@ -42,7 +42,7 @@ use super::DerivativeScratch;
 use crate::algorithms::kinematics::{
     update_aligned_placements, update_joints, update_world_axes, Anchors,
 };
-use crate::algorithms::validate::{all_finite, check_inverse_inputs, check_result};
+use crate::algorithms::validate::{all_finite_long, check_inverse_inputs, check_result};
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::instruction_set::run_pass;
@@ -753,14 +753,14 @@ impl RowVectors {
 }
 
 /// Every entry of `m` is finite; names the coordinate of the first row that is not. The whole
-/// storage is probed at once ([`all_finite`]); only a matrix that fails is searched column by
+/// storage is probed at once ([`all_finite_long`]); only a matrix that fails is searched column by
 /// column for the row to name.
 pub(crate) fn check_matrix(
     model: &Model,
     quantity: &'static str,
     m: &DMatrix<f64>,
 ) -> Result<(), DynamicsError> {
-    if all_finite(m.as_slice()) {
+    if all_finite_long(m.as_slice()) {
         return Ok(());
     }
     m.column_iter()
