@@ -2,10 +2,11 @@
 //!
 //! The library is built for the baseline x86-64 target (SSE2), which every x86-64 processor
 //! runs. Intel's processors since 2013 (Haswell) and AMD's since 2015 (Excavator, then Zen) also
-//! have AVX2's 256-bit registers and three-operand instructions (`x86-64-v3`); the passes of ABA, of the derivatives and of the
-//! sparse factorisation take less time compiled for them (docs/performance.md). A pass whose
-//! body runs through [`InstructionSet::run`] is compiled twice, once per set, and runs the copy
-//! of the workspace's set; whatever the pass inlines is compiled into both copies.
+//! have AVX2's 256-bit registers and three-operand instructions (`x86-64-v3`); the passes of
+//! ABA, of the derivatives and of the sparse factorisation take less time compiled for them
+//! (docs/performance.md). A pass whose body runs through [`InstructionSet::run`] is compiled
+//! twice, once per set, and runs the copy of the workspace's set; whatever the pass inlines is
+//! compiled into both copies.
 //!
 //! **The two copies compute the same bits.** Rust neither contracts a multiplication and an
 //! addition into one fused rounding nor reorders floating-point operations, whatever the target
@@ -14,7 +15,8 @@
 
 use crate::{Model, Workspace};
 
-/// The instruction set a workspace's passes run in ([`Workspace::instruction_set`](crate::Workspace::instruction_set)).
+/// The instruction set a workspace's passes run in
+/// ([`Workspace::instruction_set`](crate::Workspace::instruction_set)).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum InstructionSet {
     /// The baseline of the build target (SSE2 on x86-64): runs everywhere.

@@ -1,9 +1,10 @@
 //! The choices the algorithms make once per model and then follow on every call: which form
 //! each joint's transform takes, where ABA's aligned frames are anchored, which coordinates CRBA
 //! works in and how it mirrors `H`, the coordinate tree's ancestor lists for the sparse
-//! factorisation, each body's support for the frame algorithms, and the instruction set the hot passes run in. Built from the model alone ([`Plan::new`]), the
-//! instruction set from the processor; every [`Workspace`](crate::Workspace)
-//! holds its model's plan beside its scratch buffers.
+//! factorisation, each body's support for the frame algorithms, and the instruction set the hot
+//! passes run in. Built from the model alone ([`Plan::new`]), the instruction set from the
+//! processor; every [`Workspace`](crate::Workspace) holds its model's plan beside its scratch
+//! buffers.
 
 use crate::model::{Joint, JointKind, Model, UpShape};
 use crate::InstructionSet;
