@@ -13,7 +13,9 @@
 #   Environment: STATES (1024), REPEATS (7), MIN_TIME (0.2 s per repeat) go to both benches;
 #   ROUNDS (1) times each robot that many times, ours then Pinocchio back to back, and reports
 #   per cell the median over rounds of each round's ratio (on a shared VM whose speed drifts by
-#   tens of percent over minutes, a ratio of two runs taken seconds apart is what holds);
+#   tens of percent over minutes, a ratio of two runs taken seconds apart is what holds) and,
+#   with more than one round, each library's fastest round against the other's (a VM whose
+#   speed switches between levels can put ours and Pinocchio at different levels in one round);
 #   MARCH (native) is g++'s -march for the Pinocchio bench; OURS_NATIVE=1 also builds ours with
 #   -C target-cpu=native (into target/bench-native, so the shared target/release is untouched);
 #   SKIP_BUILD=1 uses our binary as it is, OURS_BIN=PATH another binary (implies SKIP_BUILD);
@@ -176,6 +178,12 @@ def ratio_of(row, k):
                      or r["pinocchio"]["ns_per_call"][k] is None
                      else r["pinocchio"]["ns_per_call"][k] / r["ours"]["ns_per_call"][k])
 
+def fastest_ratio_of(row, k):
+    # Each library's fastest round against the other's: on a VM whose speed switches between
+    # levels minutes apart, a round can see ours at one level and Pinocchio at another.
+    times = [[r[lib]["ns_per_call"][k] for r in row["rounds"]] for lib in ("pinocchio", "ours")]
+    return None if None in times[0] + times[1] else min(times[0]) / min(times[1])
+
 def ns(x):
     return "n/a" if x is None else f"{x:,.0f}"
 
@@ -202,6 +210,15 @@ print("|---|---:|" + "---:|" * len(kernels))
 for r in rows:
     cells = [ratio(ratio_of(r, k)) for k in kernels]
     print(f'| {r["robot"]} ({r["urdf"]}) | {r["ours"]["nv"]} | ' + " | ".join(cells) + " |")
+if rows and len(rows[0]["rounds"]) > 1:
+    print()
+    print("Pinocchio's fastest round / ours (the same rounds, each library's least time):")
+    print()
+    print("| robot | nv | " + " | ".join(kernels) + " |")
+    print("|---|---:|" + "---:|" * len(kernels))
+    for r in rows:
+        cells = [ratio(fastest_ratio_of(r, k)) for k in kernels]
+        print(f'| {r["robot"]} ({r["urdf"]}) | {r["ours"]["nv"]} | ' + " | ".join(cells) + " |")
 d = rows[0]["pinocchio"]["detail"]["pinocchio"] if rows else "?"
 print()
 print(f"Pinocchio {d}; crba, fd_aba and fd_crba: the faster of its LOCAL and WORLD conventions "
