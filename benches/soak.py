@@ -36,6 +36,9 @@ NAMES = [f"joint{i}" for i in range(1, 8)]
 NODE = "/spatial_dynamics"
 OUTPUTS = (f"{NODE}/gravity_effort", f"{NODE}/acceleration")
 SERVICES = ("inverse_dynamics", "forward_dynamics", "mass_matrix")
+# The output receivers' reader depth: 2 s at 5 kHz, 1 s at 10 kHz. On a loaded 2-core machine the
+# receivers (Python) fall behind by more than 0.2 s at times.
+RECEIVER_DEPTH = 10000
 STAMP = struct.Struct("<iI")  # header.stamp (sec, nanosec) right after the 4-byte CDR encapsulation
 
 
@@ -131,7 +134,11 @@ def run_receiver(args):
             state["foreign"] += 1
 
     cls = JointDynamics if args.topic.endswith("acceleration") else JointState
-    node.create_subscription(cls, args.topic, received, QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE), raw=True)
+    # A keep-last reader drops its oldest unread sample when full, so its depth is how far
+    # this Python process may fall behind the node before an output the node sent counts as
+    # lost (RECEIVER_DEPTH).
+    node.create_subscription(cls, args.topic, received,
+                             QoSProfile(depth=RECEIVER_DEPTH, reliability=ReliabilityPolicy.RELIABLE), raw=True)
     executor = EventsExecutor()
     executor.add_node(node)
     end = time.monotonic() + 10
