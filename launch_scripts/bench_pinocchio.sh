@@ -201,24 +201,22 @@ for r in rows:
         o, p = ns_of(r, "ours", k), ns_of(r, "pinocchio", k)
         print(f"| {name} | {nv} | {k} | {ns(o)} | {ns(p)} | {ratio(ratio_of(r, k))} |")
 
-print()
-print(f"Pinocchio / ours (> 1: we are faster; median over {len(rows[0]['rounds']) if rows else 0} "
-      "round(s) of the ratio within each round):")
-print()
-print("| robot | nv | " + " | ".join(kernels) + " |")
-print("|---|---:|" + "---:|" * len(kernels))
-for r in rows:
-    cells = [ratio(ratio_of(r, k)) for k in kernels]
-    print(f'| {r["robot"]} ({r["urdf"]}) | {r["ours"]["nv"]} | ' + " | ".join(cells) + " |")
-if rows and len(rows[0]["rounds"]) > 1:
+def ratio_table(title, ratio_in):
     print()
-    print("Pinocchio's fastest round / ours (the same rounds, each library's least time):")
+    print(title)
     print()
     print("| robot | nv | " + " | ".join(kernels) + " |")
     print("|---|---:|" + "---:|" * len(kernels))
     for r in rows:
-        cells = [ratio(fastest_ratio_of(r, k)) for k in kernels]
+        cells = [ratio(ratio_in(r, k)) for k in kernels]
         print(f'| {r["robot"]} ({r["urdf"]}) | {r["ours"]["nv"]} | ' + " | ".join(cells) + " |")
+
+ratio_table(f"Pinocchio / ours (> 1: we are faster; median over "
+            f"{len(rows[0]['rounds']) if rows else 0} round(s) of the ratio within each round):",
+            ratio_of)
+if rows and len(rows[0]["rounds"]) > 1:
+    ratio_table("Pinocchio's fastest round / ours (the same rounds, each library's least time):",
+                fastest_ratio_of)
 d = rows[0]["pinocchio"]["detail"]["pinocchio"] if rows else "?"
 print()
 print(f"Pinocchio {d}; crba, fd_aba and fd_crba: the faster of its LOCAL and WORLD conventions "
