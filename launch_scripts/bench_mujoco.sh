@@ -4,8 +4,8 @@
 # zero commands, no contact, limits or damping, from a displaced and moving initial state; both
 # timed inside their own process over runs of STEPS steps with no output (median of REPEATS),
 # alternately in ROUNDS rounds (the ratio: the median of the rounds' own ratios).
-# Prints a markdown table: steps per second of each, ours / MuJoCo (> 1: we are faster), and
-# the difference of the end states (after STEPS × 1 ms = 1 s by default). Fails when a joint's
+# Prints a markdown table: steps per second of each, ours / MuJoCo (> 1: we are faster), the
+# same from each side's fastest round, and the difference of the end states (after STEPS × 1 ms = 1 s by default). Fails when a joint's
 # angle or velocity differs from MuJoCo's by more than 1e-9 (see benches/mujoco/compare.py for
 # what is compared and why a floating base's pose is reported, not asserted).
 #

@@ -10,7 +10,9 @@ ours through `spatial_dynamics bench --kernels sim_<integrator>`, MuJoCo through
 both timed inside their process over runs of N steps with no output, the median of R repeats,
 in K rounds that alternate ours and MuJoCo's: a run of 1000 steps lasts about a millisecond, and
 on a shared or virtual machine the rate of either moves by tens of percent within seconds, so
-the ratio reported is the median of each round's own ratio, taken a moment apart.
+the ratio reported is the median of each round's own ratio, taken a moment apart, and beside it
+each side's fastest round against the other's (a VM whose speed switches between levels can time
+the two sides of one round at different levels).
 Both start from the same non-trivial state (joints displaced and moving; the floating base
 translating and spinning) under gravity with zero commands, no contact, limits or damping.
 
