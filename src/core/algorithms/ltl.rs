@@ -278,7 +278,7 @@ fn solve(ancestors: &Ancestors, l: &[f64], x: &mut [f64]) {
 ///   not all `n` coordinates); the entries past them stay zero as they came.
 /// - In the identity block, row `i` of `Y = L⁻ᵀ` is zero outside the columns `i` and `D(i)`,
 ///   so the first pass updates the columns from `i` on (a pair from `p` on, where `c`'s column
-///   `p` stays zero).
+///   `p` stays zero), and with no further columns (`per_dof = 0`, `H⁻¹` alone) up to `e(i)`.
 /// - `X = H⁻¹` there is symmetric: its row `m` at columns `c ≥ m` needs only its ancestors'
 ///   rows at the same columns (`c ≥ m > a`), so the second pass computes only the upper
 ///   triangle of that block (a pair from `p` on); the entries below the diagonal are left as
@@ -305,8 +305,16 @@ pub(crate) fn ltl_solve_rows(
         "n rows of the identity, then per_dof columns a coordinate"
     );
     // The columns a row `c` (or a pair from its upper row `p`) updates: from `c` (`p`) on, in
-    // the first pass up to where row `c` of `Y` ends (`to(c)`).
-    let to = |m: usize| n + per_dof * ancestors.below(m).end;
+    // the first pass up to where row `c` of `Y` ends (`to(c)`): with further columns, where
+    // its columns of the last `j < e(c)` end; without, where its identity block does.
+    let to = |m: usize| {
+        let end = ancestors.below(m).end;
+        if per_dof == 0 {
+            end
+        } else {
+            n + per_dof * end
+        }
+    };
     // Lᵀ Y = B, leaves inward: row `c`, or `c` and then its parent `p = c − 1`. Rows from
     // `end` on are done.
     let mut end = n;

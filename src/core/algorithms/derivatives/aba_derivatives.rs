@@ -32,13 +32,15 @@
 //! ```
 //! Backward pass B, leaves inward: the entries of `∂τ/∂q`, `∂τ/∂q̇` of `rnea_derivatives`'
 //! backward pass, with `I^C_i` and `I^C_i S_i` from pass A and `B^C_i`, `F_i` summed there,
-//! written negated as the right-hand sides `[1 | −∂τ/∂q | −∂τ/∂q̇]` of `H X = B`, solved with
-//! the factor of `H`, one solve per column.
+//! stored negated by column. Then `H⁻¹` from the factor of `H`, and each column of
+//! `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` as the sum of the columns of `H⁻¹` over its branch (the column
+//! of `∂τ/∂q` is zero elsewhere).
 //!
 //! With mimic joints (whose shared coordinates break the tree pattern of `H`) `q̈` comes from
 //! CRBA, a bias RNEA and a dense Cholesky factor instead, and the passes of `rnea_derivatives`
 //! run whole at `(q, q̇, q̈)`.
 
+use super::branch_products::branch_products;
 use super::rnea_derivatives::{
     acceleration_terms, ancestors, backward_pass, check_matrix, derivative_passes, dot_in_halves,
     forward_terms, Accelerations, RootMotion, Target,
@@ -102,10 +104,10 @@ fn derivatives_of_checked(
     ext: &Externals<'_>,
 ) -> Result<(), DynamicsError> {
     update_joints(model, ws, q);
-    identity_and_zeros(&mut ws.derivatives.rhs_rows, model.nv);
     if ws.plan.dof_ancestors.is_some() {
         shared_passes(model, ws, v, tau, ext)?;
     } else {
+        identity_and_zeros(&mut ws.derivatives.rhs, model.nv);
         crba_solve_on_joints(model, ws, v, tau, ext)?;
         let qdd = lend_qdd(ws);
         derivative_passes(model, ws, v, qdd.as_slice(), ext, Target::SolveRows);
@@ -133,8 +135,8 @@ fn lend_qdd(ws: &mut Workspace) -> DVector<f64> {
 }
 
 /// The passes of [the module](self) on a tree (`ws.plan.dof_ancestors`), on joints already
-/// updated for `q`: `q̈` into `ws.qdd`, the factor of `H` into `ws.factor` and the right-hand
-/// sides' derivative entries into `ws.derivatives.rhs_rows`. Fails, naming the coordinate, on
+/// updated for `q`: `q̈` into `ws.qdd`, the factor of `H` into `ws.factor` and `−∂τ/∂q`,
+/// `−∂τ/∂q̇` by column into `ws.derivatives.rhs`. Fails, naming the coordinate, on
 /// a singular `H` or a non-finite `q̈`.
 #[inline(always)]
 fn shared_passes(
@@ -164,7 +166,7 @@ fn shared_passes(
         acceleration_terms(model, ws, i, v, qdd.as_slice(), &root);
     }
     ws.qdd = qdd;
-    backward_pass(model, ws, Target::SolveRowsOnComposites);
+    backward_pass(model, ws, Target::BranchColumnsOnComposites);
     Ok(())
 }
 
@@ -244,8 +246,8 @@ fn composite_pass(model: &Model, ws: &mut Workspace, tau: &[f64]) {
     }
 }
 
-/// The right-hand sides before the passes add the derivatives: row `i` (of `3 nv` entries) is
-/// `e_iᵀ` then zeros.
+/// The right-hand sides of the dense solve before the passes add the derivatives: row `i` (of
+/// `3 nv` entries) is `e_iᵀ` then zeros.
 #[inline(always)]
 fn identity_and_zeros(rows: &mut [f64], nv: usize) {
     let k = 3 * nv;
@@ -257,16 +259,18 @@ fn identity_and_zeros(rows: &mut [f64], nv: usize) {
 }
 
 /// `H⁻¹` into `ws.derivatives.minv` and `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` into `ddq_dq`, `ddq_dv`,
-/// solving `H X = B` for `B = [1 | −∂τ/∂q | −∂τ/∂q̇]` (held row by row in
-/// `ws.derivatives.rhs_rows`, `nv` rows of `3 nv`, the columns of `−∂τ/∂q` and `−∂τ/∂q̇` side by
-/// side: column `c` of each at `nv + 2 c` and `nv + 2 c + 1`) with the factor of `H` in
-/// `ws.factor`. Row `i` of `∂τ/∂q`, `∂τ/∂q̇` is zero outside `i`'s branch (its ancestors and
-/// subtree: turning or moving a joint elsewhere changes no force on `i`), so in particular at every
-/// column from `e(i)` on, as the tree solve takes it. The `3 nv` right-hand sides go row by row
-/// (each step an update of whole rows): along the tree ([`ltl_solve_rows`]) over the non-zeros of
-/// `L`, `O(nv d)` per column for depth `d`, where a product with the dense `H⁻¹` costs `nv²`; with
-/// mimic joints through the dense Cholesky factor ([`cholesky_solve_rows`]). Of the symmetric `H⁻¹`
-/// the tree solve computes the upper triangle, which is mirrored here.
+/// with the factor of `H` in `ws.factor`.
+///
+/// On a tree (`ws.plan.dof_ancestors`), `H X = 1` is solved row by row in `minv`'s storage
+/// along the tree ([`ltl_solve_rows`]; a row of the symmetric `H⁻¹` is its column, so the rows
+/// are column-major `H⁻¹`), which computes the upper triangle, mirrored here; then each column
+/// of the products sums the columns of `H⁻¹` over its branch ([`branch_products`]), from
+/// `−∂τ/∂q`, `−∂τ/∂q̇` held by column in `ws.derivatives.rhs`.
+///
+/// With mimic joints (the dense Cholesky factor), `H X = B` for `B = [1 | −∂τ/∂q | −∂τ/∂q̇]`
+/// held row by row in `ws.derivatives.rhs` (`nv` rows of `3 nv`, the columns of `−∂τ/∂q`
+/// and `−∂τ/∂q̇` side by side: column `c` of each at `nv + 2 c` and `nv + 2 c + 1`) is solved
+/// through it ([`cholesky_solve_rows`]) and the solutions copied out.
 fn solve_with_factor(model: &Model, ws: &mut Workspace) {
     run_pass!(solve_with_factor_in(model, ws))
 }
@@ -280,15 +284,43 @@ fn solve_with_factor_in(model: &Model, ws: &mut Workspace) {
     if nv == 0 {
         return; // no columns (and `chunks_exact(0)` would panic)
     }
-    let k = 3 * nv;
-    let rows = &mut d.rhs_rows[..k * nv];
     match &plan.dof_ancestors {
-        Some(ancestors) => ltl_solve_rows(ancestors, factor, rows, 2),
-        None => cholesky_solve_rows(factor, rows, k),
+        Some(ancestors) => {
+            let (minv, pairs) = (d.minv.as_mut_slice(), &d.rhs[..2 * nv * nv]);
+            minv.fill(0.0);
+            for i in 0..nv {
+                minv[i * nv + i] = 1.0;
+            }
+            ltl_solve_rows(ancestors, factor, minv, 0);
+            for c in 1..nv {
+                for r in 0..c {
+                    minv[c * nv + r] = minv[r * nv + c];
+                }
+            }
+            branch_products(
+                ancestors,
+                minv,
+                pairs,
+                d.ddq_dq.as_mut_slice(),
+                d.ddq_dv.as_mut_slice(),
+            );
+        }
+        None => {
+            let k = 3 * nv;
+            let rows = &mut d.rhs[..k * nv];
+            cholesky_solve_rows(factor, rows, k);
+            copy_out(d, nv);
+        }
     }
-    // H⁻¹ from its upper triangle (symmetric; the tree solve computes only that), the
-    // products in full. Column c of H⁻¹: entries i ≤ c from column c of rows 0..=c, entries
-    // i > c from row c itself.
+}
+
+/// The solutions of the dense solve out of `ws.derivatives.rhs` into `H⁻¹` (from its
+/// upper triangle: the solve computes only that) and the products.
+fn copy_out(d: &mut DerivativeScratch, nv: usize) {
+    let k = 3 * nv;
+    let rows = &d.rhs[..k * nv];
+    // Column c of H⁻¹: entries i ≤ c from column c of rows 0..=c, entries i > c from row c
+    // itself.
     for (c, minv) in d.minv.as_mut_slice().chunks_exact_mut(nv).enumerate() {
         let (upper, lower) = minv.split_at_mut(c + 1);
         for (x, row) in upper.iter_mut().zip(rows.chunks_exact(k)) {
@@ -443,11 +475,14 @@ mod tests {
         assert_eq!(err, by_crba.unwrap_err());
     }
 
-    /// The tree solve takes row `i` of `∂τ/∂q`, `∂τ/∂q̇` as zero in every column from `e(i)`
-    /// (the end of `i`'s subtree) on: it is, exactly, on a branched tree with a fixed, a
-    /// planar and a floating base, where `e(i) < nv` for most rows.
+    /// The products take column `j` of `∂τ/∂q`, `∂τ/∂q̇` as zero outside `j`'s branch (its
+    /// ancestors, `j` and the coordinates below it), and the solve of `H⁻¹` each row `i` of
+    /// `L⁻ᵀ` as zero from `e(i)` (the end of `i`'s subtree) on: `rnea_derivatives` writes no
+    /// entry there, on a branched tree with a fixed, a planar and a floating base, where most
+    /// pairs `(i, j)` are on no common branch. That the true derivatives are zero there is
+    /// `tests/derivatives.rs`' check of every entry against central differences.
     #[test]
-    fn rows_of_the_inverse_dynamics_derivatives_end_with_their_subtree() {
+    fn columns_of_the_inverse_dynamics_derivatives_are_zero_off_their_branch() {
         let tree = include_str!("../../tests/models/tree.urdf");
         let floating = ModelOptions {
             floating_base: true,
@@ -471,20 +506,22 @@ mod tests {
                 .map(|i| ((i as f64 * 0.9).sin(), (i as f64 * 1.3).cos()))
                 .unzip();
             let d = rnea_derivatives(&model, &mut ws, &q, &v, &a).unwrap();
-            let (mut ending, mut nonzero) = (0, 0);
+            let on_branch = |i: usize, j: usize| {
+                ancestors.of(j).contains(&i) || (j..ancestors.below(j).end).contains(&i)
+            };
+            let (mut off, mut nonzero) = (0, 0);
             for i in 0..nv {
-                let end = ancestors.below(i).end;
-                ending += usize::from(end < nv);
                 for j in 0..nv {
                     let (dq, dv) = (d.dtau_dq[(i, j)], d.dtau_dv[(i, j)]);
-                    if j >= end {
-                        assert_eq!((dq, dv), (0.0, 0.0), "{}: row {i}, column {j}", model.name);
-                    } else {
+                    if on_branch(i, j) {
                         nonzero += usize::from(dq != 0.0 || dv != 0.0);
+                    } else {
+                        off += 1;
+                        assert_eq!((dq, dv), (0.0, 0.0), "{}: row {i}, column {j}", model.name);
                     }
                 }
             }
-            assert!(ending >= 2, "{}: {ending} rows end before nv", model.name);
+            assert!(off >= nv, "{}: {off} entries off the branches", model.name);
             assert!(nonzero > 0, "{}: all zeros", model.name);
         }
     }

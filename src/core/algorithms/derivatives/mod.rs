@@ -18,6 +18,7 @@
 //! in `v` order.
 
 mod aba_derivatives;
+mod branch_products;
 mod integrate_jacobians;
 mod linearize;
 mod rnea_derivatives;
@@ -67,10 +68,10 @@ pub(crate) struct DerivativeScratch {
     pub(crate) ddq_dv: DMatrix<f64>,
     /// `H⁻¹ = ∂q̈/∂τ` (nv × nv).
     pub(crate) minv: DMatrix<f64>,
-    /// The right-hand sides `[1 | −∂τ/∂q | −∂τ/∂q̇]` of `aba_derivatives`' solve, row by row
-    /// (`nv` rows of `3 nv`; the derivative passes write `−∂τ/∂q`, `−∂τ/∂q̇` there), then its
-    /// solutions.
-    pub(crate) rhs_rows: Vec<f64>,
+    /// `aba_derivatives`' right-hand sides: on a tree `−∂τ/∂q`, `−∂τ/∂q̇` by column (`2 nv²`
+    /// entries, each pair `(−∂τ_r/∂q_c, −∂τ_r/∂q̇_c)` at `2 (nv c + r)`); with mimic joints
+    /// `[1 | −∂τ/∂q | −∂τ/∂q̇]` row by row (`nv` rows of `3 nv`), then the solutions.
+    pub(crate) rhs: Vec<f64>,
     /// Per body: its six columns are a floating joint's in halves, the first three purely
     /// linear and the last three purely angular (a tree's root, whose aligned frame has its
     /// origin: `S = diag(R, R)` up to the order of the halves).
@@ -94,7 +95,7 @@ impl DerivativeScratch {
             ddq_dq: square(),
             ddq_dv: square(),
             minv: square(),
-            rhs_rows: vec![0.0; 3 * nv * nv],
+            rhs: vec![0.0; 3 * nv * nv],
             halves: vec![false; n],
         }
     }

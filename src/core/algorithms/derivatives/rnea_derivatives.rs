@@ -118,7 +118,7 @@ fn passes_of_checked(
 /// Both passes, on joints already updated for `q` (inputs already checked), the backward pass
 /// writing into `target`: with [`Target::Matrices`] `ws.tau`, `ws.mass_matrix` and the
 /// derivatives of `ws.derivatives`; with [`Target::SolveRows`] `−∂τ/∂q` and `−∂τ/∂q̇` straight
-/// into the right-hand sides of `aba_derivatives`' solve, `ws.derivatives.rhs_rows` laid out as
+/// into the right-hand sides of `aba_derivatives`' solve, `ws.derivatives.rhs` laid out as
 /// [`SolveRows`] says, which must already hold zeros there, and neither `τ` nor `H` (CRBA made
 /// `H`, and `q̈` from `τ`).
 pub(crate) fn derivative_passes(
@@ -336,13 +336,13 @@ pub(crate) enum Target {
     Matrices,
     /// The rows of [`SolveRows`].
     SolveRows,
-    /// The rows of [`SolveRows`], on the composite inertias `aba_derivatives`' bias pass
+    /// The columns of [`BranchColumns`], on the composite inertias `aba_derivatives`' bias pass
     /// summed: `ws.derivatives.composite` holds `I^C_i` and `ws.f_cols` `I^C_i S_ik` for each
     /// coordinate.
-    SolveRowsOnComposites,
+    BranchColumnsOnComposites,
 }
 
-/// Backward pass: sums `I^C` (unless [`Target::SolveRowsOnComposites`]), `B^C`, `F` over each
+/// Backward pass: sums `I^C` (unless [`Target::BranchColumnsOnComposites`]), `B^C`, `F` over each
 /// subtree and fills the entries of `∂τ/∂q`, `∂τ/∂q̇` (and of `τ` and `H` into [`Matrices`]),
 /// each from the row's and the column's bodies (one an ancestor of the other).
 pub(crate) fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
@@ -369,7 +369,7 @@ fn backward_pass_in(model: &Model, ws: &mut Workspace, target: Target) {
         b,
         dtau_dq,
         dtau_dv,
-        rhs_rows,
+        rhs,
         halves,
         composite,
         ..
@@ -421,16 +421,19 @@ fn backward_pass_in(model: &Model, ws: &mut Workspace, target: Target) {
                 sweep::<_, false>(model, &parts, ic, &[], b, f, &mut out);
             }
         }
-        Target::SolveRows | Target::SolveRowsOnComposites => {
+        Target::SolveRows => {
             let mut out = SolveRows {
-                rows: &mut rhs_rows[..3 * n * n],
+                rows: &mut rhs[..3 * n * n],
                 nv: n,
             };
-            if matches!(target, Target::SolveRows) {
-                sweep::<_, false>(model, &parts, ic, &[], b, f, &mut out);
-            } else {
-                sweep::<_, true>(model, &parts, composite, f_cols, b, f, &mut out);
-            }
+            sweep::<_, false>(model, &parts, ic, &[], b, f, &mut out);
+        }
+        Target::BranchColumnsOnComposites => {
+            let mut out = BranchColumns {
+                pairs: &mut rhs[..2 * n * n],
+                nv: n,
+            };
+            sweep::<_, true>(model, &parts, composite, f_cols, b, f, &mut out);
         }
     }
 }
@@ -697,6 +700,28 @@ impl Entries for SolveRows<'_> {
         let at = 3 * self.nv * r + self.nv + 2 * c;
         self.rows[at] -= dq;
         self.rows[at + 1] -= dv;
+    }
+    #[inline(always)]
+    fn add_h(&mut self, _: usize, _: usize, _: f64) {}
+    #[inline(always)]
+    fn tau(&mut self, _: usize, _: f64) {}
+}
+
+/// The right-hand sides of `aba_derivatives`' products on a tree, column by column:
+/// `−∂τ_r/∂q_c` at `2 (nv c + r)`, `−∂τ_r/∂q̇_c` after it. Each entry of the tree's pattern comes
+/// once (a tree has no mimic joints) and is stored as it comes; only those are read.
+struct BranchColumns<'a> {
+    pairs: &'a mut [f64],
+    nv: usize,
+}
+
+impl Entries for BranchColumns<'_> {
+    const TAU_AND_H: bool = false;
+    #[inline(always)]
+    fn add(&mut self, r: usize, c: usize, dq: f64, dv: f64) {
+        let at = 2 * (self.nv * c + r);
+        self.pairs[at] = -dq;
+        self.pairs[at + 1] = -dv;
     }
     #[inline(always)]
     fn add_h(&mut self, _: usize, _: usize, _: f64) {}
