@@ -251,88 +251,53 @@ fn solve(ancestors: &Ancestors, l: &[f64], x: &mut [f64]) {
     }
 }
 
-/// Solves `Lᵀ L X = B` in place for `B = [1 | G]`, `k = n + per_dof n` right-hand sides held
-/// row by row: `w` is `n` rows of `k` entries, row `i` of `B` at `w[i k .. (i + 1) k]` (the
-/// column-major storage of `Bᵀ`): the identity's row, then `per_dof` columns for each
-/// coordinate `j` (from `n + per_dof j` on), zero for every `j ≥ e(i)` (past `i`'s subtree).
-/// Every step is a whole-row update, contiguous and independent entry by entry, where a
-/// column-by-column solve waits on one division after another:
+/// `Y = L⁻ᵀ` into `y` row by row (`n` rows of `n`, row `i` at `y[i n ..]`, the column-major
+/// storage of `L⁻¹`), solving `Lᵀ Y = 1` from the leaves inward:
 ///
 /// ```text
-/// Lᵀ Y = B, leaves inward:  Y_i = (B_i − Σ_{m ∈ D(i)} L_mi Y_m) / L_ii
-/// L X = Y, root outward:    X_m = (Y_m − Σ_{a ∈ A(m)} L_ma X_a) / L_mm      (A(m): m's ancestors)
+/// Y_i = (e_iᵀ − Σ_{m ∈ D(i)} L_mi Y_m) / L_ii
 /// ```
 ///
-/// Each row gathers its sum four rows at a time and multiplies by the stored `1 / L_ii` in the
-/// last sweep
-/// ([`subtract_combinations`]), reading and writing its own entries once per four terms. Two
-/// coordinates in a chain (`p` the parent of `c = p + 1`) go together ([`ChainPair`]): in the
-/// first pass when `c` is `p`'s only child (`D(p) = {c} ∪ D(c)`), in the second always
-/// (`A(c) = {p} ∪ A(p)`), so each row of their shared sum is loaded once for both.
-///
-/// The zeros of `B` are kept where they stay:
-/// - Row `i` of `Y` is zero in the columns of every `j ≥ e(i)`: it gathers `B_i` and the rows
-///   of `D(i)`, each zero from its own `e(m) ≤ e(i)` on. So the first pass updates row `i` up to
-///   column `n + per_dof e(i)` only, and each sweep of four rows `m` of `D(i)` up to their
-///   largest `n + per_dof e(m)` (a leg's rows in the floating base's sum reach the leg's end,
-///   not all `n` coordinates); the entries past them stay zero as they came.
-/// - In the identity block, row `i` of `Y = L⁻ᵀ` is zero outside the columns `i` and `D(i)`,
-///   so the first pass updates the columns from `i` on (a pair from `p` on, where `c`'s column
-///   `p` stays zero), and with no further columns (`per_dof = 0`, `H⁻¹` alone) up to `e(i)`.
-/// - `X = H⁻¹` there is symmetric: its row `m` at columns `c ≥ m` needs only its ancestors'
-///   rows at the same columns (`c ≥ m > a`), so the second pass computes only the upper
-///   triangle of that block (a pair from `p` on); the entries below the diagonal are left as
-///   scratch, not `H⁻¹`.
-///
-/// The zeros `B` must hold are read all the same: the first pass takes each row `m` of `D(i)`
-/// as a term over row `i`'s columns, from `i` (or `p`) on, zeros of `m`'s identity row left of
-/// `m` included. So row `i` of `B` is read from the column of its tree's root on.
+/// Row `i` of `Y` is zero outside the columns `i .. e(i)` (it gathers only rows of `D(i)`, each
+/// zero outside its own range within `i`'s), so only those are written, from `e_iᵀ`: every
+/// other entry of `y` must be zero (it is read as a term's zero, never written). Every step is
+/// a whole-row update, contiguous and independent entry by entry, where a column-by-column
+/// solve waits on one division after another. Each row gathers its sum four rows at a time and
+/// multiplies by the stored `1 / L_ii` in the last sweep ([`subtract_combinations`]), reading
+/// and writing its own entries once per four terms; a sweep of four rows `m` of `D(i)` runs up
+/// to their largest `e(m)`. A coordinate and its parent go together ([`ChainPair`]) when the
+/// coordinate is the parent's only child (`c = p + 1`, `D(p) = {c} ∪ D(c)`), so each row of
+/// their shared sum is loaded once for both, from column `p` on (`c`'s column `p` stays zero).
 #[inline(always)]
-pub(crate) fn ltl_solve_rows(
-    ancestors: &Ancestors,
-    factor: &DMatrix<f64>,
-    w: &mut [f64],
-    per_dof: usize,
-) {
+pub(crate) fn ltl_inverse_transpose(ancestors: &Ancestors, factor: &DMatrix<f64>, y: &mut [f64]) {
     let n = ancestors.len();
     let l = factor.as_slice();
     let entry = |r: usize, c: usize| l[r + c * n];
     let parent = |c: usize| ancestors.of(c).first().copied();
-    let k = n + per_dof * n;
-    debug_assert_eq!(
-        w.len(),
-        n * k,
-        "n rows of the identity, then per_dof columns a coordinate"
-    );
-    // The columns a row `c` (or a pair from its upper row `p`) updates: from `c` (`p`) on, in
-    // the first pass up to where row `c` of `Y` ends (`to(c)`): with further columns, where
-    // its columns of the last `j < e(c)` end; without, where its identity block does.
-    let to = |m: usize| {
-        let end = ancestors.below(m).end;
-        if per_dof == 0 {
-            end
-        } else {
-            n + per_dof * end
-        }
-    };
-    // Lᵀ Y = B, leaves inward: row `c`, or `c` and then its parent `p = c − 1`. Rows from
-    // `end` on are done.
+    let to = |m: usize| ancestors.below(m).end;
+    debug_assert_eq!(y.len(), n * n, "n rows of n");
+    for i in 0..n {
+        let row = &mut y[i * n..][i..to(i)];
+        row.fill(0.0);
+        row[0] = 1.0;
+    }
+    // Row `c`, or `c` and then its parent `p = c − 1`. Rows from `end` on are done.
     let mut end = n;
     while end > 0 {
         let c = end - 1;
         let below = ancestors.below(c);
-        let (head, tail) = w.split_at_mut(end * k);
+        let (head, tail) = y.split_at_mut(end * n);
         let tail: &[f64] = tail;
         // Row m of D(c) is tail's row m − c − 1, non-zero before `to(m)` only.
         let rows_below = |first: usize| {
             below.clone().map(move |m| {
-                let row_m = &tail[(m - c - 1) * k..(m - c) * k];
+                let row_m = &tail[(m - c - 1) * n..(m - c) * n];
                 (m, &row_m[first..], to(m) - first)
             })
         };
         match parent(c) {
             Some(p) if p + 1 == c && ancestors.below(p).end == below.end => {
-                let (row_p, row_c) = head[p * k..].split_at_mut(k);
+                let (row_p, row_c) = head[p * n..].split_at_mut(n);
                 let columns = p..to(c);
                 let mut pair = ChainPair {
                     y: [&mut row_c[columns.clone()], &mut row_p[columns.clone()]],
@@ -346,47 +311,13 @@ pub(crate) fn ltl_solve_rows(
             }
             _ => {
                 let mut row = OneRow {
-                    y: &mut head[c * k..][c..to(c)],
+                    y: &mut head[c * n..][c..to(c)],
                     scale: entry(c, c),
                 };
                 let terms = rows_below(c).map(|(m, x, len)| (entry(m, c), x, len));
                 subtract_combinations(&mut row, terms);
                 end -= 1;
             }
-        }
-    }
-    // L X = Y, root outward: row `p`, or `p` and then its child `c = p + 1`.
-    let mut p = 0;
-    while p < n {
-        let (head, tail) = w.split_at_mut(p * k);
-        let head: &[f64] = head;
-        let rows_above = |first: usize| {
-            ancestors
-                .of(p)
-                .iter()
-                .map(move |&a| (a, &head[a * k + first..(a + 1) * k], k - first))
-        };
-        let c = p + 1;
-        if c < n && parent(c) == Some(p) {
-            let (row_p, row_c) = tail.split_at_mut(k);
-            let mut pair = ChainPair {
-                y: [&mut row_p[p..], &mut row_c[p..k]],
-                link: entry(c, p),
-                scale: [entry(p, p), entry(c, c)],
-            };
-            let terms = rows_above(p).map(|(a, x, len)| ([entry(p, a), entry(c, a)], x, len));
-            subtract_combinations(&mut pair, terms);
-            p += 2;
-        } else {
-            let mut row = OneRow {
-                y: &mut tail[p..k],
-                scale: entry(p, p),
-            };
-            subtract_combinations(
-                &mut row,
-                rows_above(p).map(|(a, x, len)| (entry(p, a), x, len)),
-            );
-            p += 1;
         }
     }
 }
@@ -622,30 +553,15 @@ mod tests {
                 "{}: |H x − b| = {err:e}",
                 model.name
             );
-            // The identity first, then two columns a coordinate, row i zero in those of the
-            // coordinates past its subtree, row by row (the storage of Bᵀ in, of Xᵀ out): H⁻¹ and
-            // H⁻¹ B.
-            let per_dof = 2;
-            let k = n + per_dof * n;
-            let mut b4 = DMatrix::identity(n, n).insert_columns(n, per_dof * n, 0.0);
-            for i in 0..n {
-                for c in n..n + per_dof * ancestors.below(i).end {
-                    b4[(i, c)] = ((i * k + c) as f64 * 0.7).cos();
-                }
-            }
-            let mut rows = b4.transpose().as_slice().to_vec();
-            ltl_solve_rows(&ancestors, &factor, &mut rows, per_dof);
-            let mut x4 = DMatrix::from_column_slice(k, n, &rows).transpose();
-            for r in 0..n {
-                for c in 0..r {
-                    x4[(r, c)] = x4[(c, r)]; // H⁻¹ from its upper triangle
-                }
-            }
+            // Y = L⁻ᵀ from zeros: Lᵀ Y = 1.
+            let mut rows = vec![0.0; n * n];
+            ltl_inverse_transpose(&ancestors, &factor, &mut rows);
+            let y = DMatrix::from_column_slice(n, n, &rows).transpose();
             // (`amax` passes over NaN: the finiteness is checked on its own.)
-            let err = (&h * &x4 - &b4).amax();
+            let err = (l.transpose() * &y - DMatrix::identity(n, n)).amax();
             assert!(
-                x4.iter().all(|x| x.is_finite()) && err < 1e-12 * (h.amax() * x4.amax()),
-                "{}: |H X − [1 | B]| = {err:e} (rows, identity first)",
+                y.iter().all(|x| x.is_finite()) && err < 1e-12 * (l.amax() * y.amax()),
+                "{}: |Lᵀ Y − 1| = {err:e}",
                 model.name
             );
         }

@@ -40,7 +40,7 @@
 //! CRBA, a bias RNEA and a dense Cholesky factor instead, and the passes of `rnea_derivatives`
 //! run whole at `(q, q̇, q̈)`.
 
-use super::branch_products::branch_products;
+use super::branch_products::{branch_products, inverse_from_rows};
 use super::rnea_derivatives::{
     acceleration_terms, ancestors, backward_pass, check_matrix, derivative_passes, dot_in_halves,
     forward_terms, Accelerations, RootMotion, Target,
@@ -49,7 +49,7 @@ use super::DerivativeScratch;
 use crate::algorithms::cholesky::cholesky_solve_rows;
 use crate::algorithms::forward_dynamics::crba_solve_on_joints;
 use crate::algorithms::kinematics::{update_aligned_placements, update_joints, Anchors};
-use crate::algorithms::ltl::{ltl_factor, ltl_solve, ltl_solve_rows};
+use crate::algorithms::ltl::{ltl_factor, ltl_inverse_transpose, ltl_solve};
 use crate::algorithms::validate::{all_finite_long, check_forward_inputs, check_result};
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
@@ -261,11 +261,11 @@ fn identity_and_zeros(rows: &mut [f64], nv: usize) {
 /// `H⁻¹` into `ws.derivatives.minv` and `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` into `ddq_dq`, `ddq_dv`,
 /// with the factor of `H` in `ws.factor`.
 ///
-/// On a tree (`ws.plan.dof_ancestors`), `H X = 1` is solved row by row in `minv`'s storage
-/// along the tree ([`ltl_solve_rows`]; a row of the symmetric `H⁻¹` is its column, so the rows
-/// are column-major `H⁻¹`), which computes the upper triangle, mirrored here; then each column
-/// of the products sums the columns of `H⁻¹` over its branch ([`branch_products`]), from
-/// `−∂τ/∂q`, `−∂τ/∂q̇` held by column in `ws.derivatives.rhs`.
+/// On a tree (`ws.plan.dof_ancestors`), `Y = L⁻ᵀ` by rows along the tree
+/// ([`ltl_inverse_transpose`], in the last `nv²` entries of `ws.derivatives.rhs`), then
+/// `H⁻¹ = Yᵀ Y` column by column ([`inverse_from_rows`]), then each column of the products as
+/// the sum of the columns of `H⁻¹` over its branch ([`branch_products`]), from `−∂τ/∂q`,
+/// `−∂τ/∂q̇` held by column in the first `2 nv²` entries of `ws.derivatives.rhs`.
 ///
 /// With mimic joints (the dense Cholesky factor), `H X = B` for `B = [1 | −∂τ/∂q | −∂τ/∂q̇]`
 /// held row by row in `ws.derivatives.rhs` (`nv` rows of `3 nv`, the columns of `−∂τ/∂q`
@@ -286,17 +286,12 @@ fn solve_with_factor_in(model: &Model, ws: &mut Workspace) {
     }
     match &plan.dof_ancestors {
         Some(ancestors) => {
-            let (minv, pairs) = (d.minv.as_mut_slice(), &d.rhs[..2 * nv * nv]);
-            minv.fill(0.0);
-            for i in 0..nv {
-                minv[i * nv + i] = 1.0;
-            }
-            ltl_solve_rows(ancestors, factor, minv, 0);
-            for c in 1..nv {
-                for r in 0..c {
-                    minv[c * nv + r] = minv[r * nv + c];
-                }
-            }
+            let (pairs, y) = d.rhs.split_at_mut(2 * nv * nv);
+            let (y, minv) = (&mut y[..nv * nv], d.minv.as_mut_slice());
+            // Y = L⁻ᵀ: the entries it does not write are zero from the allocation on (nothing
+            // else writes this part of `rhs` on a tree).
+            ltl_inverse_transpose(ancestors, factor, y);
+            inverse_from_rows(ancestors, y, minv);
             branch_products(
                 ancestors,
                 minv,

@@ -17,6 +17,30 @@
 
 use crate::plan::Ancestors;
 
+/// `H⁻¹ = L⁻¹ L⁻ᵀ = Yᵀ Y` into `minv` (`n × n`, column-major, full) from the rows of
+/// `Y = L⁻ᵀ` in `y` (row `c` at `y[c n ..]`, zero outside the columns `c .. e(c)`: `Lᵀ Y = 1`
+/// gathers into row `c` only the rows of `D(c)`). Entry `Y_cs` is non-zero only for `c` an
+/// ancestor of `s` or `s` itself, so column `s` is
+///
+/// ```text
+/// H⁻¹[:, s] = Σ_{c ∈ ancestors(s) ∪ {s}} (row c of Y)ᵀ Y_cs
+/// ```
+#[inline(always)]
+pub(super) fn inverse_from_rows(ancestors: &Ancestors, y: &[f64], minv: &mut [f64]) {
+    let n = ancestors.len();
+    for (s, column) in minv.chunks_exact_mut(n).enumerate() {
+        let sum = Column::<1> {
+            n,
+            columns: y,
+            coefficients: &y[s..],
+            stride: n,
+            ancestors: ancestors.of(s),
+            own_and_below: s..s + 1,
+        };
+        sum.fill([column]);
+    }
+}
+
 /// `X_q = H⁻¹ B_q` into `x_q` and `X_v = H⁻¹ B_v` into `x_v` (`n × n`, column-major), `minv`
 /// the full `H⁻¹` (column-major), `b` holding `(B_q)_ij` at `2 (j n + i)` and `(B_v)_ij` after
 /// it for every `i` in `branch(j)` (other entries are not read).
@@ -29,72 +53,87 @@ pub(super) fn branch_products(
     x_v: &mut [f64],
 ) {
     let n = ancestors.len();
-    for j in 0..n {
-        let column = Column {
+    let columns = x_q.chunks_exact_mut(n).zip(x_v.chunks_exact_mut(n));
+    for (j, (x_q, x_v)) in columns.enumerate() {
+        let sum = Column::<2> {
             n,
-            minv,
-            b: &b[2 * j * n..2 * (j + 1) * n],
+            columns: minv,
+            coefficients: &b[2 * j * n..2 * (j + 1) * n],
+            stride: 2,
             ancestors: ancestors.of(j),
             own_and_below: j..ancestors.below(j).end,
         };
-        let (x_q, x_v) = (&mut x_q[j * n..(j + 1) * n], &mut x_v[j * n..(j + 1) * n]);
-        let mut r = 0;
-        while r + 16 <= n {
-            column.rows::<16>(r, x_q, x_v);
-            r += 16;
-        }
-        if r + 8 <= n {
-            column.rows::<8>(r, x_q, x_v);
-            r += 8;
-        }
-        if r + 4 <= n {
-            column.rows::<4>(r, x_q, x_v);
-            r += 4;
-        }
-        if r + 2 <= n {
-            column.rows::<2>(r, x_q, x_v);
-            r += 2;
-        }
-        if r < n {
-            column.rows::<1>(r, x_q, x_v);
-        }
+        sum.fill([x_q, x_v]);
     }
 }
 
-/// What column `j` of the products reads: `H⁻¹` (`n × n`), `B`'s column `j` as pairs
-/// `(B_q, B_v)` by row, and `j`'s branch (its ancestors, then `j` and the coordinates below).
-struct Column<'a> {
+/// One column of `K` products `M C_k`, each the sum of the columns `M[:, i]` (`n` entries from
+/// `columns[i n]`) scaled by `(C_k)_i` (at `coefficients[i stride + k]`) over a branch: the
+/// ancestors of the column's coordinate, then the range `own_and_below`.
+struct Column<'a, const K: usize> {
     n: usize,
-    minv: &'a [f64],
-    b: &'a [f64],
+    columns: &'a [f64],
+    coefficients: &'a [f64],
+    stride: usize,
     ancestors: &'a [usize],
     own_and_below: std::ops::Range<usize>,
 }
 
-impl Column<'_> {
-    /// Rows `r .. r + W` of the column: `Σ_i H⁻¹[r.., i] (B_q, B_v)_ij` over the branch.
+impl<const K: usize> Column<'_, K> {
+    /// The `K` columns into `out`, by blocks of 16 rows, then 8, 4, 2 and 1 for the rest.
     #[inline(always)]
-    fn rows<const W: usize>(&self, r: usize, x_q: &mut [f64], x_v: &mut [f64]) {
-        let mut sums = ([0.0; W], [0.0; W]);
+    fn fill(&self, mut out: [&mut [f64]; K]) {
+        let n = self.n;
+        let mut r = 0;
+        while r + 16 <= n {
+            self.rows::<16>(r, &mut out);
+            r += 16;
+        }
+        if r + 8 <= n {
+            self.rows::<8>(r, &mut out);
+            r += 8;
+        }
+        if r + 4 <= n {
+            self.rows::<4>(r, &mut out);
+            r += 4;
+        }
+        if r + 2 <= n {
+            self.rows::<2>(r, &mut out);
+            r += 2;
+        }
+        if r < n {
+            self.rows::<1>(r, &mut out);
+        }
+    }
+
+    /// Rows `r .. r + W` of the `K` columns, summed in registers over the branch.
+    #[inline(always)]
+    fn rows<const W: usize>(&self, r: usize, out: &mut [&mut [f64]; K]) {
+        let mut sums = [[0.0; W]; K];
         for &i in self.ancestors {
             self.add::<W>(&mut sums, r, i);
         }
         for i in self.own_and_below.clone() {
             self.add::<W>(&mut sums, r, i);
         }
-        let (sum_q, sum_v) = sums;
-        x_q[r..r + W].copy_from_slice(&sum_q);
-        x_v[r..r + W].copy_from_slice(&sum_v);
+        for (out, sum) in out.iter_mut().zip(&sums) {
+            out[r..r + W].copy_from_slice(sum);
+        }
     }
 
-    /// `sums += H⁻¹[r .. r + W, i] (B_q, B_v)_ij`.
+    /// `sums_k += M[r .. r + W, i] (C_k)_i`.
     #[inline(always)]
-    fn add<const W: usize>(&self, sums: &mut ([f64; W], [f64; W]), r: usize, i: usize) {
-        let m: &[f64; W] = self.minv[i * self.n + r..][..W].try_into().expect("W rows");
-        let (b_q, b_v) = (self.b[2 * i], self.b[2 * i + 1]);
+    fn add<const W: usize>(&self, sums: &mut [[f64; W]; K], r: usize, i: usize) {
+        let m: &[f64; W] = self.columns[i * self.n + r..][..W]
+            .try_into()
+            .expect("W rows");
+        let c: &[f64; K] = self.coefficients[i * self.stride..][..K]
+            .try_into()
+            .expect("K coefficients");
         for t in 0..W {
-            sums.0[t] += m[t] * b_q;
-            sums.1[t] += m[t] * b_v;
+            for k in 0..K {
+                sums[k][t] += m[t] * c[k];
+            }
         }
     }
 }

@@ -69,7 +69,8 @@ pub(crate) struct DerivativeScratch {
     /// `H⁻¹ = ∂q̈/∂τ` (nv × nv).
     pub(crate) minv: DMatrix<f64>,
     /// `aba_derivatives`' right-hand sides: on a tree `−∂τ/∂q`, `−∂τ/∂q̇` by column (`2 nv²`
-    /// entries, each pair `(−∂τ_r/∂q_c, −∂τ_r/∂q̇_c)` at `2 (nv c + r)`); with mimic joints
+    /// entries, each pair `(−∂τ_r/∂q_c, −∂τ_r/∂q̇_c)` at `2 (nv c + r)`), then the rows of
+    /// `L⁻ᵀ` (`nv²`, zero off each row's subtree from allocation on); with mimic joints
     /// `[1 | −∂τ/∂q | −∂τ/∂q̇]` row by row (`nv` rows of `3 nv`), then the solutions.
     pub(crate) rhs: Vec<f64>,
     /// Per body: its six columns are a floating joint's in halves, the first three purely
