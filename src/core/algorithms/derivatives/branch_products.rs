@@ -1,19 +1,20 @@
-//! `X = H⁻¹ B` for the right-hand sides of [`aba_derivatives`](super::aba_derivatives) on a
-//! tree, column by column, from the full `H⁻¹`: column `j` of `B = −∂τ/∂q` (or `−∂τ/∂q̇`) is
-//! zero outside `j`'s branch (turning or moving coordinate `j` changes no force on a coordinate
-//! that is neither its ancestor nor below it), so
+//! The products of [`aba_derivatives`](super::aba_derivatives) on a tree, column by column,
+//! each column the sum of a few columns of a matrix over a branch of the tree.
+//!
+//! `X = H⁻¹ B` from the full `H⁻¹`: column `j` of `B = −∂τ/∂q` (or `−∂τ/∂q̇`) is zero outside
+//! `j`'s branch (turning or moving coordinate `j` changes no force on a coordinate that is
+//! neither its ancestor nor below it), so
 //!
 //! ```text
 //! X[:, j] = Σ_{i ∈ branch(j)} H⁻¹[:, i] B_ij,   branch(j) = ancestors(j) ∪ {j} ∪ D(j)
 //! ```
 //!
 //! `|branch(j)|` columns of `H⁻¹` a column of `X` instead of `nv`: for a floating humanoid
-//! (TALOS, `nv` = 50) 1,084 of the 2,500 pairs `(i, j)`.
+//! (TALOS, `nv` = 50) 1,084 of the 2,500 pairs `(i, j)`. `H⁻¹` itself is `Yᵀ Y` from the rows of
+//! `Y = L⁻ᵀ`, its column `s` the sum of the rows of `Y` over `s` and its ancestors.
 //!
-//! Both products share each column of `H⁻¹` they read. A column of `X` is summed in blocks of
-//! its rows held in registers (eight rows, then four, two, one for the rest), stored once when
-//! its branch is done: the loop has no stores and reads one column segment of `H⁻¹` for every
-//! two multiplications and additions of a row.
+//! A column is summed in blocks of its rows held in registers, stored once when its branch is
+//! done: the loop has no stores, and the two products share each block of `H⁻¹` they read.
 
 use crate::plan::Ancestors;
 
@@ -80,30 +81,26 @@ struct Column<'a, const K: usize> {
 }
 
 impl<const K: usize> Column<'_, K> {
-    /// The `K` columns into `out`, by blocks of 16 rows, then 8, 4, 2 and 1 for the rest.
+    /// The `K` columns into `out`, by blocks of 16 rows while more than 20 are left, then the
+    /// rest (1 to 20 rows) as one block: a block's loop costs about the same bookkeeping
+    /// whatever its width, so a short block of its own would cost nearly what a full one does.
     #[inline(always)]
     fn fill(&self, mut out: [&mut [f64]; K]) {
         let n = self.n;
         let mut r = 0;
-        while r + 16 <= n {
+        while n - r > 20 {
             self.rows::<16>(r, &mut out);
             r += 16;
         }
-        if r + 8 <= n {
-            self.rows::<8>(r, &mut out);
-            r += 8;
+        macro_rules! last_block {
+            ($($w:literal)*) => {
+                match n - r {
+                    $($w => self.rows::<$w>(r, &mut out),)*
+                    _ => {} // no rows left (n = 0)
+                }
+            };
         }
-        if r + 4 <= n {
-            self.rows::<4>(r, &mut out);
-            r += 4;
-        }
-        if r + 2 <= n {
-            self.rows::<2>(r, &mut out);
-            r += 2;
-        }
-        if r < n {
-            self.rows::<1>(r, &mut out);
-        }
+        last_block!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20);
     }
 
     /// Rows `r .. r + W` of the `K` columns, summed in registers over the branch.
@@ -150,9 +147,9 @@ mod tests {
     use nalgebra::DMatrix;
 
     /// Against the dense products `M B_q`, `M B_v` with `B` zero off the branches, on a
-    /// branched tree with a floating base (14 coordinates: row blocks of 8, 4 and 2) and on a
-    /// chain of 23 (16, 4, 2 and 1), with every entry of `b` off the branches poisoned (NaN):
-    /// none is read.
+    /// branched tree with a floating base (14 coordinates) and on chains of 1 to 40 (every
+    /// width of the last block, after none, one or two blocks of 16), with every entry of `b`
+    /// off the branches poisoned (NaN): none is read.
     #[test]
     fn the_products_over_the_branches_are_the_dense_products() {
         let tree = include_str!("../../tests/models/tree.urdf");
@@ -160,10 +157,8 @@ mod tests {
             floating_base: true,
             ..Default::default()
         };
-        for (text, options, nv) in [
-            (tree.to_string(), floating, 14),
-            (pendulum_urdf(23, 0.3, 0.5), ModelOptions::default(), 23),
-        ] {
+        let chains = (1..=40).map(|n| (pendulum_urdf(n, 0.3, 0.5), ModelOptions::default(), n));
+        for (text, options, nv) in [(tree.to_string(), floating, 14)].into_iter().chain(chains) {
             let model = model_from_str(&text, &options).unwrap();
             let ancestors = Workspace::new(&model).plan.dof_ancestors.expect("a tree");
             assert_eq!(ancestors.len(), nv);
