@@ -118,7 +118,7 @@ fn passes_of_checked(
 /// Both passes, on joints already updated for `q` (inputs already checked), the backward pass
 /// writing into `target`: with [`Target::Matrices`] `ws.tau`, `ws.mass_matrix` and the
 /// derivatives of `ws.derivatives`; with [`Target::SolveRows`] `−∂τ/∂q` and `−∂τ/∂q̇` straight
-/// into the right-hand sides of `aba_derivatives`' solve, `ws.derivatives.rhs` laid out as
+/// into the right-hand sides of `aba_derivatives`' dense solve, `ws.derivatives.rhs` laid out as
 /// [`SolveRows`] says, which must already hold zeros there, and neither `τ` nor `H` (CRBA made
 /// `H`, and `q̈` from `τ`).
 pub(crate) fn derivative_passes(
@@ -684,10 +684,10 @@ impl<const ASSIGN: bool> Entries for Matrices<'_, ASSIGN> {
     }
 }
 
-/// The right-hand sides of `aba_derivatives`' solve, row by row: `nv` rows of `3 nv` entries,
-/// the identity's row, then `−∂τ_r/∂q_c`, `−∂τ_r/∂q̇_c` side by side for each column `c` (at
-/// `3 nv r + nv + 2 c` and the entry after it), so that the columns of a row's branch up to the
-/// end of its subtree are one range.
+/// The right-hand sides of `aba_derivatives`' dense solve (with mimic joints), row by row: `nv`
+/// rows of `3 nv` entries, the identity's row, then `−∂τ_r/∂q_c`, `−∂τ_r/∂q̇_c` side by side for
+/// each column `c` (at `3 nv r + nv + 2 c` and the entry after it), so that the columns of a
+/// row's branch up to the end of its subtree are one range.
 struct SolveRows<'a> {
     rows: &'a mut [f64],
     nv: usize,
