@@ -41,10 +41,10 @@ enum Command {
     Bench {
         #[command(flatten)]
         model: ModelArgs,
-        /// Print JSON: {"nv", "ns_per_call": {KERNEL: ns}, "flops_per_call", "gflops", "auto_method" (null, with "auto_method_error", when forward dynamics has no answer), "frame"}; the kernels are rnea, crba, fd_aba, fd_crba, fd_rnea_columns, gravity, frame_jacobian and center_of_mass.
+        /// Print JSON: {"nv", "ns_per_call": {KERNEL: ns}, "flops_per_call", "gflops", "auto_method" (null, with "auto_method_error", when forward dynamics has no answer), "frame", "instruction_set"}; the kernels are rnea, crba, fd_aba, fd_crba, fd_rnea_columns, gravity, frame_jacobian, center_of_mass, rnea_derivatives and aba_derivatives, and, only when --kernels names them, rnea_rows (ns per state, the states in blocks of 64) and sim_rk4 and sim_semi_implicit_euler (ns per step).
         #[arg(long)]
         json: bool,
-        /// Time only these kernels, comma-separated (default: all of them).
+        /// Time only these kernels, comma-separated (default: all of them but rnea_rows and the simulation's).
         #[arg(long, value_delimiter = ',', value_name = "NAME,...")]
         kernels: Vec<String>,
         #[command(flatten)]
