@@ -159,6 +159,7 @@ impl Engine {
     /// those that agree with `aba` to [`AUTO_TOLERANCE`] on this model (checked now, timed for
     /// the summary within about 10 ms per method). If no method can
     /// run on the model (a singular mass matrix, say), `aba` stays and requests will say why.
+    /// A running simulation steps with the new method from its next step on.
     pub fn set_method(&mut self, method: Option<ForwardDynamicsMethod>) {
         (self.method, self.method_choice) = match method {
             Some(m) => (m, None),
@@ -170,6 +171,7 @@ impl Engine {
                 ),
             },
         };
+        self.simulate_with_method();
     }
 
     /// Names of the joint coordinates, in model order.

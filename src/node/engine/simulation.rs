@@ -143,6 +143,14 @@ impl Engine {
         Servo::new(settings.command_interface, axes).map(Some)
     }
 
+    /// A running simulation steps with the engine's forward-dynamics method from its next step
+    /// on.
+    pub(crate) fn simulate_with_method(&mut self) {
+        if let Some(simulation) = &mut self.simulation {
+            simulation.sim.config.method = self.method;
+        }
+    }
+
     /// What `~/commands` and `~/joint_commands` set: the servos' interface in simulate mode,
     /// else effort.
     pub fn command_interface(&self) -> CommandInterface {
@@ -425,4 +433,30 @@ impl Engine {
 /// Seconds as builtin_interfaces/Time.
 pub fn time_of(t: f64) -> Time {
     super::clock::time_from_nanos((t * 1e9).round() as i64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use spatial_dynamics_core::algorithms::ForwardDynamicsMethod;
+
+    /// A `method` set while simulating reaches the simulator: its next step uses it.
+    #[test]
+    fn a_method_set_while_simulating_is_the_simulators() {
+        let settings = Settings {
+            simulate: true,
+            method: Some(ForwardDynamicsMethod::Aba),
+            ..Settings::default()
+        };
+        let mut engine = Engine::from_settings(&settings, None).unwrap();
+        let method = |engine: &Engine| engine.simulation.as_ref().unwrap().sim.config.method;
+        assert_eq!(method(&engine), ForwardDynamicsMethod::Aba);
+        for m in [
+            ForwardDynamicsMethod::Crba,
+            ForwardDynamicsMethod::RneaColumns,
+        ] {
+            engine.set_method(Some(m));
+            assert_eq!(method(&engine), m);
+        }
+    }
 }
