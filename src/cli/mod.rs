@@ -28,7 +28,7 @@ enum Command {
     Model {
         #[command(flatten)]
         model: ModelArgs,
-        /// Print JSON: {"nq", "nv", "joints": [{"name", "type", "q_index", "nq", "v_index", "nv"}]}.
+        /// Print JSON: {"nq", "nv", "nbodies", "joints": [{"name", "type", "q_index", "nq", "v_index", "nv"}], "locked_joints", "fused_links", "reduction"}.
         #[arg(long)]
         json: bool,
     },

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 /// Arguments of `replay` (besides the model's).
 #[derive(Args, Debug, Clone)]
 pub struct ReplayArgs {
-    /// Input bag: a rosbag2 directory (with metadata.yaml) or one .mcap or .db3 file.
+    /// Input bag: a rosbag2 directory (with metadata.yaml, or without it: its storage files in split order) or one .mcap or .db3 file, either zstd-compressed (.mcap.zstd, .db3.zstd).
     #[arg(long, value_name = "IN")]
     bag: PathBuf,
     /// Output MCAP file (replaced if it exists).

@@ -48,7 +48,7 @@ fn text(name: &str) -> (&'static str, &'static str, Option<(f64, f64)>) {
         "steps_per_command" => ("Simulate mode, step_mode on_command: integration steps of sim_dt per accepted command.", "integer 1 to 1000000", None),
         "publish_tf" => ("Simulate mode: with a floating base, publish world -> base link on /tf with each joint state.", "", None),
         "passive" => ("Simulate mode: the URDF's passive forces applied: damping, friction, effort_limits, position_limits (or all, none).", "names from damping, friction, effort_limits, position_limits, all, none", None),
-        "initial_positions" => ("Simulate mode: the state at start and on reset, as NAME=POSITION (rad or m); other joints start at zero.", "each entry NAME=POSITION naming a joint of the model", None),
+        "initial_positions" => ("Simulate mode: the state at start and whenever the model is rebuilt, as NAME=POSITION (rad or m); other joints start at zero.", "each entry NAME=POSITION naming a joint of the model", None),
         "ground_contacts" => ("Simulate mode: points LINK:X,Y,Z (link frame, m) that touch a ground plane; empty: no ground.", "each entry LINK:X,Y,Z naming a link of the model", None),
         "ground_height" => ("Simulate mode: the ground plane is z = ground_height in the world frame, m.", "finite", doubles(-f64::MAX, f64::MAX)),
         "ground_stiffness" => ("Simulate mode: contact stiffness per point, N/m.", "> 0", POSITIVE),

@@ -10,7 +10,7 @@ pub const LAMP_URDF: &str = include_str!("../../../config/models/lamp.urdf");
 /// A small gripper with mimic joints.
 pub const MIMIC_GRIPPER_URDF: &str = include_str!("../../../config/models/mimic_gripper.urdf");
 
-/// URDF of a planar pendulum of `n` identical links hanging from the world: revolute joints
+/// URDF of a planar pendulum of `n` identical links hanging from the world: continuous joints
 /// `joint1…joint<n>` about y, each link a thin rod of `length` (m) and `mass` (kg) along −z, its
 /// centre of mass at the middle, its inertia that of a thin rod (`m l² / 12` about x and y, a
 /// small `1e-6 m l²` about its own axis so the tensor is positive definite).
