@@ -1,4 +1,5 @@
-//! The command-line contract: `model --json` and the `eval` request loop, run as a process.
+//! The command-line contract, run as a process: `model --json`, the `eval` request loop, the
+//! global model options and reductions, `simulate` and `bench`'s JSON.
 
 use spatial_dynamics_core::sampling::Rng;
 
