@@ -110,6 +110,12 @@ impl Servo {
         &self.axes
     }
 
+    /// Every target back to zero, as [`new`](Self::new) makes them.
+    pub fn clear_targets(&mut self) {
+        self.position.fill(0.0);
+        self.velocity.fill(0.0);
+    }
+
     /// Sets the target of axis `k`: `q_cmd` (ignored by a velocity servo) and `q̇_cmd`.
     pub fn set_target(&mut self, k: usize, position: f64, velocity: f64) {
         self.position[k] = position;

@@ -376,7 +376,8 @@ impl Engine {
         ))
     }
 
-    /// `~/reset`: a given state; clears the command and any divergence.
+    /// `~/reset`: a given state; clears the command (efforts and servo targets back to zero,
+    /// servos off until the next command) and any divergence.
     pub fn simulation_reset(&mut self, req: &ResetRequest) -> ResetResponse {
         if self.simulation.is_none() {
             return ResetResponse::refused(
@@ -391,6 +392,9 @@ impl Engine {
         sim.state.v.copy_from_slice(&self.v);
         sim.sim.restart_energy_budget();
         sim.diverged = None;
+        if let Some(servo) = &mut sim.servo {
+            servo.clear_targets();
+        }
         self.commands.clear();
         self.command_time = None;
         ResetResponse {
@@ -458,5 +462,29 @@ mod tests {
             engine.set_method(Some(m));
             assert_eq!(method(&engine), m);
         }
+    }
+
+    /// `~/reset` puts the servo targets back to zero: a later command naming only some joints
+    /// leaves the others at zero, as after start, not at their targets before the reset.
+    #[test]
+    fn a_reset_clears_the_servo_targets() {
+        let settings = Settings {
+            simulate: true,
+            command_interface: CommandInterface::Position,
+            ..Settings::default()
+        };
+        let mut engine = Engine::from_settings(&settings, None).unwrap();
+        let servo = |engine: &Engine| engine.simulation.as_ref().unwrap().servo.clone().unwrap();
+        let fresh = servo(&engine);
+        let n = engine.command_names().len();
+        let slots: Vec<usize> = (0..n).collect();
+        engine.set_servo_targets(&slots, &vec![0.5; n], &vec![0.1; n]);
+        assert_ne!(servo(&engine), fresh);
+        let reset = engine.simulation_reset(&ResetRequest {
+            position: vec![0.0; engine.names().len()],
+            ..Default::default()
+        });
+        assert!(reset.success, "{}", reset.message);
+        assert_eq!(servo(&engine), fresh);
     }
 }
