@@ -40,11 +40,25 @@ impl Health {
     }
 }
 
-/// Keeps only the part of a reason before any detail, so counters group by kind of problem
-/// (`unknown joint 'x' in name` and `unknown joint 'y' in name` count together).
+/// Keeps only the part of a reason before any detail, with every number written `N`, so
+/// counters group by kind of problem (`unknown joint 'x' in name` and `unknown joint 'y' in
+/// name` count together, as do `position has 3 values for 7 names` and `… 9 values …`) and
+/// no input can add counters without end.
 fn reason_kind(reason: &str) -> String {
-    let cut = reason.find(['\'', '(', '[']).unwrap_or(reason.len());
-    reason[..cut].trim().to_string()
+    let cut = reason
+        .find(['\'', '"', '(', '[', '{'])
+        .unwrap_or(reason.len());
+    let mut kind = String::new();
+    let mut in_number = false;
+    for c in reason[..cut].trim().chars() {
+        if !c.is_ascii_digit() {
+            kind.push(c);
+        } else if !in_number {
+            kind.push('N');
+        }
+        in_number = c.is_ascii_digit();
+    }
+    kind
 }
 
 impl Health {
@@ -188,6 +202,16 @@ mod tests {
         h.received("joint_states");
         h.dropped("joint_states", "unknown joint 'a' in name");
         h.dropped("joint_states", "unknown joint 'b' in name");
+        for n in 0..50 {
+            h.dropped(
+                "joint_states",
+                &format!("position has {n} values for 7 names"),
+            );
+        }
+        h.dropped(
+            "joint_states",
+            "Deserialization { reason: \"12 bytes short\" }",
+        );
         h.published("~/gravity_effort");
         let status = h.report("spatial_dynamics", "sd_arm7", true);
         assert_eq!(status.level, 1);
@@ -201,6 +225,14 @@ mod tests {
         assert_eq!(
             get("joint_states dropped: unknown joint").as_deref(),
             Some("2")
+        );
+        assert_eq!(
+            get("joint_states dropped: position has N values for N names").as_deref(),
+            Some("50")
+        );
+        assert_eq!(
+            get("joint_states dropped: Deserialization").as_deref(),
+            Some("1")
         );
         assert_eq!(get("~/gravity_effort published").as_deref(), Some("1"));
     }

@@ -3,7 +3,7 @@
 //! [`super::params`] for the values and their checks; the ranges here are the ones those checks
 //! enforce).
 
-use super::params::START_PARAMETERS;
+use super::params::{MAX_PUBLISH_RATE, MIN_PUBLISH_RATE, START_PARAMETERS};
 use ros2_client::parameters::{NumericRange, ParameterDescriptor};
 use ros2_client::ParameterValue;
 
@@ -35,10 +35,10 @@ fn text(name: &str) -> (&'static str, &'static str, Option<(f64, f64)>) {
         "max_stamp_age" => ("Drop a joint_states message stamped more than this before the node's clock, s; 0: no limit.", "seconds >= 0", SECONDS),
         "future_stamp_tolerance" => ("Drop a joint_states message stamped more than this after the node's clock, s; 0: no limit.", "seconds >= 0", SECONDS),
         "mode" => ("serve: the dynamics of the measured state (joint_states in, efforts and accelerations out); simulate: the node owns the state, integrates it and publishes joint_states.", "serve or simulate", None),
-        "publish_rate" => ("Simulate mode: joint_states messages per second, Hz.", "> 0", POSITIVE),
-        "sim_dt" => ("Simulate mode: integration step, s.", "> 0", POSITIVE),
+        "publish_rate" => ("Simulate mode: joint_states messages per second, Hz.", "0.001 to 1e6; at most 1e6 steps of sim_dt per message (real_time_factor / (publish_rate · sim_dt))", doubles(MIN_PUBLISH_RATE, MAX_PUBLISH_RATE)),
+        "sim_dt" => ("Simulate mode: integration step, s.", "> 0; at most 1e6 steps per joint_states message", POSITIVE),
         "integrator" => ("Simulate mode: explicit_euler, semi_implicit_euler, rk4 or implicit_euler.", "one of explicit_euler, semi_implicit_euler, rk4, implicit_euler", None),
-        "real_time_factor" => ("Simulate mode: simulated seconds per wall-clock second.", "> 0", POSITIVE),
+        "real_time_factor" => ("Simulate mode: simulated seconds per wall-clock second.", "> 0; at most 1e6 steps of sim_dt per joint_states message", POSITIVE),
         "publish_clock" => ("Simulate mode: publish the simulated time on /clock.", "", None),
         "command_timeout" => ("Simulate mode: an effort command older than this (wall-clock s) drops to zero effort; 0: never.", "seconds >= 0", SECONDS),
         "command_interface" => ("Simulate mode: what ~/commands and ~/joint_commands set on each command joint: effort (the effort itself), position (PD servo: kp (q_cmd - q) + kd (qd_cmd - qd)) or velocity (kd (qd_cmd - qd)).", "one of effort, position, velocity", None),

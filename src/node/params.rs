@@ -316,6 +316,14 @@ impl Settings {
                 self.simulate = m == "simulate"
             }
             ("mode", _) => return wrong("'serve' or 'simulate'"),
+            ("publish_rate", _)
+                if !positive(value)
+                    .is_some_and(|x| (MIN_PUBLISH_RATE..=MAX_PUBLISH_RATE).contains(&x)) =>
+            {
+                return wrong(&format!(
+                    "a rate from {MIN_PUBLISH_RATE} to {MAX_PUBLISH_RATE:e} Hz"
+                ));
+            }
             ("publish_rate" | "sim_dt" | "real_time_factor", _) => {
                 let x = positive(value).ok_or_else(|| {
                     format!("parameter '{name}' must be a positive number, got {value:?}")
@@ -503,6 +511,11 @@ impl Settings {
             .map_err(|e| format!("-p {name}: {e}"))
     }
 }
+
+/// The slowest and fastest `publish_rate` (Hz): a publish period from 1000 s down to 1 µs, which
+/// the node's timers hold without overflowing (ten periods of lag are measured).
+pub const MIN_PUBLISH_RATE: f64 = 1e-3;
+pub const MAX_PUBLISH_RATE: f64 = 1e6;
 
 /// A positive finite number (integers accepted).
 fn positive(value: &ParameterValue) -> Option<f64> {

@@ -35,8 +35,10 @@ READ_ONLY = {
     "initial_positions", "ground_contacts", "ground_height", "ground_stiffness", "ground_damping", "ground_friction",
     "command_interface", "servo_kp", "servo_kd", "step_mode", "steps_per_command", "publish_tf",
 }
+# Numbers with a range of their own (from, to): the node's timers hold periods of 1000 s to 1 µs.
+BOUNDED = {"publish_rate": (1e-3, 1e6)}
 # Numbers that must be > 0, >= 0, or only finite: the lower bound of their range.
-POSITIVE = {"publish_rate", "sim_dt", "real_time_factor", "ground_stiffness"}
+POSITIVE = {"sim_dt", "real_time_factor", "ground_stiffness"}
 NON_NEGATIVE = {"max_stamp_age", "future_stamp_tolerance", "command_timeout", "ground_damping", "ground_friction"}
 
 
@@ -56,13 +58,15 @@ def test_every_parameter_is_described(arm, ros):
             assert len(d.floating_point_range) == 1 and not d.integer_range, (name, d)
             r = d.floating_point_range[0]
             assert r.from_value <= values[name] <= r.to_value, (name, values[name], r)
-            if name in POSITIVE:
-                assert 0.0 < r.from_value <= 1e-300, (name, r)
+            if name in BOUNDED:
+                assert (r.from_value, r.to_value) == BOUNDED[name], (name, r)
+            elif name in POSITIVE:
+                assert 0.0 < r.from_value <= 1e-300 and r.to_value > 1e300, (name, r)
             elif name in NON_NEGATIVE:
-                assert r.from_value == 0.0, (name, r)
+                assert r.from_value == 0.0 and r.to_value > 1e300, (name, r)
             else:
-                assert r.from_value < -1e300, (name, r)
-            assert r.to_value > 1e300 and r.step == 0.0, (name, r)
+                assert r.from_value < -1e300 and r.to_value > 1e300, (name, r)
+            assert r.step == 0.0, (name, r)
         else:
             assert not d.floating_point_range and not d.integer_range, (name, d)
     assert "auto" in described["method"].description and "aba" in described["method"].additional_constraints

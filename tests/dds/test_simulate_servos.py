@@ -109,5 +109,5 @@ def test_bad_joint_commands_are_dropped_and_counted(ros, sim):
     ros.spin_until(lambda: diagnostics.matching(counted), sd.EVENT_S)
     values = sd.status_values(diagnostics.matching(counted)[0], "spatial_dynamics: dynamics")
     kinds = [k for k in values if k.startswith(f"{topic} dropped: ")]
-    assert any("unknown joint" in k for k in kinds) and any("position has 0 values" in k for k in kinds), kinds
+    assert any("unknown joint" in k for k in kinds) and any("position has N values" in k for k in kinds), kinds
     assert not states.messages, "a refused command must not step"

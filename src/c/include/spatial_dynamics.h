@@ -2,9 +2,10 @@
  * spatial_dynamics: rigid-body dynamics of URDF robots, called in-process from C.
  *
  * Link with libspatial_dynamics_c (.so, or .a with -lpthread -ldl -lm). Make a model and a
- * workspace once, outside any real-time loop; after that no call allocates. Every function
- * returning int returns 0 (SD_OK) on success, else an sd_status code with a message from
- * sd_last_error(). Coordinates follow sd_model_v_name; matrices are row-major; SI units.
+ * workspace once, outside any real-time loop; after that no call that succeeds allocates (a
+ * failing one allocates its message). Every function returning int returns 0 (SD_OK) on
+ * success, else an sd_status code with a message from sd_last_error(). Coordinates follow
+ * sd_model_v_name; matrices are row-major; SI units.
  */
 
 #ifndef SPATIAL_DYNAMICS_H
@@ -28,8 +29,9 @@ typedef enum sd_status {
    */
   SD_ERROR_INPUT = 1,
   /**
-   * The call itself is wrong: a NULL pointer, a workspace made for another model, an
-   * unknown reference frame, a name that is not UTF-8; outputs are untouched.
+   * The call itself is wrong: a NULL pointer (an array of length 0 may be NULL), a workspace
+   * made for another model, an unknown reference frame, a name that is not UTF-8, an index
+   * past the model's coordinates; outputs are untouched.
    */
   SD_ERROR_USAGE = 2,
   /**
@@ -250,7 +252,7 @@ const char *sd_last_error(void);
 
 /**
  * Makes the scratch buffers for `model`'s calls (NULL, with the message for `sd_last_error`,
- * when `model` is NULL). Every call after this allocates nothing. Free it with
+ * when `model` is NULL). Every call after this that succeeds allocates nothing. Free it with
  * `sd_workspace_free` before its model.
  */
 struct sd_workspace *sd_workspace_new(const struct sd_model *model);

@@ -27,7 +27,9 @@
 namespace sd {
 
 // A failed call: what() is the library's message (the function, and the joint, coordinate,
-// link or value at fault); status() the sd_status code.
+// link or value at fault); status() the sd_status code. The constructors' C functions return
+// NULL, not a code: a model that cannot be made says SD_ERROR_INPUT, a workspace SD_ERROR_USAGE
+// (what() tells the cause either way).
 class Error : public std::runtime_error {
  public:
   Error(int status, const std::string& message) : std::runtime_error(message), status_(status) {}
@@ -90,9 +92,12 @@ class Model {
     if (!name) detail::check(SD_ERROR_USAGE);
     return name;
   }
-  // "aba", "crba" or "rnea_columns": the method forward_dynamics uses for this model.
+  // "aba", "crba" or "rnea_columns": the method forward_dynamics uses for this model (throws
+  // on a moved-from model, whose nq() and nv() are 0).
   std::string_view forward_dynamics_method() const {
-    return sd_model_forward_dynamics_method(model_);
+    const char* name = sd_model_forward_dynamics_method(model_);
+    if (!name) detail::check(SD_ERROR_USAGE);
+    return name;
   }
   // The C handle (owned by this object).
   const sd_model* get() const noexcept { return model_; }

@@ -16,8 +16,9 @@ pub enum sd_status {
     /// The library cannot give a trustworthy answer for these inputs (a NaN in `q`, an unknown
     /// frame, a singular mass matrix, ...) or cannot build the model; outputs are untouched.
     SD_ERROR_INPUT = 1,
-    /// The call itself is wrong: a NULL pointer, a workspace made for another model, an
-    /// unknown reference frame, a name that is not UTF-8; outputs are untouched.
+    /// The call itself is wrong: a NULL pointer (an array of length 0 may be NULL), a workspace
+    /// made for another model, an unknown reference frame, a name that is not UTF-8, an index
+    /// past the model's coordinates; outputs are untouched.
     SD_ERROR_USAGE = 2,
     /// A defect inside the library (a panic, caught at the boundary); please report the
     /// message.

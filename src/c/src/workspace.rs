@@ -29,7 +29,7 @@ pub(crate) unsafe fn checked<'a>(
 }
 
 /// Makes the scratch buffers for `model`'s calls (NULL, with the message for `sd_last_error`,
-/// when `model` is NULL). Every call after this allocates nothing. Free it with
+/// when `model` is NULL). Every call after this that succeeds allocates nothing. Free it with
 /// `sd_workspace_free` before its model.
 #[no_mangle]
 pub unsafe extern "C" fn sd_workspace_new(model: *const sd_model) -> *mut sd_workspace {

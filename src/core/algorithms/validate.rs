@@ -93,7 +93,7 @@ fn non_finite_q(model: &Model, q: &[f64], index: usize) -> DynamicsError {
 #[inline(always)]
 fn check_quaternion(joint: &str, quat: &[f64]) -> Result<(), DynamicsError> {
     let norm2 = quat.iter().map(|x| x * x).sum::<f64>();
-    if norm2 < 1e-18 {
+    if norm2 < crate::model::MIN_QUATERNION_NORM_SQUARED {
         return Err(DynamicsError::BadQuaternion {
             joint: joint.to_string(),
             norm: norm2.sqrt(),

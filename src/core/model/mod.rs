@@ -196,6 +196,10 @@ impl Reduction {
     }
 }
 
+/// A floating joint's quaternion `[x, y, z, w]` of squared norm below this (`|quat| < 10⁻⁹`)
+/// is refused (`DynamicsError::BadQuaternion`): it names no rotation. Others are normalised.
+pub const MIN_QUATERNION_NORM_SQUARED: f64 = 1e-18;
+
 /// The immutable robot model. Algorithms read it and write only into a
 /// [`Workspace`](crate::Workspace).
 #[derive(Clone, Debug)]

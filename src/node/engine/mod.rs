@@ -22,6 +22,7 @@ use spatial_dynamics_core::algorithms::{
     choose_method, crba, forward_dynamics, rnea_with, JointStateInputs, Linearization,
 };
 use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
+use spatial_dynamics_core::model::MIN_QUATERNION_NORM_SQUARED;
 use spatial_dynamics_core::sim::CommandInterface;
 use spatial_dynamics_core::spatial::{Force, Transform};
 use spatial_dynamics_core::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
@@ -785,9 +786,10 @@ fn write_pose(q: &mut [f64], at: usize, pose: &Pose, field: &str) -> Result<(), 
             values[i]
         ));
     }
-    if values[3..].iter().all(|x| *x == 0.0) {
+    if values[3..].iter().map(|x| x * x).sum::<f64>() < MIN_QUATERNION_NORM_SQUARED {
         return Err(format!(
-            "{field}.orientation is all zero: give a unit quaternion (w = 1 for none)"
+            "{field}.orientation is (nearly) zero, names no rotation: give a unit quaternion \
+             (w = 1 for none)"
         ));
     }
     q[at..at + 7].copy_from_slice(&values);
@@ -831,6 +833,28 @@ mod tests {
                 assert!(!engine.names().is_empty(), "{}", path.display());
             }
         }
+    }
+
+    /// A base pose whose quaternion names no rotation (zero, or too small to normalise, as the
+    /// library refuses it) is refused where it arrives, naming the field, and nothing is kept.
+    #[test]
+    fn a_base_orientation_of_nearly_zero_norm_is_refused() {
+        for w in [0.0, 1e-10, -5e-10] {
+            let mut pose = Pose::default();
+            pose.orientation.w = w;
+            let mut q = [0.0; 7];
+            let e = write_pose(&mut q, 0, &pose, "base_pose").unwrap_err();
+            assert!(
+                e.contains("base_pose.orientation is (nearly) zero"),
+                "{w}: {e}"
+            );
+            assert_eq!(q, [0.0; 7]);
+        }
+        let mut pose = Pose::default();
+        pose.orientation.w = 2e-9; // normalised by the library
+        let mut q = [0.0; 7];
+        write_pose(&mut q, 0, &pose, "base_pose").unwrap();
+        assert_eq!(q[6], 2e-9);
     }
 
     /// The residual of a joint state comes with the next one, stamped as the earlier one was;

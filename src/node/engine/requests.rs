@@ -5,7 +5,8 @@ use super::Engine;
 use crate::ros::msgs::*;
 
 /// A request that gives the state as joint arrays by name (`name`, `position`, `velocity`)
-/// and the floating base's pose and twist (`base_pose`, `base_twist`; world frame).
+/// and the floating base's pose (`base_pose`, in the world) and twist (`base_twist`, in the base
+/// frame).
 pub(super) trait StateRequest {
     /// `(name, position, velocity, base_pose, base_twist)`.
     fn state(&self) -> (&[String], &[f64], &[f64], &Pose, &Twist);

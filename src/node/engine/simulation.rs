@@ -23,6 +23,11 @@ use std::time::{Duration, Instant};
 /// they can (the timer bursts), so a short stall of the process costs no simulated time.
 pub const MAX_LAG_TICKS: u32 = 10;
 
+/// The most `sim_dt` steps one publish tick may ask for (`real_time_factor / (publish_rate ·
+/// sim_dt)`), as `steps_per_command` is bounded: a tick runs its steps without yielding, so
+/// more would hold the node's services and shutdown for seconds.
+pub const MAX_STEPS_PER_TICK: f64 = 1e6;
+
 /// The simulated robot.
 pub struct Simulation {
     sim: Simulator,
@@ -62,6 +67,15 @@ impl Engine {
         if !settings.simulate {
             self.simulation = None;
             return Ok(());
+        }
+        let steps_per_tick = settings.real_time_factor / (settings.publish_rate * settings.sim_dt);
+        // The three are positive and finite: the quotient is positive, or infinite.
+        if steps_per_tick > MAX_STEPS_PER_TICK {
+            return Err(format!(
+                "real_time_factor / (publish_rate · sim_dt) = {steps_per_tick:.3e} steps of \
+                 sim_dt per publish tick, more than {MAX_STEPS_PER_TICK:e}: raise sim_dt or \
+                 publish_rate, or lower real_time_factor"
+            ));
         }
         let config = SimConfig {
             integrator: settings.integrator,
@@ -461,6 +475,36 @@ mod tests {
         ] {
             engine.set_method(Some(m));
             assert_eq!(method(&engine), m);
+        }
+    }
+
+    /// Simulate mode's rates that the node's timers could not hold, or that would have one
+    /// publish tick run for minutes, are refused naming the parameters, not crashed on.
+    #[test]
+    fn rates_that_would_stall_the_node_are_refused() {
+        use ros2_client::ParameterValue::Double;
+        let mut settings = Settings::default();
+        for rate in [1e-20, 1e-4, 2e6, 1e12] {
+            let e = settings.set("publish_rate", &Double(rate)).unwrap_err();
+            assert!(e.contains("'publish_rate'"), "{rate}: {e}");
+        }
+        for rate in [1e-3, 1e6] {
+            settings.set("publish_rate", &Double(rate)).unwrap();
+        }
+        for (rtf, dt) in [(1e300, 1e-3), (1.0, 1e-300)] {
+            let settings = Settings {
+                simulate: true,
+                real_time_factor: rtf,
+                sim_dt: dt,
+                ..Settings::default()
+            };
+            let e = Engine::from_settings(&settings, None)
+                .err()
+                .expect("refused");
+            assert!(
+                e.contains("real_time_factor / (publish_rate · sim_dt)"),
+                "{e}"
+            );
         }
     }
 

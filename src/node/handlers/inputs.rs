@@ -130,8 +130,10 @@ impl NodeState {
 
     /// `robot_description` (the topic): the model is rebuilt from it when neither the
     /// `robot_description` parameter nor `urdf_file` is set (they win over the topic; why it
-    /// is ignored is logged once per reason). An unusable description is counted and the model
-    /// kept. Errors only if the shared settings are unreadable (a poisoned lock).
+    /// is ignored is logged once per reason, and the description is kept for when neither is
+    /// set any more). An unusable description is counted and not kept, whether it is used now or
+    /// kept, and the model stays. Errors only if the shared settings are unreadable (a poisoned
+    /// lock).
     pub fn robot_description(&mut self, message: Result<StringMsg, String>) -> Result<(), String> {
         let topic = self.names.robot_description.clone();
         self.health.received(&topic);
@@ -154,6 +156,16 @@ impl NodeState {
                 return Ok(());
             }
         };
+        if new.source != ModelSource::Topic {
+            // Kept for when neither the parameter nor urdf_file is set: usable then too.
+            let mut topic_only = settings.clone();
+            (topic_only.robot_description, topic_only.urdf_file) = (String::new(), String::new());
+            if let Err(e) = Engine::from_settings(&topic_only, Some(&text)) {
+                let why = format!("unusable robot description (not kept for later): {e}");
+                self.health.dropped(&topic, &why);
+                return Ok(());
+            }
+        }
         *self.topic_description.lock().map_err(|e| e.to_string())? = Some(text);
         if new.source == ModelSource::Topic {
             log!(
@@ -443,6 +455,15 @@ mod tests {
         // Kept for when the parameter is cleared.
         let kept = state.topic_description().lock().unwrap().clone();
         assert_eq!(kept.as_deref(), Some(PARTICLE_URDF));
+        // An unusable one is counted, not kept: the kept one stays.
+        state
+            .robot_description(text("<robot name='broken'>"))
+            .unwrap();
+        let reason = "unusable robot description (not kept for later)";
+        assert_eq!(state.health.dropped_on("/robot_description", reason), 1);
+        let kept = state.topic_description().lock().unwrap().clone();
+        assert_eq!(kept.as_deref(), Some(PARTICLE_URDF));
+        assert_eq!(state.engine.model.name(), "pendulum1");
     }
 }
 
