@@ -14,7 +14,7 @@
 //! | `method` | string | `auto` | forward dynamics: `aba`, `crba`, `rnea_columns`, or `auto`: of the methods that agree with `aba` to 1e-10 on this model, the one with the fewest FLOPs per call (the same choice on every run) |
 //! | `command_joints` | string[] | `[]` | order of `~/commands` and `~/feedforward_commands` (empty: all joints in model order) |
 //! | `mode` | string | `serve` | `serve`: dynamics of the measured state; `simulate`: the node owns and integrates the state |
-//! | `publish_rate` | double | `100` | simulate: `joint_states` per second (Hz) |
+//! | `publish_rate` | double | `100` | simulate: `joint_states` per second (Hz), 0.001 to 1e6 |
 //! | `sim_dt` | double | `0.001` | simulate: integration step (s) |
 //! | `integrator` | string | `semi_implicit_euler` | simulate: `explicit_euler`, `semi_implicit_euler`, `rk4`, `implicit_euler` |
 //! | `real_time_factor` | double | `1.0` | simulate: simulated seconds per wall-clock second |

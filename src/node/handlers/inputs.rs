@@ -131,7 +131,7 @@ impl NodeState {
     /// `robot_description` (the topic): the model is rebuilt from it when neither the
     /// `robot_description` parameter nor `urdf_file` is set (they win over the topic; why it
     /// is ignored is logged once per reason, and the description is kept for when neither is
-    /// set any more). An unusable description is counted and not kept, whether it is used now or
+    /// set any more). A description that could not serve, now or then, is counted and not
     /// kept, and the model stays. Errors only if the shared settings are unreadable (a poisoned
     /// lock).
     pub fn robot_description(&mut self, message: Result<StringMsg, String>) -> Result<(), String> {
