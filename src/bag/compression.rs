@@ -68,7 +68,7 @@ pub fn zstd_into(
             // No size anywhere: streamed, growing with what actually comes out.
             let decoder =
                 zstd::stream::read::Decoder::with_buffer(src).map_err(|e| format!("zstd: {e}"))?;
-            bounded_read(decoder, out, "zstd frame")?;
+            bounded_read(decoder, MAX_RECORD, out, "zstd frame")?;
         }
     }
     Ok(())
@@ -83,7 +83,7 @@ pub fn lz4_into(src: &[u8], expected: u64, out: &mut Vec<u8>) -> Result<(), Stri
         ));
     }
     let decoder = lz4::Decoder::new(src).map_err(|e| format!("lz4: {e}"))?;
-    bounded_read(decoder, out, "lz4 frame")?;
+    bounded_read(decoder, expected, out, "lz4 frame")?;
     if out.len() as u64 != expected {
         return Err(format!(
             "lz4 frame decompressed to {} bytes, declared {expected}",
@@ -134,16 +134,20 @@ pub fn prefix_into(
     Ok(())
 }
 
-/// Reads `from` to its end into `out`, failing past [`MAX_RECORD`] bytes.
-fn bounded_read(from: impl Read, out: &mut Vec<u8>, what: &str) -> Result<(), String> {
+/// Reads `from` to its end into `out`, failing past `limit` bytes (the size declared for it,
+/// else [`MAX_RECORD`]): decompression stops one byte past the limit, so a frame that lies about
+/// its size takes no more memory than the size it declared.
+fn bounded_read(from: impl Read, limit: u64, out: &mut Vec<u8>, what: &str) -> Result<(), String> {
     let n = from
-        .take(MAX_RECORD + 1)
+        .take(limit + 1)
         .read_to_end(out)
         .map_err(|e| format!("{what}: {e}"))?;
-    if n as u64 > MAX_RECORD {
-        return Err(format!(
-            "{what} decompresses to more than the limit of {MAX_RECORD} bytes"
-        ));
+    if n as u64 > limit {
+        return Err(if limit == MAX_RECORD {
+            format!("{what} decompresses to more than the limit of {MAX_RECORD} bytes")
+        } else {
+            format!("{what} decompresses to more than the {limit} bytes declared for it")
+        });
     }
     Ok(())
 }
@@ -161,17 +165,67 @@ pub fn zstd_file_reader(path: &Path) -> Result<impl Read, String> {
         .map_err(|e| format!("{}: zstd: {e}", path.display()))
 }
 
-/// A decompressed copy of a `file`-mode compressed storage file in the temporary directory
-/// (never beside the bag), removed when dropped. Used for sqlite3, which needs a file.
+/// A copy of a storage file in the temporary directory (never beside the bag), removed with
+/// whatever SQLite made beside it (`-wal`, `-shm`, `-journal`) when dropped: the decompressed
+/// copy of a `file`-mode compressed file, or an sqlite3 database with its write-ahead log.
 #[derive(Debug)]
 pub struct TempCopy {
     pub path: PathBuf,
 }
 
+impl TempCopy {
+    /// A new name in the temporary directory for a copy of `path`.
+    fn for_file(path: &Path) -> TempCopy {
+        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let stem = path
+            .file_stem()
+            .map_or("bag".into(), |s| s.to_string_lossy().into_owned());
+        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        TempCopy {
+            path: std::env::temp_dir().join(format!(
+                "spatial_dynamics_{}_{n}_{stem}",
+                std::process::id()
+            )),
+        }
+    }
+
+    /// `path` with `suffix` appended to its name (`x.db3` → `x.db3-wal`).
+    fn sibling(path: &Path, suffix: &str) -> PathBuf {
+        let mut name = path.as_os_str().to_owned();
+        name.push(suffix);
+        PathBuf::from(name)
+    }
+}
+
 impl Drop for TempCopy {
     fn drop(&mut self) {
         let _ = std::fs::remove_file(&self.path);
+        for suffix in ["-wal", "-shm", "-journal"] {
+            let _ = std::fs::remove_file(TempCopy::sibling(&self.path, suffix));
+        }
     }
+}
+
+/// The write-ahead log beside sqlite3 database `path`, if it holds anything: a recorder killed
+/// in WAL mode leaves its latest messages there, not yet in the database file.
+pub fn write_ahead_log(path: &Path) -> Option<PathBuf> {
+    let wal = TempCopy::sibling(path, "-wal");
+    let len = std::fs::metadata(&wal).ok()?.len();
+    (len > 0).then_some(wal)
+}
+
+/// A copy of sqlite3 database `path` and its write-ahead log `wal` in the temporary directory,
+/// for SQLite to apply the log to (it would otherwise write beside the bag to do so).
+pub fn copy_with_log(path: &Path, wal: &Path) -> Result<TempCopy, String> {
+    let copy = TempCopy::for_file(path);
+    for (from, to) in [
+        (path.to_path_buf(), copy.path.clone()),
+        (wal.to_path_buf(), TempCopy::sibling(&copy.path, "-wal")),
+    ] {
+        std::fs::copy(&from, &to)
+            .map_err(|e| format!("cannot copy {} to {}: {e}", from.display(), to.display()))?;
+    }
+    Ok(copy)
 }
 
 /// The most a `file`-mode compressed file may grow to: 100 times its compressed size, and at
@@ -182,21 +236,11 @@ fn file_limit(compressed: u64) -> u64 {
 
 /// Decompresses a `file`-mode compressed storage file into a [`TempCopy`], streaming.
 pub fn decompress_to_temp(path: &Path) -> Result<TempCopy, String> {
-    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let compressed = std::fs::metadata(path)
         .map_err(|e| format!("cannot open {}: {e}", path.display()))?
         .len();
     let limit = file_limit(compressed);
-    let stem = path
-        .file_stem()
-        .map_or("bag".into(), |s| s.to_string_lossy().into_owned());
-    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let copy = TempCopy {
-        path: std::env::temp_dir().join(format!(
-            "spatial_dynamics_{}_{n}_{stem}",
-            std::process::id()
-        )),
-    };
+    let copy = TempCopy::for_file(path);
     let mut out = std::fs::OpenOptions::new()
         .write(true)
         .create_new(true)
@@ -266,7 +310,10 @@ mod tests {
         r.unwrap();
         lz4_into(&lz, data.len() as u64, &mut out).unwrap();
         assert_eq!(out, data);
-        assert!(lz4_into(&lz, 5, &mut out).is_err());
+        let err = lz4_into(&lz, 5, &mut out).unwrap_err();
+        assert!(err.contains("more than the 5 bytes declared"), "{err}");
+        // Stopped one byte past the declared size: no more memory than declared.
+        assert_eq!(out.len(), 6);
         assert!(lz4_into(&lz, 1 << 41, &mut out)
             .unwrap_err()
             .contains("limit"));

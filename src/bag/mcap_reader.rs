@@ -131,6 +131,9 @@ struct Records<R> {
     /// Whether the file ends with the closing magic: then a record past its end is damage,
     /// not a cut.
     complete: bool,
+    /// In a complete file, where its footer says the data section ends: the summary's start,
+    /// else the summary offsets' start, else the footer's.
+    data_section_end: Option<u64>,
 }
 
 impl<R: Read> Records<R> {
@@ -184,6 +187,36 @@ impl<R: Read> Records<R> {
         Ok(n as u64 == len)
     }
 
+    /// A data end (or, without one, the footer) ends the data section: it must have its
+    /// record's length and, in a complete file, stand where the footer says the data section
+    /// ends. A damaged opcode that reads as either would otherwise end the reading early and
+    /// drop every message after it without a word.
+    fn check_data_section_end(&self, opcode: u8, len: u64, at: u64) -> Result<(), String> {
+        let (name, body) = if opcode == op::DATA_END {
+            ("data end", 4)
+        } else {
+            ("footer", 20)
+        };
+        if len != body {
+            return Err(format!(
+                "the record at byte {at} has the opcode of a {name} ({opcode:#04x}) but claims \
+                 {len} bytes, not {body}: the data section is damaged there"
+            ));
+        }
+        let end = if opcode == op::DATA_END {
+            at + 9 + body
+        } else {
+            at
+        };
+        match self.data_section_end {
+            Some(expected) if expected != end => Err(format!(
+                "a {name} record at byte {at} ends the data section at byte {end}, but the \
+                 footer says it ends at byte {expected}: the data section is damaged there"
+            )),
+            _ => Ok(()),
+        }
+    }
+
     /// Skips the body of the record just announced; `false` when the input ends first.
     fn skip(&mut self, len: u64) -> Result<bool, String> {
         let n = std::io::copy(&mut (&mut self.src).take(len), &mut std::io::sink())
@@ -197,8 +230,9 @@ impl<R: Read> Records<R> {
 #[derive(Debug)]
 pub struct Ended {
     pub flow: Flow,
-    /// Set when the file was cut short: where, and the last log time reached.
-    pub cut: Option<String>,
+    /// A warning about the file: it was cut short (where, and the last log time reached), or
+    /// (sqlite3) messages were skipped (how many, and the first).
+    pub note: Option<String>,
 }
 
 /// The message-reading state of one file.
@@ -440,15 +474,33 @@ fn open_records(path: &Path) -> Result<Records<Box<dyn Read>>, String> {
             pos: 0,
             size: None,
             complete: false,
+            data_section_end: None,
         });
     }
     let mut file = File::open(path).map_err(|e| format!("cannot open: {e}"))?;
     let size = file.metadata().map_err(|e| e.to_string())?.len();
     let mut complete = false;
+    let mut data_section_end = None;
     if size >= 16 {
         let mut tail = [0u8; 8];
         file.seek(SeekFrom::End(-8)).map_err(|e| e.to_string())?;
         complete = read_full(&mut file, &mut tail, size - 8)? == 8 && &tail == MAGIC;
+        if complete && size >= 8 + FOOTER_LEN + 8 {
+            let footer_at = size - 8 - FOOTER_LEN;
+            let mut footer = [0u8; FOOTER_LEN as usize];
+            file.seek(SeekFrom::Start(footer_at))
+                .map_err(|e| e.to_string())?;
+            if read_full(&mut file, &mut footer, footer_at)? == footer.len()
+                && footer[0] == op::FOOTER
+                && footer[1..9] == 20u64.to_le_bytes()
+            {
+                let field = |k: usize| u64::from_le_bytes(footer[k..k + 8].try_into().expect("8"));
+                let (summary, offsets) = (field(9), field(17));
+                data_section_end = [summary, offsets, footer_at]
+                    .into_iter()
+                    .find(|&at| at != 0);
+            }
+        }
         file.seek(SeekFrom::Start(0)).map_err(|e| e.to_string())?;
     }
     Ok(Records {
@@ -456,6 +508,7 @@ fn open_records(path: &Path) -> Result<Records<Box<dyn Read>>, String> {
         pos: 0,
         size: Some(size),
         complete,
+        data_section_end,
     })
 }
 
@@ -483,7 +536,7 @@ pub fn read(path: &Path, wanted: &[Wanted<'_>], visit: &mut Visitor<'_>) -> Resu
     if n < 8 {
         return Ok(Ended {
             flow: Flow::Continue,
-            cut: Some(reader.cut_note(format!("the file ends at byte {n}, inside the magic"))),
+            note: Some(reader.cut_note(format!("the file ends at byte {n}, inside the magic"))),
         });
     }
     let mut body = Vec::new();
@@ -497,21 +550,22 @@ pub fn read(path: &Path, wanted: &[Wanted<'_>], visit: &mut Visitor<'_>) -> Resu
                 );
                 return Ok(Ended {
                     flow: Flow::Continue,
-                    cut: Some(reader.cut_note(note)),
+                    note: Some(reader.cut_note(note)),
                 });
             }
             Next::Cut(note) => {
                 return Ok(Ended {
                     flow: Flow::Continue,
-                    cut: Some(reader.cut_note(note)),
+                    note: Some(reader.cut_note(note)),
                 })
             }
         };
         let needed = matches!(opcode, op::MESSAGE | op::SCHEMA | op::CHANNEL | op::CHUNK);
         if opcode == op::DATA_END || opcode == op::FOOTER {
+            records.check_data_section_end(opcode, len, at)?;
             return Ok(Ended {
                 flow: Flow::Continue,
-                cut: None,
+                note: None,
             });
         }
         if needed && len > MAX_RECORD {
@@ -536,13 +590,13 @@ pub fn read(path: &Path, wanted: &[Wanted<'_>], visit: &mut Visitor<'_>) -> Resu
             };
             return Ok(Ended {
                 flow,
-                cut: (flow == Flow::Continue).then(|| reader.cut_note(note)),
+                note: (flow == Flow::Continue).then(|| reader.cut_note(note)),
             });
         }
         if needed && reader.record(opcode, &body, At::File(at))? == Flow::Stop {
             return Ok(Ended {
                 flow: Flow::Stop,
-                cut: None,
+                note: None,
             });
         }
     }
@@ -593,6 +647,7 @@ pub fn topics(path: &Path) -> Result<Option<Vec<TopicInfo>>, String> {
         pos: summary_start,
         size: Some(footer_at),
         complete: true,
+        data_section_end: None,
     };
     let mut schemas: HashMap<u16, String> = HashMap::new();
     let mut channels: Vec<(u16, u16, String)> = Vec::new();
@@ -707,7 +762,7 @@ mod tests {
             got.push((m.log_time, cdr::parse_string(m.data)?.to_string()));
             Ok(Flow::Continue)
         })?;
-        Ok((got, ended.cut))
+        Ok((got, ended.note))
     }
 
     /// `(opcode, start, end)` of the top-level records of a well-formed file.
@@ -753,6 +808,44 @@ mod tests {
         }
         w.finish().unwrap();
         expected
+    }
+
+    /// One damaged byte that turns a message's opcode into a data end's or a footer's is an
+    /// error naming its byte, not the quiet end of the data section.
+    #[test]
+    fn a_damaged_opcode_does_not_end_the_data_section_early() {
+        let dir = scratch("early_end");
+        let path = dir.join("whole.mcap");
+        write_unchunked(&path, 50);
+        let bytes = std::fs::read(&path).unwrap();
+        let message = record_starts(&bytes)
+            .into_iter()
+            .filter(|r| r.0 == op::MESSAGE)
+            .nth(20)
+            .unwrap();
+        for opcode in [op::DATA_END, op::FOOTER] {
+            let mut damaged = bytes.clone();
+            damaged[message.1] = opcode;
+            let damaged_path = dir.join("damaged.mcap");
+            std::fs::write(&damaged_path, &damaged).unwrap();
+            let err = read_all(&damaged_path).unwrap_err();
+            assert!(
+                err.contains(&format!("the record at byte {}", message.1))
+                    && err.contains("damaged"),
+                "{err}"
+            );
+        }
+        // A data end of the right length in the wrong place: named too.
+        let data_end = record_starts(&bytes)
+            .into_iter()
+            .find(|r| r.0 == op::DATA_END)
+            .unwrap();
+        let mut early = bytes[..message.1].to_vec();
+        early.extend_from_slice(&bytes[data_end.1..]);
+        let early_path = dir.join("early.mcap");
+        std::fs::write(&early_path, &early).unwrap();
+        let err = read_all(&early_path).unwrap_err();
+        assert!(err.contains("the footer says it ends at byte"), "{err}");
     }
 
     /// Cut anywhere (a killed recorder), a file gives a prefix of its messages and a note

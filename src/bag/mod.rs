@@ -24,6 +24,7 @@ mod sqlite_file;
 
 use compression::TempCopy;
 pub use mcap_writer::{ChunkBuilder, Compression, FinishedChunk, McapWriter};
+use sqlite_file::Opening;
 use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -80,7 +81,8 @@ pub struct Bag {
     pub storage: Storage,
     /// Storage files, in order (as given: `.zstd` ones still compressed).
     pub files: Vec<PathBuf>,
-    /// Decompressed copies of `file`-mode compressed sqlite3 files, by index in `files`.
+    /// Copies of sqlite3 files, by index in `files`: decompressed (`file`-mode compressed), or
+    /// with their write-ahead log ([`sqlite_file`]).
     copies: Vec<Option<Arc<TempCopy>>>,
     /// Topics (with counts) from `metadata.yaml`, if there was one.
     metadata_topics: Vec<TopicInfo>,
@@ -91,16 +93,34 @@ impl Bag {
     pub fn open(path: &Path) -> Result<Bag, String> {
         let (storage, files, metadata_topics) = if path.is_dir() {
             open_directory(path)?
+        } else if !path.is_file() && path.exists() {
+            return Err(format!(
+                "{} is not a regular file (nor a bag directory)",
+                path.display()
+            ));
         } else {
             (sniff(path)?, vec![path.to_path_buf()], Vec::new())
         };
         let copies = files
             .iter()
             .map(|file| {
-                if storage == Storage::Sqlite3 && compression::is_zstd_file(file) {
-                    compression::decompress_to_temp(file).map(|c| Some(Arc::new(c)))
-                } else {
-                    Ok(None)
+                if storage != Storage::Sqlite3 {
+                    return Ok(None);
+                }
+                if compression::is_zstd_file(file) {
+                    return compression::decompress_to_temp(file).map(|c| Some(Arc::new(c)));
+                }
+                match compression::write_ahead_log(file) {
+                    Some(wal) => {
+                        warn(&format!(
+                            "{}: its write-ahead log {} holds messages not yet in the database \
+                             (a recording not closed): reading a copy with the log applied",
+                            file.display(),
+                            wal.display()
+                        ));
+                        compression::copy_with_log(file, &wal).map(|c| Some(Arc::new(c)))
+                    }
+                    None => Ok(None),
                 }
             })
             .collect::<Result<_, _>>()?;
@@ -121,7 +141,10 @@ impl Bag {
         for (k, file) in self.files.iter().enumerate() {
             let topics = match self.storage {
                 Storage::Mcap => mcap_reader::topics(file),
-                Storage::Sqlite3 => sqlite_file::topics(self.local(k)).map(Some),
+                Storage::Sqlite3 => {
+                    let (path, opening) = self.local(k);
+                    sqlite_file::topics(path, opening).map(Some)
+                }
             }
             .map_err(|e| format!("{}: {e}", file.display()))?;
             let Some(topics) = topics else {
@@ -174,11 +197,14 @@ impl Bag {
         for (k, file) in self.files.iter().enumerate() {
             let ended = match self.storage {
                 Storage::Mcap => mcap_reader::read(file, wanted, visit),
-                Storage::Sqlite3 => sqlite_file::read(self.local(k), wanted, visit),
+                Storage::Sqlite3 => {
+                    let (path, opening) = self.local(k);
+                    sqlite_file::read(path, opening, wanted, visit)
+                }
             }
             .map_err(|e| format!("{}: {e}", file.display()))?;
-            if let Some(cut) = ended.cut {
-                notes.push(format!("{}: {cut}", file.display()));
+            if let Some(note) = ended.note {
+                notes.push(format!("{}: {note}", file.display()));
             }
             if ended.flow == Flow::Stop {
                 break;
@@ -187,9 +213,12 @@ impl Bag {
         Ok(())
     }
 
-    /// The file to open for storage file `k`: its decompressed copy, if it has one.
-    fn local(&self, k: usize) -> &Path {
-        self.copies[k].as_ref().map_or(&self.files[k], |c| &c.path)
+    /// The file to open for storage file `k`: its copy, if it has one, else the file in place.
+    fn local(&self, k: usize) -> (&Path, Opening) {
+        match &self.copies[k] {
+            Some(copy) => (&copy.path, Opening::Copy),
+            None => (&self.files[k], Opening::InPlace),
+        }
     }
 }
 
@@ -280,17 +309,31 @@ fn storage_of_name(path: &Path) -> Option<Storage> {
     }
 }
 
-/// The split index of a storage file (`name_3.db3` → 3), for ordering.
+/// A storage file's bag name and split index (`run.v2_3.db3` → `run.v2`, 3; without an index,
+/// the whole name before the storage suffix and 0), for ordering and for telling bags apart.
+fn split_parts(path: &Path) -> (String, u64) {
+    let name = path
+        .file_name()
+        .map_or(String::new(), |n| n.to_string_lossy().into_owned());
+    let name = name.strip_suffix(".zstd").unwrap_or(&name);
+    let stem = [".mcap", ".db3"]
+        .iter()
+        .find_map(|suffix| name.strip_suffix(suffix))
+        .unwrap_or(name);
+    match stem.rsplit_once('_') {
+        Some((base, n)) if !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()) => {
+            (base.to_string(), n.parse().unwrap_or(u64::MAX))
+        }
+        _ => (stem.to_string(), 0),
+    }
+}
+
+/// The order of storage files: by split index, then by name.
 fn split_index(path: &Path) -> (u64, String) {
     let name = path
         .file_name()
         .map_or(String::new(), |n| n.to_string_lossy().into_owned());
-    let stem = name.split('.').next().unwrap_or("");
-    let index = stem
-        .rsplit_once('_')
-        .and_then(|(_, n)| n.parse().ok())
-        .unwrap_or(0);
-    (index, name)
+    (split_parts(path).1, name)
 }
 
 /// The storage files of a directory, in split order.
@@ -369,7 +412,7 @@ fn open_directory(dir: &Path) -> Result<(Storage, Vec<PathBuf>, Vec<TopicInfo>),
             path.display()
         ));
     }
-    let mut files = info["relative_file_paths"]
+    let files = info["relative_file_paths"]
         .as_sequence()
         .ok_or_else(|| format!("{}: no relative_file_paths", path.display()))?
         .iter()
@@ -397,14 +440,31 @@ fn open_directory(dir: &Path) -> Result<(Storage, Vec<PathBuf>, Vec<TopicInfo>),
             }
         })
         .collect::<Result<Vec<_>, String>>()?;
+    // A file listed twice would be read twice.
+    let listed = files.len();
+    let mut unique: Vec<PathBuf> = Vec::with_capacity(listed);
+    for file in files {
+        let same = |f: &PathBuf| {
+            f == &file
+                || std::fs::canonicalize(f)
+                    .ok()
+                    .is_some_and(|c| std::fs::canonicalize(&file).is_ok_and(|d| c == d))
+        };
+        if !unique.iter().any(same) {
+            unique.push(file);
+        }
+    }
+    if unique.len() < listed {
+        warn(&format!(
+            "{}: lists {listed} storage files, of which {} are distinct: each is read once",
+            path.display(),
+            unique.len()
+        ));
+    }
+    let mut files = unique;
     // A metadata.yaml left from before a split (a killed recorder): the later files of the
     // same bag (same name, higher split index) are read too.
-    let base = |p: &Path| {
-        let (_, name) = split_index(p);
-        let stem = name.split('.').next().unwrap_or("").to_string();
-        stem.rsplit_once('_')
-            .map_or(stem.clone(), |(b, _)| b.to_string())
-    };
+    let base = |p: &Path| split_parts(p).0;
     let bases: Vec<String> = files.iter().map(|f| base(f)).collect();
     let last = files.iter().map(|f| split_index(f).0).max().unwrap_or(0);
     let extra: Vec<PathBuf> = storage_files(dir)?
@@ -468,6 +528,83 @@ mod tests {
             Ok(Some(0))
         );
         assert!(match_topic(&wanted, "/j", "std_msgs/String", "cdr").is_err());
+    }
+
+    /// A database whose latest messages are still in its write-ahead log (a recorder killed in
+    /// WAL mode) gives every message, read from a copy: nothing is created beside the bag.
+    #[test]
+    fn messages_in_a_write_ahead_log_are_read() {
+        let dir = std::env::temp_dir().join(format!("sd_wal_{}", std::process::id()));
+        let bag = dir.join("bag");
+        std::fs::create_dir_all(&bag).unwrap();
+        let live = dir.join("live.db3");
+        let db = rusqlite::Connection::open(&live).unwrap();
+        db.execute_batch(
+            "PRAGMA journal_mode=WAL; PRAGMA wal_autocheckpoint=0;
+             CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+                 serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
+                 timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+             INSERT INTO topics VALUES (1, '/s', 'std_msgs/msg/String', 'cdr', '');
+             INSERT INTO messages VALUES (1, 1, 10, X'000100000300000061620000');
+             PRAGMA wal_checkpoint(TRUNCATE);
+             INSERT INTO messages VALUES (2, 1, 20, X'000100000300000068690000');",
+        )
+        .unwrap();
+        // What a killed recorder leaves: the database and its log, the second row only in the log.
+        std::fs::copy(&live, bag.join("bag_0.db3")).unwrap();
+        std::fs::copy(dir.join("live.db3-wal"), bag.join("bag_0.db3-wal")).unwrap();
+        drop(db);
+        let listing = || {
+            let mut names: Vec<_> = std::fs::read_dir(&bag)
+                .unwrap()
+                .map(|e| e.unwrap().file_name())
+                .collect();
+            names.sort();
+            names
+        };
+        let before = listing();
+        let opened = Bag::open(&bag).unwrap();
+        let wanted = [Wanted {
+            topic: "/s",
+            type_name: "std_msgs/msg/String",
+        }];
+        let mut times = Vec::new();
+        opened
+            .read(&wanted, &mut |m| {
+                times.push(m.log_time);
+                Ok(Flow::Continue)
+            })
+            .unwrap();
+        assert_eq!(times, [10, 20]);
+        let copy = opened.copies[0].as_ref().unwrap().path.clone();
+        drop(opened);
+        assert!(!copy.exists(), "the copy is removed with the bag");
+        assert_eq!(listing(), before, "nothing created beside the bag");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn bag_names_with_dots_keep_their_split_index() {
+        assert_eq!(
+            split_parts(Path::new("run.v2_11.mcap")),
+            ("run.v2".to_string(), 11)
+        );
+        assert_eq!(
+            split_parts(Path::new("d/run.v2_3.db3.zstd")),
+            ("run.v2".to_string(), 3)
+        );
+        assert_eq!(
+            split_parts(Path::new("plain.mcap")),
+            ("plain".to_string(), 0)
+        );
+        assert_eq!(split_parts(Path::new("a_b.mcap")), ("a_b".to_string(), 0));
+        let mut files: Vec<PathBuf> = ["r.v2_10.mcap", "r.v2_2.mcap", "r.v2_0.mcap"]
+            .iter()
+            .map(PathBuf::from)
+            .collect();
+        files.sort_by_key(|p| split_index(p));
+        assert_eq!(files[2], Path::new("r.v2_10.mcap"));
     }
 
     #[test]

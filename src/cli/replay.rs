@@ -12,11 +12,11 @@ pub struct ReplayArgs {
     /// Input bag: a rosbag2 directory (with metadata.yaml, or without it: its storage files in split order) or one .mcap or .db3 file, either zstd-compressed (.mcap.zstd, .db3.zstd).
     #[arg(long, value_name = "IN")]
     bag: PathBuf,
-    /// Output MCAP file (replaced if it exists).
+    /// Output MCAP file (replaced if it exists, once the run succeeds; never the bag itself).
     #[arg(long, value_name = "OUT.mcap")]
     out: PathBuf,
-    /// Worker threads for the dynamics (default: every core). Reading and writing run in two
-    /// more threads.
+    /// Worker threads for the dynamics, at most 256 (default: every core). Reading and writing
+    /// run in two more threads.
     #[arg(long, value_name = "N")]
     jobs: Option<usize>,
     /// The node's fully qualified name: outputs go to NODE/gravity_effort, NODE/acceleration,

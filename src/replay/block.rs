@@ -10,7 +10,7 @@ pub const BLOCK: usize = 1024;
 
 /// A name order seen in the input: the message's names, the coordinates they fill, and the
 /// output's `name[]` encoded once.
-#[derive(Debug)]
+#[derive(Debug, Default)]
 pub struct Order {
     pub names: Vec<String>,
     /// `(q index, v index)` of each named coordinate, in the message's order (passive joints left out).
@@ -18,19 +18,16 @@ pub struct Order {
     pub encoded_names: Vec<u8>,
 }
 
-/// Name orders and frame ids seen so far; only grows, shared with the workers.
-#[derive(Debug, Default, Clone)]
-pub struct Tables {
-    pub orders: Vec<Arc<Order>>,
-    pub frames: Vec<String>,
-}
-
 /// Samples decoded in order, and what the workers made of them. Sample `lo − 1` (if `lo = 1`)
 /// and sample `hi` (if `hi < n`) are neighbours from the blocks before and after, there for the
 /// finite differences only.
 pub struct Block {
     pub seq: u64,
-    pub tables: Arc<Tables>,
+    /// The name orders and frame ids of this block's samples (`order`, `frame` index them),
+    /// each listed again only where it differs from the sample before: a block's lists never
+    /// outgrow its samples, however many the bag holds.
+    pub orders: Vec<Arc<Order>>,
+    pub frames: Vec<String>,
     /// Number of sample `lo` among all valid joint states (the outputs' sequence numbers).
     pub base: u64,
     pub n: usize,
@@ -63,7 +60,8 @@ impl Block {
         let cap = BLOCK + 2;
         Block {
             seq: 0,
-            tables: Arc::default(),
+            orders: Vec::new(),
+            frames: Vec::new(),
             base: 0,
             n: 0,
             lo: 0,
@@ -86,13 +84,36 @@ impl Block {
         }
     }
 
+    /// Empties the block for reuse.
+    pub fn clear(&mut self) {
+        self.n = 0;
+        self.orders.clear();
+        self.frames.clear();
+    }
+
+    /// The index of `order` in this block's list, appended unless it is the last one.
+    pub fn order_index(&mut self, order: &Arc<Order>) -> u32 {
+        if !self.orders.last().is_some_and(|o| Arc::ptr_eq(o, order)) {
+            self.orders.push(order.clone());
+        }
+        (self.orders.len() - 1) as u32
+    }
+
+    /// The index of `frame` in this block's list, appended unless it is the last one.
+    pub fn frame_index(&mut self, frame: &str) -> u32 {
+        if self.frames.last().map(String::as_str) != Some(frame) {
+            self.frames.push(frame.to_string());
+        }
+        (self.frames.len() - 1) as u32
+    }
+
     /// Copies sample `from` of `other` into slot `to`.
     pub fn copy_sample(&mut self, to: usize, other: &Block, from: usize, nq: usize, nv: usize) {
         self.log_time[to] = other.log_time[from];
         self.stamp[to] = other.stamp[from];
         self.t[to] = other.t[from];
-        self.frame[to] = other.frame[from];
-        self.order[to] = other.order[from];
+        self.frame[to] = self.frame_index(&other.frames[other.frame[from] as usize]);
+        self.order[to] = self.order_index(&other.orders[other.order[from] as usize]);
         self.has_velocity[to] = other.has_velocity[from];
         self.joins_prev[to] = other.joins_prev[from];
         self.q[to * nq..(to + 1) * nq].copy_from_slice(&other.q[from * nq..(from + 1) * nq]);

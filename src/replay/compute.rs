@@ -42,14 +42,13 @@ pub fn compute(
     s: &mut Scratch,
 ) -> Result<(), String> {
     let (nq, nv) = (model.nq(), model.nv());
-    let tables = block.tables.clone();
     for i in block.lo..block.hi {
         let q = &block.q[i * nq..(i + 1) * nq];
         let v = &block.v[i * nv..(i + 1) * nv];
         let command = &block.command[i * nv..(i + 1) * nv];
-        let order = &tables.orders[block.order[i] as usize];
+        let order = &block.orders[block.order[i] as usize];
         let (sec, nanosec) = block.stamp[i];
-        let frame = tables.frames[block.frame[i] as usize].as_str();
+        let frame = block.frames[block.frame[i] as usize].as_str();
         let log_time = block.log_time[i];
         let sequence = (block.base + (i - block.lo) as u64) as u32;
         let rate = |x| at_rates(&order.slots, x);

@@ -2,7 +2,7 @@
 //! and frames numbered), commands (`~/effort_command` by name, `~/commands` in
 //! `command_joints` order) into the command state.
 
-use super::block::{Block, Order, Tables};
+use super::block::{Block, Order};
 use super::problems::Problems;
 use super::TimeSource;
 use crate::bag::{cdr, RawMessage};
@@ -11,6 +11,7 @@ use crate::joint_states::differences::joins;
 use crate::joint_states::joint_map::JointMap;
 use crate::joint_states::residual::read_effort;
 use spatial_dynamics_core::Model;
+use std::collections::HashMap;
 use std::ops::Range;
 use std::sync::Arc;
 
@@ -28,9 +29,9 @@ pub struct Decoder {
     velocity: Vec<f64>,
     effort: Vec<f64>,
     /// The order `map` last matched (valid while `Some`).
-    current_order: Option<u32>,
-    current_frame: u32,
-    tables: Arc<Tables>,
+    current_order: Option<Arc<Order>>,
+    /// Every name order seen, by its names: each matched against the model once.
+    orders: HashMap<Vec<String>, Arc<Order>>,
     /// `(t, has velocity)` of the last sample decoded.
     prev: Option<(i64, bool)>,
     pub problems: Problems,
@@ -62,8 +63,7 @@ impl Decoder {
             names: Vec::new(),
             values: Vec::new(),
             current_order: None,
-            current_frame: u32::MAX,
-            tables: Arc::default(),
+            orders: HashMap::new(),
             velocity: Vec::new(),
             effort: Vec::new(),
             prev: None,
@@ -73,11 +73,6 @@ impl Decoder {
             last_log_time: 0,
             log_time_backwards: 0,
         }
-    }
-
-    /// The name orders and frames decoded so far.
-    pub fn tables(&self) -> &Arc<Tables> {
-        &self.tables
     }
 
     /// A joint state into slot `block.n`; on success the block has one more sample.
@@ -116,8 +111,8 @@ impl Decoder {
         };
         let joins_prev = joins(self.prev, t, has_velocity, self.max_gap_ns);
         self.prev = Some((t, has_velocity));
-        block.frame[i] = self.frame_of(view.frame_id);
-        block.order[i] = order;
+        block.frame[i] = block.frame_index(view.frame_id);
+        block.order[i] = block.order_index(&order);
         block.log_time[i] = msg.log_time;
         block.stamp[i] = (view.sec, view.nanosec);
         block.t[i] = t;
@@ -133,16 +128,19 @@ impl Decoder {
     }
 
     /// The name order of a message, matching the names only when they differ from the last.
-    fn order_of(&mut self, view: &cdr::JointStateView<'_>) -> Result<u32, (&'static str, String)> {
-        if let Some(id) = self.current_order {
-            let known = &self.tables.orders[id as usize].names;
+    fn order_of(
+        &mut self,
+        view: &cdr::JointStateView<'_>,
+    ) -> Result<Arc<Order>, (&'static str, String)> {
+        if let Some(current) = &self.current_order {
+            let known = &current.names;
             if known.len() == self.ranges.len()
                 && known
                     .iter()
                     .zip(&self.ranges)
                     .all(|(k, r)| k.as_bytes() == view.name_bytes(r))
             {
-                return Ok(id);
+                return Ok(current.clone());
             }
         }
         self.current_order = None;
@@ -150,41 +148,20 @@ impl Decoder {
         self.map
             .match_names(&self.names, "name")
             .map_err(|e| ("bad joint names", e))?;
-        let id = match self
-            .tables
-            .orders
-            .iter()
-            .position(|o| o.names == self.names)
-        {
-            Some(id) => id,
+        let order = match self.orders.get(&self.names) {
+            Some(order) => order.clone(),
             None => {
-                let order = Order {
+                let order = Arc::new(Order {
                     names: self.names.clone(),
                     slots: self.map.answer_order().map(|s| self.map.slot(s)).collect(),
                     encoded_names: cdr::encode_strings(&self.map.answer_names()),
-                };
-                let tables = Arc::make_mut(&mut self.tables);
-                tables.orders.push(Arc::new(order));
-                tables.orders.len() - 1
+                });
+                self.orders.insert(self.names.clone(), order.clone());
+                order
             }
-        } as u32;
-        self.current_order = Some(id);
-        Ok(id)
-    }
-
-    fn frame_of(&mut self, frame_id: &str) -> u32 {
-        let frames = &self.tables.frames;
-        if frames.get(self.current_frame as usize).map(String::as_str) != Some(frame_id) {
-            self.current_frame = match frames.iter().position(|f| f == frame_id) {
-                Some(k) => k as u32,
-                None => {
-                    let tables = Arc::make_mut(&mut self.tables);
-                    tables.frames.push(frame_id.to_string());
-                    (tables.frames.len() - 1) as u32
-                }
-            };
-        }
-        self.current_frame
+        };
+        self.current_order = Some(order.clone());
+        Ok(order)
     }
 
     /// An effort command (sensor_msgs/JointState, by name): it holds until the next command.

@@ -42,6 +42,8 @@ use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
 use spatial_dynamics_core::{urdf, ForwardDynamicsMethod, Model, ModelOptions};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
 use std::time::Instant;
 
 mod block;
@@ -131,15 +133,20 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
     }
     let jobs = match args.jobs {
         Some(0) => return Err("--jobs must be at least 1".into()),
+        Some(n) if n > MAX_JOBS => return Err(format!("--jobs must be at most {MAX_JOBS}")),
         Some(n) => n,
-        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        None => std::thread::available_parallelism().map_or(1, |n| n.get().min(MAX_JOBS)),
     };
     let mut js_topic = names.resolve(&args.joint_states);
     let mut cmd_topic = names.resolve(args.effort_command.as_deref().unwrap_or("~/effort_command"));
     let mut commands_topic = names.resolve(args.commands.as_deref().unwrap_or("~/commands"));
     let mut description_topic = names.resolve(&args.robot_description);
 
+    // From here a first SIGINT or SIGTERM stops the run at the next message, and the partial
+    // output and temporary copies are removed; a second ends the process at once.
+    let interrupted = Interruption::catch()?;
     let bag = Bag::open(&args.bag)?;
+    refuse_output_over_input(&args.out, &args.bag, &bag.files)?;
     let topics = bag.topics()?;
     if let Some(topics) = &topics {
         for topic in [
@@ -223,6 +230,7 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
         .is_terminal()
         .then(|| Progress::new(total));
     let outcome = pipeline(
+        &interrupted.flag,
         &bag,
         &wanted,
         &model,
@@ -234,8 +242,13 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
         progress,
     )?;
     let seconds = started.elapsed().as_secs_f64();
+    let answered = outcome.written[0] > 0;
+    if answered {
+        partial.keep_as(&args.out)?;
+    }
     report(
         args,
+        answered.then_some(args.out.as_path()),
         &model,
         &model_source,
         [&js_topic, &cmd_topic, &commands_topic],
@@ -244,7 +257,14 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
         jobs,
         seconds,
     );
-    if outcome.written[0] == 0 {
+    if let Some(total) = total.filter(|&t| outcome.read[0] < t) {
+        eprintln!(
+            "spatial_dynamics: warning: the bag lists {total} messages on {js_topic}, {} were \
+             read: the rest could not be found in its storage files",
+            outcome.read[0]
+        );
+    }
+    if !answered {
         return Err(format!(
             "no joint state was answered ({} read on {js_topic}){}",
             outcome.read[0],
@@ -253,7 +273,92 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
                 .fold(String::new(), |text, line| text + "\n" + line)
         ));
     }
-    partial.keep_as(&args.out)
+    Ok(())
+}
+
+/// The most worker threads `--jobs` may ask for.
+const MAX_JOBS: usize = 256;
+
+/// SIGINT and SIGTERM caught for the length of a run: the first sets `flag`, which the reading
+/// checks before each message; with it set, a second ends the process (exit status 130).
+struct Interruption {
+    flag: Arc<AtomicBool>,
+    handlers: Vec<signal_hook::SigId>,
+}
+
+impl Interruption {
+    fn catch() -> Result<Interruption, String> {
+        let flag = Arc::new(AtomicBool::new(false));
+        let mut handlers = Vec::new();
+        for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+            // Registered first, so it sees the flag as the earlier signal left it.
+            let shutdown =
+                signal_hook::flag::register_conditional_shutdown(signal, 130, flag.clone());
+            let set = signal_hook::flag::register(signal, flag.clone());
+            for id in [shutdown, set] {
+                handlers.push(id.map_err(|e| format!("cannot catch signal {signal}: {e}"))?);
+            }
+        }
+        Ok(Interruption { flag, handlers })
+    }
+}
+
+impl Drop for Interruption {
+    fn drop(&mut self) {
+        for id in self.handlers.drain(..) {
+            signal_hook::low_level::unregister(id);
+        }
+    }
+}
+
+/// Refuses an output that would replace the input (the bag's file, one of its storage files or
+/// its metadata.yaml), that is a directory, or that a later read of a bag directory would take
+/// for one of its storage files.
+fn refuse_output_over_input(out: &Path, bag: &Path, files: &[PathBuf]) -> Result<(), String> {
+    if out.is_dir() {
+        return Err(format!("--out {}: is a directory", out.display()));
+    }
+    let metadata = bag.is_dir().then(|| bag.join("metadata.yaml"));
+    for input in files.iter().chain(&metadata) {
+        if same_file(out, input) {
+            return Err(format!(
+                "--out {} is the bag's {}: the output would replace the input",
+                out.display(),
+                input.display()
+            ));
+        }
+    }
+    let parent = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let inside = bag.is_dir() && same_file(parent, bag);
+    let storage_name = out
+        .extension()
+        .is_some_and(|e| e == "mcap" || e == "db3" || e == "zstd");
+    if inside && storage_name {
+        return Err(format!(
+            "--out {} is inside the bag directory {}: the next read of the bag would take it \
+             for one of its storage files",
+            out.display(),
+            bag.display()
+        ));
+    }
+    Ok(())
+}
+
+/// Whether two paths name the same existing file or directory.
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        #[cfg(unix)]
+        (Ok(x), Ok(y)) => {
+            use std::os::unix::fs::MetadataExt;
+            x.dev() == y.dev() && x.ino() == y.ino()
+        }
+        #[cfg(not(unix))]
+        (Ok(_), Ok(_)) => std::fs::canonicalize(a).ok() == std::fs::canonicalize(b).ok(),
+        _ => false,
+    }
 }
 
 /// A topic as the bag records it ([`bag::same_topic`]).

@@ -2,7 +2,7 @@
 //! `jobs` workers compute and serialize whole blocks, each with its own scratch (no allocation
 //! per message); one writer thread writes the blocks in order. Blocks are recycled.
 
-use super::block::{Block, Tables, BLOCK};
+use super::block::{Block, BLOCK};
 use super::compute::{compute, Scratch};
 use super::decode::Decoder;
 use super::problems::Problems;
@@ -10,8 +10,9 @@ use super::progress::Progress;
 use crate::bag::{Bag, Flow, McapWriter, Wanted};
 use spatial_dynamics_core::{ForwardDynamicsMethod, Model};
 use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{channel, Receiver, Sender};
-use std::sync::{Arc, Mutex};
+use std::sync::Mutex;
 
 /// What the pipeline counted.
 pub struct Outcome {
@@ -24,8 +25,10 @@ pub struct Outcome {
 }
 
 /// Decodes here, computes in `jobs` workers, writes in one writer thread; blocks are recycled.
+/// Stops with an error once `interrupted` is set (a signal), before the next message.
 #[allow(clippy::too_many_arguments)]
 pub fn pipeline(
+    interrupted: &AtomicBool,
     bag: &Bag,
     wanted: &[Wanted<'_>],
     model: &Model,
@@ -48,9 +51,9 @@ pub fn pipeline(
         .collect::<Result<Vec<_>, _>>()?;
 
     std::thread::scope(|scope| {
-        for builder in builders {
+        for (k, builder) in builders.into_iter().enumerate() {
             let (work_rx, done_tx) = (&work_rx, done_tx.clone());
-            scope.spawn(move || {
+            let spawned = std::thread::Builder::new().spawn_scoped(scope, move || {
                 let mut s = Scratch::new(model, builder);
                 loop {
                     let next = work_rx.lock().map(|rx| rx.recv());
@@ -61,13 +64,28 @@ pub fn pipeline(
                     }
                 }
             });
+            if let Err(e) = spawned {
+                // The workers started end once the work channel closes.
+                drop(work_tx);
+                return Err(format!(
+                    "cannot start worker thread {} of {jobs}: {e}",
+                    k + 1
+                ));
+            }
         }
         drop(done_tx);
-        let writer_thread = scope.spawn(move || {
+        let writer_thread = std::thread::Builder::new().spawn_scoped(scope, move || {
             let counts = write_blocks(&mut writer, done_rx, free_tx, channels)?;
             writer.finish()?;
             Ok::<_, String>(counts)
         });
+        let writer_thread = match writer_thread {
+            Ok(thread) => thread,
+            Err(e) => {
+                drop(work_tx);
+                return Err(format!("cannot start the writer thread: {e}"));
+            }
+        };
 
         let mut allocated = 0;
         let mut get_block = |free_rx: &Receiver<Box<Block>>| -> Option<Box<Block>> {
@@ -82,20 +100,21 @@ pub fn pipeline(
         };
         let mut seq = 0u64;
         let mut block = get_block(&free_rx).expect("a first block");
-        block.n = 0;
+        block.clear();
         block.lo = 0;
         block.base = 0;
-        let mut send =
-            |block: Box<Block>, hi: usize, tables: &Arc<Tables>, tx: &Sender<Box<Block>>| {
-                let mut block = block;
-                block.hi = hi;
-                block.seq = seq;
-                block.tables = tables.clone();
-                seq += 1;
-                tx.send(block).is_ok()
-            };
+        let mut send = |block: Box<Block>, hi: usize, tx: &Sender<Box<Block>>| {
+            let mut block = block;
+            block.hi = hi;
+            block.seq = seq;
+            seq += 1;
+            tx.send(block).is_ok()
+        };
         let mut failed = None;
         let result = bag.read(wanted, &mut |m| {
+            if interrupted.load(Ordering::Relaxed) {
+                return Err("interrupted by a signal: nothing written".into());
+            }
             if m.log_time < decoder.last_log_time {
                 decoder.log_time_backwards += 1;
             }
@@ -120,13 +139,14 @@ pub fn pipeline(
                     return Ok(Flow::Stop);
                 };
                 let n = block.n;
+                next.clear();
                 next.copy_sample(0, &block, n - 2, nq, nv);
                 next.copy_sample(1, &block, n - 1, nq, nv);
                 next.n = 2;
                 next.lo = 1;
                 next.base = decoder.committed - 1;
                 let full = std::mem::replace(&mut block, next);
-                if !send(full, n - 1, decoder.tables(), &work_tx) {
+                if !send(full, n - 1, &work_tx) {
                     return Ok(Flow::Stop);
                 }
             }
@@ -137,7 +157,7 @@ pub fn pipeline(
         }
         let n = block.n;
         if n > block.lo {
-            send(block, n, decoder.tables(), &work_tx);
+            send(block, n, &work_tx);
         }
         drop(work_tx);
         if let Some(p) = progress.as_mut() {

@@ -6,10 +6,14 @@ use super::problems::Problems;
 use super::Config;
 use serde_json::{json, Value};
 use spatial_dynamics_core::Model;
+use std::path::Path;
 
+/// `written_to`: the output file, once it is in place (`None`: the run failed, nothing was
+/// written).
 #[allow(clippy::too_many_arguments)]
 pub fn report(
     config: &Config,
+    written_to: Option<&Path>,
     model: &Model,
     model_source: &str,
     [js_topic, cmd_topic, commands_topic]: [&str; 3],
@@ -43,7 +47,10 @@ pub fn report(
         .zip(out_topics)
         .map(|(n, topic)| format!("{n} {topic}"))
         .collect();
-    eprintln!("wrote {}: {}", config.out.display(), written.join(", "));
+    match written_to {
+        Some(out) => eprintln!("wrote {}: {}", out.display(), written.join(", ")),
+        None => eprintln!("nothing written: {}", written.join(", ")),
+    }
     for (what, topic, total) in [
         ("joint_states", js_topic, skipped_js),
         ("effort_command", cmd_topic, skipped_cmd),
@@ -93,6 +100,7 @@ pub fn report(
                 cmd_topic: outcome.read[1],
                 commands_topic: outcome.read[2],
             },
+            "out": written_to.map(|p| p.display().to_string()),
             "written": out_topics
                 .iter()
                 .zip(outcome.written)

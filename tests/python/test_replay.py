@@ -504,3 +504,64 @@ def test_rates_are_never_computed_from_a_zero_duration(tmp_path):
     if rate is not None:
         assert rate == pytest.approx(s["read"]["/joint_states"] / cpu)
     assert (s["joint_states_per_second"] is None) == (s["seconds"] == 0)
+
+
+def test_an_output_that_would_replace_the_input_is_refused(tmp_path):
+    """The output may not be the bag's own file (given directly or through its directory), a
+    file inside the bag directory that a later read would take for a storage file, or a
+    directory; the input stays as it was."""
+    records, _ = make_inputs(n=20, commands=False)
+    bag = tmp_path / "bag"
+    write_bag(bag, "mcap", records)
+    storage = bag / "bag.mcap"
+    before = storage.read_bytes()
+    cases = [
+        (storage, storage, "would replace the input"),
+        (bag, storage, "would replace the input"),
+        (bag, bag / "metadata.yaml", "would replace the input"),
+        (bag, bag / "out.mcap", "inside the bag directory"),
+        (bag, tmp_path, "is a directory"),
+    ]
+    for given, out, message in cases:
+        run = run_replay(given, out, "--builtin", "default_arm")
+        assert run.returncode != 0 and message in run.stderr, (given, out, run.stderr)
+    assert storage.read_bytes() == before
+    assert sorted(p.name for p in bag.iterdir()) == ["bag.mcap", "metadata.yaml"]
+    run = run_replay(bag, tmp_path / "o.mcap", "--builtin", "default_arm", "--jobs", "100000")
+    assert run.returncode != 0 and "--jobs must be at most" in run.stderr, run.stderr
+
+
+def test_an_interrupted_run_leaves_no_partial_output(tmp_path):
+    """SIGINT or SIGTERM mid-run: the run stops, says so, removes its partial output and keeps
+    the earlier one. (A 200-link pendulum makes each joint state slow enough that the run is
+    still going when the signal comes.)"""
+    import signal
+    import time
+
+    joints = [f"joint{k}" for k in range(1, 201)]
+    t0 = 1_700_000_000_000_000_000
+    records = [
+        ("/joint_states", JS, t0 + k * 1_000_000, cdr(state_msg(t0 + k * 1_000_000, joints, np.full(200, 0.1), np.zeros(200))))
+        for k in range(60_000)
+    ]
+    bag = tmp_path / "in"
+    write_bag(bag, "mcap", records)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        out_dir = tmp_path / f"out_{sig.name}"
+        out_dir.mkdir()
+        out = out_dir / "out.mcap"
+        out.write_bytes(b"earlier output")
+        proc = subprocess.Popen(
+            [BIN, "replay", "--bag", str(bag), "--out", str(out), "--builtin", "pendulum:200", "--jobs", "1"],
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        deadline = time.monotonic() + 30
+        while not any(p.name.endswith(".partial") for p in out_dir.iterdir()):
+            assert proc.poll() is None and time.monotonic() < deadline, "the run ended before it was interrupted"
+            time.sleep(0.01)
+        proc.send_signal(sig)
+        _, stderr = proc.communicate(timeout=60)
+        assert proc.returncode == 1 and "interrupted by a signal" in stderr, (sig, proc.returncode, stderr)
+        assert sorted(p.name for p in out_dir.iterdir()) == ["out.mcap"], stderr
+        assert out.read_bytes() == b"earlier output"
