@@ -106,7 +106,8 @@ impl fmt::Display for DynamicsError {
             }
             DynamicsError::BadQuaternion { joint, norm } => write!(
                 f,
-                "the quaternion of floating joint '{joint}' has norm {norm}: it must be a unit quaternion (x, y, z, w)"
+                "the quaternion of floating joint '{joint}' has norm {}: it must be a unit quaternion (x, y, z, w)",
+                short(*norm)
             ),
             DynamicsError::NonFiniteWrench { body } => {
                 write!(f, "the external wrench on '{body}' is not finite")
@@ -173,5 +174,15 @@ pub(crate) fn check_len(
             expected,
             got,
         })
+    }
+}
+
+/// `x` as a reader would write it: plainly between 10⁻⁴ and 10⁶ (and 0), in exponent form
+/// otherwise (`1e200`, not two hundred digits).
+fn short(x: f64) -> String {
+    if x == 0.0 || (1e-4..1e6).contains(&x.abs()) || !x.is_finite() {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
     }
 }

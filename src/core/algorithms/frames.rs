@@ -27,8 +27,8 @@ use super::validate::{all_finite, check_q_of};
 use crate::error::check_len;
 use crate::error::DynamicsError;
 use crate::model::{
-    floating_up, turn_up, turn_up_unrotated, Body, JointKind, Model, MotionSubspace, UpShape,
-    MIN_QUATERNION_NORM_SQUARED,
+    floating_up, quaternion_is_usable, turn_up, turn_up_unrotated, Body, JointKind, Model,
+    MotionSubspace, UpShape,
 };
 use crate::spatial::{sin_cos_all, AxisTransform, Motion, Transform, Vector3};
 use crate::Workspace;
@@ -257,7 +257,7 @@ pub(crate) fn support_turns(
             // Never a mimic follower: its coordinates are read where they are.
             let x = floating_coordinates(b, q);
             finite += x.iter().map(|x| x * 0.0).sum::<f64>();
-            quaternions &= x[3..].iter().map(|x| x * x).sum::<f64>() >= MIN_QUATERNION_NORM_SQUARED;
+            quaternions &= quaternion_is_usable(&x[3..]);
             scratch.angles[k] = 0.0;
         } else {
             scratch.angles[k] = read_joint(b, plan.turn_axes[i], joint, q);

@@ -41,6 +41,16 @@ pub fn rnea_columns<'w>(
             ws.mass_matrix[(r, k)] = ws.tau[r] - ws.bias[r];
         }
     }
+    // Outside the tree's pattern a finite entry is exactly zero (the same operations give τ
+    // and C there), as the workspace's other writers expect; an overflow leaves NaN
+    // everywhere, so the matrix is cleared before the error is returned.
+    if let Some(i) = ws.mass_matrix.iter().position(|x| !x.is_finite()) {
+        ws.mass_matrix.as_mut_slice().fill(0.0);
+        return Err(DynamicsError::NonFiniteResult {
+            quantity: "mass matrix",
+            coordinate: model.v_name(i / model.nv),
+        });
+    }
     cholesky_factor(model, &ws.mass_matrix, &mut ws.factor)?;
     ws.qdd.copy_from_slice(tau);
     ws.qdd -= &ws.bias;
@@ -60,4 +70,46 @@ fn inverse_dynamics(
 ) {
     update_joints(model, ws, q);
     rnea_passes(model, ws, Some(v), a, ext);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::examples::MIMIC_GRIPPER_URDF;
+    use crate::{algorithms::crba::crba, urdf, ModelOptions};
+
+    /// A refused call leaves nothing behind that a later algorithm reads: CRBA, which writes
+    /// only the tree's pattern, still gives the mass matrix a fresh workspace gives.
+    #[test]
+    fn an_overflow_leaves_the_mass_matrix_usable() {
+        let options = ModelOptions {
+            ignore_mimic: true,
+            ..ModelOptions::default()
+        };
+        let model = urdf::model_from_str(MIMIC_GRIPPER_URDF, &options).unwrap();
+        let (nq, nv) = (model.nq(), model.nv());
+        let q: Vec<f64> = (0..nq).map(|k| 0.1 * k as f64).collect();
+        let mut huge = vec![0.0; nv];
+        huge[0] = 1e300;
+        let mut ws = Workspace::new(&model);
+        let err = rnea_columns(
+            &model,
+            &mut ws,
+            &q,
+            &huge,
+            &vec![0.0; nv],
+            &Externals::none(),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(err, DynamicsError::NonFiniteResult { .. }),
+            "{err}"
+        );
+        let after = crba(&model, &mut ws, &q).unwrap().clone();
+        let fresh = crba(&model, &mut Workspace::new(&model), &q)
+            .unwrap()
+            .clone();
+        assert!(after.iter().all(|x| x.is_finite()), "{after}");
+        assert_eq!(after, fresh);
+    }
 }

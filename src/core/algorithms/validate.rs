@@ -3,7 +3,7 @@
 
 use super::Externals;
 use crate::error::{check_len, DynamicsError};
-use crate::model::{JointKind, Model};
+use crate::model::{quaternion_is_usable, quaternion_norm, JointKind, Model};
 use crate::Workspace;
 
 /// `ws` was made for `model` ([`Workspace::check`]), `q` has `nq` finite values and every
@@ -87,16 +87,15 @@ fn non_finite_q(model: &Model, q: &[f64], index: usize) -> DynamicsError {
     }
 }
 
-/// A floating joint's quaternion `[x, y, z, w]` must not be (near) zero: `|quat| ≥ 10⁻⁹`
-/// (compared squared; the norm is only taken for the error). A NaN passes here and is caught
-/// as a non-finite coordinate.
+/// A floating joint's quaternion `[x, y, z, w]` must be neither (near) zero, `|quat| ≥ 10⁻⁹`,
+/// nor so large its squared norm overflows ([`quaternion_is_usable`]); the norm is only taken
+/// for the error. A NaN passes here and is caught as a non-finite coordinate.
 #[inline(always)]
 fn check_quaternion(joint: &str, quat: &[f64]) -> Result<(), DynamicsError> {
-    let norm2 = quat.iter().map(|x| x * x).sum::<f64>();
-    if norm2 < crate::model::MIN_QUATERNION_NORM_SQUARED {
+    if !quaternion_is_usable(quat) {
         return Err(DynamicsError::BadQuaternion {
             joint: joint.to_string(),
-            norm: norm2.sqrt(),
+            norm: quaternion_norm(quat),
         });
     }
     Ok(())

@@ -200,6 +200,30 @@ impl Reduction {
 /// is refused (`DynamicsError::BadQuaternion`): it names no rotation. Others are normalised.
 pub const MIN_QUATERNION_NORM_SQUARED: f64 = 1e-18;
 
+/// Whether a floating joint's quaternion `[x, y, z, w]` can be normalised: its squared norm is
+/// at least [`MIN_QUATERNION_NORM_SQUARED`] and finite (components beyond about 10¹⁵⁴
+/// overflow it, and `σ = 2 / |quat|²` would be 0, the identity rotation whatever the
+/// quaternion). A NaN component passes: it is refused as a non-finite coordinate.
+#[inline(always)]
+pub fn quaternion_is_usable(quat: &[f64]) -> bool {
+    let norm2 = quat.iter().map(|x| x * x).sum::<f64>();
+    !(norm2 < MIN_QUATERNION_NORM_SQUARED || norm2 == f64::INFINITY)
+}
+
+/// `|quat|` without overflow or underflow (scaled by the largest component), for messages.
+pub fn quaternion_norm(quat: &[f64]) -> f64 {
+    let largest = quat.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if largest == 0.0 || !largest.is_finite() {
+        return largest;
+    }
+    largest
+        * quat
+            .iter()
+            .map(|x| (x / largest).powi(2))
+            .sum::<f64>()
+            .sqrt()
+}
+
 /// The immutable robot model. Algorithms read it and write only into a
 /// [`Workspace`](crate::Workspace).
 #[derive(Clone, Debug)]

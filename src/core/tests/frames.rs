@@ -689,6 +689,34 @@ fn bad_requests_are_errors_naming_the_problem() {
     )
     .unwrap_err();
     assert!(matches!(err, DynamicsError::BadQuaternion { .. }), "{err}");
+    // Components so large the squared norm overflows would normalise to the identity rotation,
+    // whatever the quaternion: refused too, by the frames and by the dynamics, with the norm
+    // (and a tiny one's norm not underflowing to 0 in the message).
+    let half = std::f64::consts::FRAC_1_SQRT_2;
+    for (scale, norm) in [(1e200, "has norm 1.0"), (1e-200, "has norm 1e-200")] {
+        q_floating[3..7].copy_from_slice(&[half * scale, 0.0, 0.0, half * scale]);
+        let err = frame_jacobian(
+            &floating,
+            &mut ws_floating,
+            &q_floating,
+            &link7,
+            ReferenceFrame::World,
+        )
+        .unwrap_err();
+        assert!(matches!(err, DynamicsError::BadQuaternion { .. }), "{err}");
+        let zero = vec![0.0; floating.nv()];
+        let err = spatial_dynamics_core::algorithms::rnea::rnea(
+            &floating,
+            &mut ws_floating,
+            &q_floating,
+            &zero,
+            &zero,
+        )
+        .unwrap_err();
+        let text = err.to_string();
+        let exponent = if scale > 1.0 { "e200:" } else { ":" };
+        assert!(text.contains(norm) && text.contains(exponent), "{text}");
+    }
     let v = vec![0.0; model.nv()];
     let err =
         frame_classical_acceleration(&model, &mut ws, &q, &v, &v, &frame, ReferenceFrame::World)

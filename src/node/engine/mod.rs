@@ -22,7 +22,7 @@ use spatial_dynamics_core::algorithms::{
     choose_method, crba, forward_dynamics, rnea_with, JointStateInputs, Linearization,
 };
 use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
-use spatial_dynamics_core::model::MIN_QUATERNION_NORM_SQUARED;
+use spatial_dynamics_core::model::quaternion_is_usable;
 use spatial_dynamics_core::sim::CommandInterface;
 use spatial_dynamics_core::spatial::{Force, Transform};
 use spatial_dynamics_core::{urdf, Externals, ForwardDynamicsMethod, Model, Workspace};
@@ -786,10 +786,10 @@ fn write_pose(q: &mut [f64], at: usize, pose: &Pose, field: &str) -> Result<(), 
             values[i]
         ));
     }
-    if values[3..].iter().map(|x| x * x).sum::<f64>() < MIN_QUATERNION_NORM_SQUARED {
+    if !quaternion_is_usable(&values[3..]) {
         return Err(format!(
-            "{field}.orientation is (nearly) zero, names no rotation: give a unit quaternion \
-             (w = 1 for none)"
+            "{field}.orientation is (nearly) zero or too large to normalise: give a unit \
+             quaternion (w = 1 for none)"
         ));
     }
     q[at..at + 7].copy_from_slice(&values);
@@ -835,11 +835,12 @@ mod tests {
         }
     }
 
-    /// A base pose whose quaternion names no rotation (zero, or too small to normalise, as the
-    /// library refuses it) is refused where it arrives, naming the field, and nothing is kept.
+    /// A base pose whose quaternion names no rotation (zero, or too small or too large to
+    /// normalise, as the library refuses it) is refused where it arrives, naming the field,
+    /// and nothing is kept.
     #[test]
     fn a_base_orientation_of_nearly_zero_norm_is_refused() {
-        for w in [0.0, 1e-10, -5e-10] {
+        for w in [0.0, 1e-10, -5e-10, 1e200] {
             let mut pose = Pose::default();
             pose.orientation.w = w;
             let mut q = [0.0; 7];
