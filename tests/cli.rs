@@ -132,7 +132,7 @@ fn eval_answers_every_line_in_order_and_survives_bad_ones() {
         &answers,
         &[
             (1, "q has 2 values, the model needs 8"),
-            (2, "unknown variant `fly`"),
+            (2, "unknown op 'fly' (one of: inverse_dynamics, "),
             (3, "bad request"),
             (4, "bad request"),
             (5, "unknown forward-dynamics method 'magic'"),
@@ -143,6 +143,34 @@ fn eval_answers_every_line_in_order_and_survives_bad_ones() {
     assert_eq!(m.len(), 8);
     assert!(m.iter().all(|row| row.as_array().unwrap().len() == 8));
     assert_eq!(answers[8]["a"].as_array().unwrap().len(), 8);
+}
+
+/// A bad value is placed by its column; a field an op does not take, a duplicate field and a
+/// request that is not an object are named; a line longer than the limit is answered and
+/// skipped without being held, and the requests after it are answered.
+#[test]
+fn eval_names_where_a_request_is_wrong() {
+    let long = format!(r#"{{"op":"gravity","q":[{}0]}}"#, "0,".repeat(9 << 20));
+    let requests = [
+        r#"{"op":"gravity","q":[0,0,null,0,0,0,0,0]}"#.to_string(),
+        r#"{"op":"gravity","q":[0,0,0,0,0,0,0,0],"frame":"link1"}"#.to_string(),
+        r#"{"op":"gravity","q":[0],"q":[0,0,0,0,0,0,0,0]}"#.to_string(),
+        r#"["gravity",[0,0,0,0,0,0,0,0]]"#.to_string(),
+        long,
+        r#"{"op":"gravity","q":[0,0,0,0,0,0,0,0]}"#.to_string(),
+    ];
+    let (answers, _) = eval_lines(&["--urdf", TREE], &requests);
+    assert_errors(
+        &answers,
+        &[
+            (0, "invalid type: null, expected f64 at line 1 column 29"),
+            (1, "op gravity takes no field 'frame' (its fields: q)"),
+            (2, "duplicate field `q`"),
+            (3, "a request is one JSON object with an \"op\" field"),
+            (4, "line 5 is longer than 16777216 bytes"),
+        ],
+    );
+    assert_eq!(answers[5]["tau"].as_array().unwrap().len(), 8);
 }
 
 #[test]
@@ -525,7 +553,7 @@ fn eval_answers_frame_requests() {
             (4, "no link named 'hand'; its links are: world, link1"),
             (5, "unknown reference 'body'"),
             (6, "'world'"),
-            (7, "missing field `reference`"),
+            (7, "op frame_jacobian needs field 'reference'"),
         ],
     );
 }
@@ -576,5 +604,58 @@ fn eval_answers_derivative_requests() {
     }
     let error = |i: usize| answers[i]["error"].as_str().unwrap_or_default().to_string();
     assert!(error(2).contains("tau"), "{}", answers[2]);
-    assert!(error(3).contains("missing field `a`"), "{}", answers[3]);
+    assert!(error(3).contains("needs field 'a'"), "{}", answers[3]);
+}
+
+/// `model` whose reader goes away (`| head -1`) ends quietly; a built-in pendulum past the
+/// URDF's link limit is refused before its text is made; `simulate` picks a method a mimic
+/// model can take, and refuses `aba` on one before the run.
+#[test]
+fn commands_refuse_or_end_cleanly_before_doing_harm() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_spatial_dynamics"))
+        .args(["model", "--builtin", "pendulum:5000"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(out.status.success() && stderr.is_empty(), "{stderr}");
+
+    fails_with(
+        &["eval", "--builtin", "pendulum:100000000"],
+        "",
+        "the number of links must be 1 to",
+    );
+
+    let dir = std::env::temp_dir().join(format!("sd_cli_mimic_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("gripper.csv");
+    let sim = |method: Option<&str>| {
+        let mut args = vec![
+            "simulate",
+            "--builtin",
+            "mimic_gripper",
+            "--integrator",
+            "rk4",
+            "--dt",
+            "0.01",
+            "--duration",
+            "0.05",
+            "--output",
+            csv.to_str().unwrap(),
+        ];
+        args.extend(method.map(|m| ["--method", m]).into_iter().flatten());
+        run(&args, "")
+    };
+    let (ok, _, err) = sim(None);
+    assert!(ok, "{err}");
+    assert_eq!(std::fs::read_to_string(&csv).unwrap().lines().count(), 7);
+    let (ok, _, err) = sim(Some("aba"));
+    assert!(
+        !ok && err.contains("--method aba cannot take a model with mimic joints"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -6,9 +6,13 @@
 use super::ModelArgs;
 use spatial_dynamics_core::requests::answer_line;
 use spatial_dynamics_core::Workspace;
-use std::io::{BufRead, Write};
+use std::io::{BufRead, Read, Write};
 
-/// Runs the request loop until stdin closes.
+/// The longest request line (16 MiB: four vectors of 20,000 coordinates in full precision
+/// take about 2 MiB). A longer one is answered with an error and skipped, never held whole.
+const MAX_LINE: usize = 16 << 20;
+
+/// Runs the request loop until stdin closes. Blank lines are skipped, unanswered.
 pub fn run(args: &ModelArgs) -> Result<(), String> {
     let model = args.load()?;
     let mut ws = Workspace::new(&model);
@@ -16,23 +20,49 @@ pub fn run(args: &ModelArgs) -> Result<(), String> {
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let mut input = stdin.lock();
     let mut line = Vec::new();
-    loop {
+    for number in 1u64.. {
         line.clear();
         // Bytes, not a String: a line that is not UTF-8 is answered like any bad request.
-        if input
+        let read = (&mut input)
+            .take(MAX_LINE as u64 + 1)
             .read_until(b'\n', &mut line)
-            .map_err(|e| format!("reading stdin: {e}"))?
-            == 0
-        {
+            .map_err(|e| format!("reading stdin: {e}"))?;
+        if read == 0 {
             break;
         }
-        if line.iter().all(u8::is_ascii_whitespace) {
+        let answer = if line.len() > MAX_LINE && line.last() != Some(&b'\n') {
+            skip_line(&mut input).map_err(|e| format!("reading stdin: {e}"))?;
+            serde_json::json!({
+                "error": format!("bad request: line {number} is longer than {MAX_LINE} bytes")
+            })
+        } else if line.iter().all(u8::is_ascii_whitespace) {
             continue;
-        }
-        let answer = answer_line(&model, &mut ws, &line);
+        } else {
+            answer_line(&model, &mut ws, &line)
+        };
         writeln!(out, "{answer}")
             .and_then(|_| out.flush())
             .map_err(|e| format!("writing stdout: {e}"))?;
     }
     Ok(())
+}
+
+/// Reads and drops the rest of the current line (through its newline, or to the end).
+fn skip_line(input: &mut impl BufRead) -> std::io::Result<()> {
+    loop {
+        let buf = input.fill_buf()?;
+        if buf.is_empty() {
+            return Ok(());
+        }
+        match buf.iter().position(|&b| b == b'\n') {
+            Some(i) => {
+                input.consume(i + 1);
+                return Ok(());
+            }
+            None => {
+                let n = buf.len();
+                input.consume(n);
+            }
+        }
+    }
 }

@@ -2,10 +2,24 @@
 
 use super::ModelArgs;
 use serde_json::json;
+use std::fmt::Write as _;
+use std::io::Write as _;
 
-/// Prints the coordinate joints of the model.
+/// Prints the coordinate joints of the model. Output cut short by its reader (`| head`) ends
+/// the command quietly, as it does any Unix tool.
 pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
+    let text = describe(args, as_json)?;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(format!("writing stdout: {e}")),
+        _ => Ok(()),
+    }
+}
+
+/// What [`run`] prints.
+fn describe(args: &ModelArgs, as_json: bool) -> Result<String, String> {
     let model = args.load()?;
+    let mut out = String::new();
     if as_json {
         let joints: Vec<_> = model
             .coordinate_joints()
@@ -23,14 +37,16 @@ pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
             .iter()
             .map(|(n, v)| json!([n, v]))
             .collect();
-        println!(
+        let _ = writeln!(
+            out,
             "{}",
             json!({"nq": model.nq(), "nv": model.nv(), "nbodies": model.nbodies(), "joints": joints,
                    "locked_joints": locked, "fused_links": model.fused_links(), "reduction": reduction})
         );
-        return Ok(());
+        return Ok(out);
     }
-    println!(
+    let _ = writeln!(
+        out,
         "robot '{}': nq = {}, nv = {}, {} bodies, root link '{}'",
         model.name(),
         model.nq(),
@@ -38,12 +54,14 @@ pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
         model.nbodies(),
         model.root_link()
     );
-    println!(
+    let _ = writeln!(
+        out,
         "{:<24} {:<11} {:>7} {:>4} {:>7} {:>4}",
         "joint", "type", "q_index", "nq", "v_index", "nv"
     );
     for j in model.coordinate_joints() {
-        println!(
+        let _ = writeln!(
+            out,
             "{:<24} {:<11} {:>7} {:>4} {:>7} {:>4}",
             j.name,
             j.kind.type_name(),
@@ -55,20 +73,25 @@ pub fn run(args: &ModelArgs, as_json: bool) -> Result<(), String> {
     }
     for b in model.bodies() {
         if let Some(m) = &b.joint.mimics {
-            println!(
+            let _ = writeln!(
+                out,
                 "mimic: '{}' = {} × '{}' + {}",
                 b.joint.name, m.multiplier, m.leader, m.offset
             );
         }
     }
     for (name, value) in model.locked_joints() {
-        println!("locked: '{name}' at {value}");
+        let _ = writeln!(out, "locked: '{name}' at {value}");
     }
     for line in model.reduction().summary() {
-        println!("reduced: {line}");
+        let _ = writeln!(out, "reduced: {line}");
     }
     if !model.fused_links().is_empty() {
-        println!("fused (fixed joints): {}", model.fused_links().join(", "));
+        let _ = writeln!(
+            out,
+            "fused (fixed joints): {}",
+            model.fused_links().join(", ")
+        );
     }
-    Ok(())
+    Ok(out)
 }

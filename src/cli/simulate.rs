@@ -31,9 +31,10 @@ pub struct SimulateArgs {
     /// Sub-steps per step (rows are written once per step).
     #[arg(long, default_value_t = 1)]
     substeps: usize,
-    /// Forward-dynamics method: aba, crba or rnea_columns.
-    #[arg(long, default_value = "aba")]
-    method: ForwardDynamicsMethod,
+    /// Forward-dynamics method: aba, crba or rnea_columns (default: aba; crba on a model with
+    /// mimic joints, which aba cannot take).
+    #[arg(long)]
+    method: Option<ForwardDynamicsMethod>,
     /// Initial positions, {"joint": value} (arrays for multi-dof joints); others start at zero
     /// (a floating base at the origin, unrotated).
     #[arg(long, value_name = "JSON")]
@@ -77,6 +78,17 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
             args.dt, args.duration
         ));
     }
+    let method = match args.method {
+        None if model.has_mimic() => ForwardDynamicsMethod::Crba,
+        None => ForwardDynamicsMethod::Aba,
+        Some(ForwardDynamicsMethod::Aba) if model.has_mimic() => {
+            return Err(
+                "--method aba cannot take a model with mimic joints: use crba or rnea_columns"
+                    .into(),
+            )
+        }
+        Some(method) => method,
+    };
     let mut q = model.neutral();
     apply_map(
         &model,
@@ -95,7 +107,7 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
     )?;
     let config = SimConfig {
         integrator: args.integrator,
-        method: args.method,
+        method,
         dt: args.dt,
         substeps: args.substeps,
         passive: Passive::from_names(args.passive.split(','))
@@ -122,7 +134,7 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
             .is_none_or(|until| state.t < until - 1e-12);
         if let Err(e) = sim.step(&model, &mut state, if active { &tau } else { &zero }) {
             out.flush().map_err(write_err)?;
-            return Err(format!("the simulation diverged {e} ({} with dt = {} s, method {}; the rows up to then are in {})", args.integrator, args.dt, args.method, args.output.display()));
+            return Err(format!("the simulation diverged {e} ({} with dt = {} s, method {}; the rows up to then are in {})", args.integrator, args.dt, method, args.output.display()));
         }
     }
     out.flush().map_err(write_err)?;

@@ -103,9 +103,11 @@ fn builtin_urdf(name: &str) -> Result<String, String> {
         let n: usize = n.parse().map_err(|_| {
             format!("--builtin {name}: the number of links must be a positive integer")
         })?;
-        if n == 0 {
+        // N rods and the world link: within the URDF's limit, checked before the text is made.
+        if n == 0 || n >= urdf::MAX_LINKS {
             return Err(format!(
-                "--builtin {name}: the number of links must be at least 1"
+                "--builtin {name}: the number of links must be 1 to {}",
+                urdf::MAX_LINKS - 1
             ));
         }
         return Ok(examples::pendulum_urdf(n, 1.0, 1.0));

@@ -38,8 +38,7 @@ use nalgebra::DMatrix;
 use serde::Deserialize;
 use serde_json::{json, Value};
 
-#[derive(Deserialize)]
-#[serde(tag = "op", rename_all = "snake_case", deny_unknown_fields)]
+/// A request, once its fields are checked against its op.
 enum Request {
     InverseDynamics {
         q: Vec<f64>,
@@ -89,12 +88,128 @@ enum Request {
     },
 }
 
+/// Every field any request has, read straight from the text (nothing buffered on the way, so
+/// a bad value's error carries its line and column, and memory follows the numbers read).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Fields {
+    op: String,
+    q: Option<Vec<f64>>,
+    v: Option<Vec<f64>>,
+    a: Option<Vec<f64>>,
+    tau: Option<Vec<f64>>,
+    method: Option<String>,
+    frame: Option<String>,
+    reference: Option<String>,
+}
+
+/// The ops and the fields each takes (`method` optional, the others required).
+const OPS: [(&str, &[&str]); 10] = [
+    ("inverse_dynamics", &["q", "v", "a"]),
+    ("forward_dynamics", &["q", "v", "tau", "method"]),
+    ("mass_matrix", &["q"]),
+    ("gravity", &["q"]),
+    ("frame_placement", &["q", "frame"]),
+    ("frame_jacobian", &["q", "frame", "reference"]),
+    ("frame_acceleration", &["q", "v", "a", "frame", "reference"]),
+    ("center_of_mass", &["q"]),
+    ("inverse_dynamics_derivatives", &["q", "v", "a"]),
+    ("forward_dynamics_derivatives", &["q", "v", "tau"]),
+];
+
+impl Fields {
+    /// The request these fields make for their op: every field it needs, none it does not take.
+    fn request(self) -> Result<Request, String> {
+        let Some((op, takes)) = OPS.iter().find(|(name, _)| *name == self.op) else {
+            let names: Vec<&str> = OPS.iter().map(|(name, _)| *name).collect();
+            return Err(format!(
+                "unknown op '{}' (one of: {})",
+                self.op,
+                names.join(", ")
+            ));
+        };
+        let present = [
+            ("q", self.q.is_some()),
+            ("v", self.v.is_some()),
+            ("a", self.a.is_some()),
+            ("tau", self.tau.is_some()),
+            ("method", self.method.is_some()),
+            ("frame", self.frame.is_some()),
+            ("reference", self.reference.is_some()),
+        ];
+        if let Some((extra, _)) = present
+            .iter()
+            .find(|(name, given)| *given && !takes.contains(name))
+        {
+            return Err(format!(
+                "op {op} takes no field '{extra}' (its fields: {})",
+                takes.join(", ")
+            ));
+        }
+        fn need<T>(field: Option<T>, name: &str, op: &str) -> Result<T, String> {
+            field.ok_or_else(|| format!("op {op} needs field '{name}'"))
+        }
+        let q = need(self.q, "q", op)?;
+        Ok(match *op {
+            "inverse_dynamics" => Request::InverseDynamics {
+                q,
+                v: need(self.v, "v", op)?,
+                a: need(self.a, "a", op)?,
+            },
+            "forward_dynamics" => Request::ForwardDynamics {
+                q,
+                v: need(self.v, "v", op)?,
+                tau: need(self.tau, "tau", op)?,
+                method: self.method,
+            },
+            "mass_matrix" => Request::MassMatrix { q },
+            "gravity" => Request::Gravity { q },
+            "frame_placement" => Request::FramePlacement {
+                q,
+                frame: need(self.frame, "frame", op)?,
+            },
+            "frame_jacobian" => Request::FrameJacobian {
+                q,
+                frame: need(self.frame, "frame", op)?,
+                reference: need(self.reference, "reference", op)?,
+            },
+            "frame_acceleration" => Request::FrameAcceleration {
+                q,
+                v: need(self.v, "v", op)?,
+                a: need(self.a, "a", op)?,
+                frame: need(self.frame, "frame", op)?,
+                reference: need(self.reference, "reference", op)?,
+            },
+            "center_of_mass" => Request::CenterOfMass { q },
+            "inverse_dynamics_derivatives" => Request::InverseDynamicsDerivatives {
+                q,
+                v: need(self.v, "v", op)?,
+                a: need(self.a, "a", op)?,
+            },
+            _ => Request::ForwardDynamicsDerivatives {
+                q,
+                v: need(self.v, "v", op)?,
+                tau: need(self.tau, "tau", op)?,
+            },
+        })
+    }
+}
+
 /// The answer to one request line (UTF-8 JSON): the result, or `{"error": "..."}`. Never panics.
 pub fn answer_line(model: &Model, ws: &mut Workspace, line: &[u8]) -> Value {
-    match serde_json::from_slice::<Request>(line) {
+    match parse(line) {
         Ok(request) => answer(model, ws, request).unwrap_or_else(|e| json!({ "error": e })),
         Err(e) => json!({ "error": format!("bad request: {e}") }),
     }
+}
+
+/// A request line: one JSON object with an `op` and that op's fields.
+fn parse(line: &[u8]) -> Result<Request, String> {
+    if line.iter().find(|b| !b.is_ascii_whitespace()) != Some(&b'{') {
+        return Err("a request is one JSON object with an \"op\" field".into());
+    }
+    let fields: Fields = serde_json::from_slice(line).map_err(|e| e.to_string())?;
+    fields.request()
 }
 
 fn answer(model: &Model, ws: &mut Workspace, request: Request) -> Result<Value, String> {
