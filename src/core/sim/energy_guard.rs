@@ -1,8 +1,9 @@
 //! The divergence guard: energy the integrator creates.
 //!
 //! Without contact the total energy obeys `E(t) ≤ E(0) + W(t)`, with `W(t) = ∫ Σ|τ_i q̇_i| dt`
-//! the work the commands can have done: joint damping, friction and limit springs never add
-//! energy. A run whose energy exceeds that bound by more than a tolerance is creating energy and
+//! the work the commands can have done (each sub-step taken at the larger of the powers at its
+//! two ends, an upper bound while the power changes monotonically across it): joint damping,
+//! friction and limit springs never add energy. A run whose energy exceeds that bound by more than a tolerance is creating energy and
 //! is stopped. The tolerance is `max(1 J, ½ (S + W))` with `S` the energy's natural scale, the
 //! largest kinetic energy seen plus the range of the potential energy seen:
 //! `S = max T + (max V − min V)`. `S` does not depend on where the potential's zero lies (an arm
@@ -81,7 +82,8 @@ impl EnergyGuard {
         };
     }
 
-    /// Adds a sub-step of length `h` under commanded power `Σ|τ_i q̇_i|`.
+    /// Adds a sub-step of length `h` under commanded power `Σ|τ_i q̇_i|` (the simulator passes
+    /// the larger of its values at the sub-step's two ends).
     pub(super) fn advance(&mut self, power: f64, h: f64) {
         self.work += power * h;
         self.since_check += h;

@@ -107,6 +107,11 @@ impl fmt::Display for SimError {
 
 impl std::error::Error for SimError {}
 
+/// `Σ |τ_i q̇_i|`: the most power commands `τ` can deliver at velocities `q̇` (W).
+fn commanded_power(tau: &[f64], v: &[f64]) -> f64 {
+    tau.iter().zip(v).map(|(t, v)| (t * v).abs()).sum()
+}
+
 /// Forward dynamics with the passive forces added: `a(q, v) = FD(q, v, clamp(τ_cmd) + τ_passive)`.
 pub(crate) struct Evaluator {
     ws: Workspace,
@@ -287,11 +292,7 @@ impl Simulator {
         let substeps = self.config.substeps.max(1);
         let h = self.config.dt / substeps as f64;
         for _ in 0..substeps {
-            let power: f64 = tau_cmd
-                .iter()
-                .zip(&state.v)
-                .map(|(t, v)| (t * v).abs())
-                .sum();
+            let power = commanded_power(tau_cmd, &state.v);
             let integrator = self.config.integrator;
             let evaluated = integrator::first_evaluation(
                 integrator,
@@ -320,7 +321,10 @@ impl Simulator {
                 })
                 .map_err(|source| SimError::Dynamics { t: state.t, source })?;
             state.t += h;
-            self.guard.advance(power, h);
+            // The larger of the powers at the sub-step's two ends: a command accelerating a
+            // joint from rest does work the power at the start alone (zero) would not count.
+            self.guard
+                .advance(power.max(commanded_power(tau_cmd, &state.v)), h);
             if !(all_finite(&state.q) && all_finite(&state.v)) {
                 return Err(non_finite(model, state));
             }

@@ -190,3 +190,42 @@ fn explicit_euler_on_the_arm_is_stopped() {
         "explicit Euler at 10 ms over 20 s: {err:?}"
     );
 }
+
+#[test]
+fn work_done_from_rest_is_counted() {
+    // A constant torque spins a free rotor (I = 0.1 kg m², no gravity torque about its vertical
+    // axis) up from rest: after one RK4 step of 10 ms under 100 N m it has 5 J of kinetic
+    // energy, all of it the command's work. The power at the step's start is zero, so the
+    // budget must count the power at its end too.
+    let rotor = r#"<robot name="rotor">
+      <link name="base"/>
+      <joint name="j1" type="continuous"><parent link="base"/><child link="a"/>
+        <origin xyz="0 0 0.5"/><axis xyz="0 0 1"/></joint>
+      <link name="a"><inertial><mass value="1"/>
+        <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>
+    </robot>"#;
+    let model = load(rotor);
+    for integrator in [Integrator::Rk4, Integrator::SemiImplicitEuler] {
+        let config = SimConfig {
+            integrator,
+            dt: 0.01,
+            ..Default::default()
+        };
+        let mut sim = Simulator::new(&model, config).unwrap();
+        let mut state = State::at_rest(&model, vec![0.0]);
+        for step in 0..20 {
+            sim.step(&model, &mut state, &[100.0])
+                .unwrap_or_else(|e| panic!("{integrator}, step {step}: {e}"));
+        }
+        let t = state.t;
+        let expected = 0.5 * 0.1 * (1000.0 * t).powi(2);
+        let e = sim.energy(&model, &state).unwrap()
+            - sim
+                .energy(&model, &State::at_rest(&model, vec![0.0]))
+                .unwrap();
+        assert!(
+            (e - expected).abs() < 1e-6 * expected,
+            "{integrator}: {e} J, {expected} J"
+        );
+    }
+}

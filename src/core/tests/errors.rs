@@ -296,7 +296,7 @@ fn eval_requests_that_are_not_json_or_not_utf8_are_answered_with_an_error() {
     let cases: [(&[u8], &str); 7] = [
         (b"\xff\xfe{", "bad request"),
         (b"{\"op\":\"gravity\",\"q\":[\"\xff\"]}", "bad request"),
-        (format!("{{\"op\":\"gravity\",\"q\":{}0{}}}", "[".repeat(200), "]".repeat(200)).into_bytes().leak(), "recursion limit"),
+        (format!("{{\"op\":\"gravity\",\"q\":{}0{}}}", "[".repeat(200), "]".repeat(200)).into_bytes().leak(), "invalid type: sequence, expected f64 at line 1 column 21"),
         (b"{\"op\":\"gravity\",\"q\":[1e999, 0]}", "bad request"),
         (b"{\"op\":\"gravity\",\"q\":[0]}", "q has 1 values, the model needs 2"),
         (b"{\"op\":\"forward_dynamics\",\"q\":[0,0],\"v\":[0,0],\"tau\":[0,0],\"method\":\"magic\"}", "magic"),
