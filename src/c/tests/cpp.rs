@@ -1,12 +1,13 @@
-//! The C++ header, compiled with g++ (C++20, warnings as errors) against include/ and the
-//! static library this crate's build makes, then run on the default arm:
+//! The C++ header and the C++ example, compiled with g++ (C++20, warnings as errors) against
+//! include/ and the static library this crate's build makes, then run on the default arm:
 //! tests/programs/wrapper.cpp checks the header's moves (a moved-from model or workspace owns
 //! nothing, assignment frees what the target owned) and its refusal of a path or URDF text
-//! holding a NUL byte.
+//! holding a NUL byte; examples/gravity_compensation.cpp must answer a bad SECONDS with its
+//! usage (exit 2), an unreadable URDF with its message (exit 1), and run a short loop.
 
 use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 
 fn crate_dir() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -81,5 +82,65 @@ fn the_header_moves_and_refuses_nul_bytes() {
         done.status,
         text(&done.stdout),
         text(&done.stderr)
+    );
+}
+
+#[test]
+fn the_example_checks_its_arguments_and_runs() {
+    let program = compile("examples/gravity_compensation.cpp", "gravity_compensation");
+    let urdf = arm_urdf("gravity_compensation");
+    let run = |args: &[&str]| -> Output {
+        Command::new(&program)
+            .arg(&urdf)
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    for seconds in [
+        "1e12", "3600.5", "nan", "inf", "-inf", "-1", "0", "-0", "abc", "2s", "",
+    ] {
+        let done = run(&[seconds]);
+        let stderr = text(&done.stderr);
+        assert_eq!(done.status.code(), Some(2), "SECONDS {seconds:?}: {stderr}");
+        assert!(
+            stderr.contains(&format!(
+                "SECONDS '{seconds}' is not a number greater than 0 and at most 3600"
+            )) && stderr.contains("usage: "),
+            "SECONDS {seconds:?}: {stderr}"
+        );
+        assert!(done.stdout.is_empty(), "SECONDS {seconds:?}");
+    }
+    let done = run(&["1", "extra"]);
+    assert_eq!(done.status.code(), Some(2));
+    assert!(text(&done.stderr).starts_with("usage: "));
+
+    let done = Command::new(&program)
+        .arg(scratch("no_such_file.urdf"))
+        .arg("0.01")
+        .output()
+        .unwrap();
+    let stderr = text(&done.stderr);
+    assert_eq!(done.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.starts_with("error: ") && stderr.contains("no_such_file.urdf"),
+        "{stderr}"
+    );
+
+    let done = run(&["0.01"]);
+    let stdout = text(&done.stdout);
+    assert!(done.status.success(), "{}", text(&done.stderr));
+    let lines: Vec<&str> = stdout.lines().collect();
+    let nv = lines.len() - 1;
+    assert!(
+        lines[0].starts_with(&format!(
+            "10 calls of g(q) at 1 kHz on {nv} coordinates: per call min"
+        )),
+        "{stdout}"
+    );
+    assert!(
+        lines[1..]
+            .iter()
+            .all(|line| line.starts_with("g[") && line.contains("] = ")),
+        "{stdout}"
     );
 }
