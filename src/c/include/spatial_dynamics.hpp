@@ -2,8 +2,9 @@
 //
 // Header-only, over the C ABI of spatial_dynamics.h (link libspatial_dynamics_c; with CMake,
 // find_package(spatial_dynamics_c) and the target spatial_dynamics_c::spatial_dynamics_c).
-// sd::Model and sd::Workspace own their C objects (movable, not copyable); every function
-// throws sd::Error, carrying the library's message, when the C call fails. Made once, outside
+// sd::Model and sd::Workspace own their C objects (movable, not copyable: a moved-from object
+// owns none, and assigning to one frees the C object it owned); every function throws
+// sd::Error, carrying the library's message, when the C call fails. Made once, outside
 // a real-time loop, a model and its workspace serve calls that allocate nothing (an error
 // allocates its message). The array overloads take std::span (C++20) and check lengths; the
 // pointer overloads take arrays of the lengths the model gives (nq for q, nv for velocities,
@@ -29,7 +30,8 @@ namespace sd {
 // A failed call: what() is the library's message (the function, and the joint, coordinate,
 // link or value at fault); status() the sd_status code. The constructors' C functions return
 // NULL, not a code: a model that cannot be made says SD_ERROR_INPUT, a workspace SD_ERROR_USAGE
-// (what() tells the cause either way).
+// (what() tells the cause either way). A path or URDF text holding a NUL byte, which the C
+// functions would read as its end, is refused before the C call with SD_ERROR_USAGE.
 class Error : public std::runtime_error {
  public:
   Error(int status, const std::string& message) : std::runtime_error(message), status_(status) {}
@@ -47,6 +49,17 @@ inline void check(int status) {
     throw Error(status, message ? message : "spatial_dynamics: unknown error");
   }
 }
+
+// Throws SD_ERROR_USAGE when `text` holds a NUL byte: the C function it is passed to as a C
+// string would stop reading there.
+inline void check_no_nul(const char* function, const char* argument, const std::string& text) {
+  const std::size_t nul = text.find('\0');
+  if (nul != std::string::npos) {
+    throw Error(SD_ERROR_USAGE, std::string(function) + ": " + argument +
+                                    " holds a NUL byte at offset " + std::to_string(nul) +
+                                    " (of " + std::to_string(text.size()) + ")");
+  }
+}
 }  // namespace detail
 
 // The frame a Jacobian is expressed in, with Pinocchio's meaning (pinocchio::ReferenceFrame).
@@ -62,21 +75,33 @@ struct ModelOptions {
   bool ignore_mimic = false;   // <mimic> joints get coordinates of their own
 };
 
-// A robot model (immutable), built from URDF.
+// A robot model (immutable), built from URDF. A moved-from model owns no C model: its nq() and
+// nv() are 0, and v_name(), forward_dynamics_method(), a Workspace made for it and every call
+// given it throw SD_ERROR_USAGE. Assigning to a model frees the C model it owned, so the
+// workspaces made for that one must be gone by then.
 class Model {
  public:
+  // The model of the URDF file at `path` (UTF-8, no NUL byte).
   static Model from_urdf_file(const std::string& path, ModelOptions options = {}) {
+    detail::check_no_nul("sd::Model::from_urdf_file", "path", path);
     const sd_model_options c = to_c(options);
     return Model(made(sd_model_from_urdf_file(path.c_str(), &c)));
   }
+  // The model of URDF text `urdf` (UTF-8, no NUL byte).
   static Model from_urdf_string(const std::string& urdf, ModelOptions options = {}) {
+    detail::check_no_nul("sd::Model::from_urdf_string", "urdf", urdf);
     const sd_model_options c = to_c(options);
     return Model(made(sd_model_from_urdf_string(urdf.c_str(), &c)));
   }
 
   Model(Model&& other) noexcept : model_(std::exchange(other.model_, nullptr)) {}
+  // Frees this model's C model and takes `other`'s, leaving `other` moved-from (self-assignment
+  // changes nothing).
   Model& operator=(Model&& other) noexcept {
-    std::swap(model_, other.model_);
+    if (this != &other) {
+      sd_model_free(model_);
+      model_ = std::exchange(other.model_, nullptr);
+    }
     return *this;
   }
   Model(const Model&) = delete;
@@ -114,15 +139,22 @@ class Model {
   sd_model* model_;
 };
 
-// The scratch buffers of one model's calls; one per thread. Must not outlive its model.
+// The scratch buffers of one model's calls; one per thread. Must not outlive its model's C
+// model (the Model's destruction, or an assignment to it). A moved-from workspace owns none:
+// every call given it throws SD_ERROR_USAGE.
 class Workspace {
  public:
   explicit Workspace(const Model& model) : workspace_(sd_workspace_new(model.get())) {
     if (!workspace_) detail::check(SD_ERROR_USAGE);
   }
   Workspace(Workspace&& other) noexcept : workspace_(std::exchange(other.workspace_, nullptr)) {}
+  // Frees this workspace's C workspace and takes `other`'s, leaving `other` moved-from
+  // (self-assignment changes nothing).
   Workspace& operator=(Workspace&& other) noexcept {
-    std::swap(workspace_, other.workspace_);
+    if (this != &other) {
+      sd_workspace_free(workspace_);
+      workspace_ = std::exchange(other.workspace_, nullptr);
+    }
     return *this;
   }
   Workspace(const Workspace&) = delete;
