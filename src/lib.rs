@@ -12,6 +12,7 @@ mod cli;
 mod joint_states;
 #[cfg(feature = "node")]
 mod node;
+mod output_file;
 #[cfg(feature = "replay")]
 mod replay;
 #[cfg(any(feature = "node", feature = "replay"))]

@@ -274,7 +274,7 @@ fn simulate_writes_the_trajectory_and_reports_divergence() {
             "--dt",
             "0.6",
             "--duration",
-            "100",
+            "99.6",
             "--initial",
             r#"{"joint1": 0.05}"#,
         ]),
@@ -657,5 +657,82 @@ fn commands_refuse_or_end_cleanly_before_doing_harm() {
         !ok && err.contains("--method aba cannot take a model with mimic joints"),
         "{err}"
     );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `simulate` refuses before it writes: an output that is its URDF, sub-steps of 0, a duration
+/// that is not whole steps or too many of them, an `--effort-until` that is not a time; a run
+/// that fails at its initial state leaves an earlier output as it was; a floating base's
+/// initial quaternion is normalised from the first row on.
+#[test]
+fn simulate_checks_its_arguments_before_writing() {
+    let dir = std::env::temp_dir().join(format!("sd_sim_args_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let urdf = dir.join("arm.urdf");
+    std::fs::copy("config/models/default_arm.urdf", &urdf).unwrap();
+    let before = std::fs::read(&urdf).unwrap();
+    let csv = dir.join("out.csv");
+    // `simulate` on the copied arm writing `output`, `--dt 0.01 --duration 0.1` unless `extra`
+    // gives either.
+    let base = |output: &str, extra: &[&str]| -> Vec<String> {
+        let mut args: Vec<String> = [
+            "simulate",
+            "--urdf",
+            urdf.to_str().unwrap(),
+            "--integrator",
+            "rk4",
+            "--output",
+            output,
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        for (flag, default) in [("--dt", "0.01"), ("--duration", "0.1")] {
+            if !extra.contains(&flag) {
+                args.extend([flag.to_string(), default.to_string()]);
+            }
+        }
+        args.extend(extra.iter().map(|s| s.to_string()));
+        args
+    };
+    let refused = |args: Vec<String>, needle: &str| {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        fails_with(&args, "", needle);
+    };
+    let out = csv.to_str().unwrap();
+    refused(base(urdf.to_str().unwrap(), &[]), "is the model's file");
+    assert_eq!(std::fs::read(&urdf).unwrap(), before);
+    refused(base(out, &["--substeps", "0"]), "--substeps must be at least 1");
+    refused(base(out, &["--duration", "0.105"]), "not a whole number of --dt");
+    refused(base(out, &["--dt", "1e-300"]), "more than 1e7");
+    refused(
+        base(out, &["--substeps", "1000000000"]),
+        "more than 1e9 sub-steps",
+    );
+    refused(base(out, &["--effort-until", "NaN"]), "--effort-until must be");
+    refused(base(out, &["--effort-until=-1"]), "--effort-until must be");
+    assert!(!csv.exists());
+
+    std::fs::write(&csv, "earlier").unwrap();
+    let floating = |initial: &str| -> Vec<String> {
+        let mut args = base(out, &["--floating-base", "--initial", initial]);
+        args.retain(|a| a != "--urdf" && !a.ends_with("arm.urdf"));
+        args
+    };
+    refused(
+        floating(r#"{"root_joint": [0, 0, 0, 0, 0, 0, 0]}"#),
+        "is (nearly) zero or too large to normalise",
+    );
+    assert_eq!(std::fs::read_to_string(&csv).unwrap(), "earlier");
+    let args = floating(r#"{"root_joint": [0, 0, 1, 0, 0, 0, 2]}"#);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    run_ok(&args, "");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let first: Vec<f64> = text.lines().nth(1).unwrap().split(',').map(|x| x.parse().unwrap()).collect();
+    let w = header.iter().position(|c| *c == "root_joint.position[6]").unwrap();
+    assert_eq!(first[w], 1.0, "{text}");
+    let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(names.len(), 2, "{names:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -3,7 +3,7 @@
 //! `<joint>.velocity` for every coordinate (multi-dof joints: `<joint>.position[k]`), then
 //! `energy` (T + V, J). Scenes that need it touch a ground plane at contact points (the `lamp`
 //! scene at its foot's corners). A run that diverges keeps the rows written so far, says when and why,
-//! and exits non-zero.
+//! and exits non-zero; a run that fails otherwise leaves no file (and an earlier one as it was).
 
 use super::ModelArgs;
 use clap::Args;
@@ -11,10 +11,17 @@ use spatial_dynamics_core::sim::{
     ContactPoint, Ground, Integrator, Passive, SimConfig, Simulator, State,
 };
 use spatial_dynamics_core::spatial::Vector3;
+use spatial_dynamics_core::model::{quaternion_is_usable, quaternion_norm, JointKind};
 use spatial_dynamics_core::{ForwardDynamicsMethod, Model};
 use std::collections::BTreeMap;
 use std::io::Write;
+use crate::output_file::{same_file, PartialFile};
 use std::path::PathBuf;
+
+/// The most rows (steps) a run may write: about 3 hours at 1 kHz.
+const MAX_ROWS: f64 = 1e7;
+/// The most sub-steps a run may take in all.
+const MAX_SUBSTEPS: f64 = 1e9;
 
 /// Options of `simulate`.
 #[derive(Args, Debug, Clone)]
@@ -25,10 +32,11 @@ pub struct SimulateArgs {
     /// Step, seconds.
     #[arg(long)]
     dt: f64,
-    /// Simulated time, seconds.
+    /// Simulated time, seconds: a whole number of steps, at most 10⁷ of them.
     #[arg(long)]
     duration: f64,
-    /// Sub-steps per step (rows are written once per step).
+    /// Sub-steps per step, at least 1 (rows are written once per step; at most 10⁹ sub-steps
+    /// in all).
     #[arg(long, default_value_t = 1)]
     substeps: usize,
     /// Forward-dynamics method: aba, crba or rnea_columns (default: aba; crba on a model with
@@ -46,7 +54,7 @@ pub struct SimulateArgs {
     /// effort_limits, position_limits, or all, or none.
     #[arg(long, default_value = "none")]
     passive: String,
-    /// Efforts act until this time (s), then drop to zero (default: the whole run).
+    /// Efforts act until this time (s, at least 0), then drop to zero (default: the whole run).
     #[arg(long, value_name = "S")]
     effort_until: Option<f64>,
     /// A ground contact point, LINK:X,Y,Z in the link's frame (repeatable). The `lamp` scene
@@ -76,6 +84,28 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
         return Err(format!(
             "--dt must be positive and --duration non-negative, got {} and {}",
             args.dt, args.duration
+        ));
+    }
+    let steps = whole_steps(args.duration, args.dt)?;
+    if args.substeps == 0 {
+        return Err("--substeps must be at least 1".into());
+    }
+    if steps as f64 * args.substeps as f64 > MAX_SUBSTEPS {
+        return Err(format!(
+            "--substeps {} over {steps} steps is more than {MAX_SUBSTEPS:e} sub-steps",
+            args.substeps
+        ));
+    }
+    if let Some(until) = args.effort_until.filter(|t| !(*t >= 0.0)) {
+        return Err(format!(
+            "--effort-until must be a time of at least 0 s, got {until}"
+        ));
+    }
+    if let Some(urdf) = model_args.urdf.as_deref().filter(|u| same_file(u, &args.output)) {
+        return Err(format!(
+            "--output {} is the model's file {}: the trajectory would replace it",
+            args.output.display(),
+            urdf.display()
         ));
     }
     let method = match args.method {
@@ -117,14 +147,20 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
     let zero = vec![0.0; model.nv()];
     let mut sim = Simulator::new(&model, config)?;
     let mut state = State::at_rest(&model, q);
-    let file = std::fs::File::create(&args.output)
+    // The initial state is checked before anything is written.
+    let mut energy = sim
+        .energy(&model, &state)
+        .map_err(|e| format!("--initial: {e}"))?;
+    let partial = PartialFile::beside(&args.output).map_err(|e| format!("--output {e}"))?;
+    let file = std::fs::File::create(&partial.path)
         .map_err(|e| format!("{}: {e}", args.output.display()))?;
     let mut out = std::io::BufWriter::new(file);
     let write_err = |e: std::io::Error| format!("{}: {e}", args.output.display());
     writeln!(out, "{}", header(&model)).map_err(write_err)?;
-    let steps = (args.duration / args.dt).round() as usize;
     for step in 0..=steps {
-        let energy = sim.energy(&model, &state).map_err(|e| e.to_string())?;
+        if step > 0 {
+            energy = sim.energy(&model, &state).map_err(|e| e.to_string())?;
+        }
         write_row(&mut out, step as f64 * args.dt, &state, energy).map_err(write_err)?;
         if step == steps {
             break;
@@ -134,10 +170,13 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
             .is_none_or(|until| state.t < until - 1e-12);
         if let Err(e) = sim.step(&model, &mut state, if active { &tau } else { &zero }) {
             out.flush().map_err(write_err)?;
+            partial.keep_as(&args.output)?;
             return Err(format!("the simulation diverged {e} ({} with dt = {} s, method {}; the rows up to then are in {})", args.integrator, args.dt, method, args.output.display()));
         }
     }
     out.flush().map_err(write_err)?;
+    drop(out);
+    partial.keep_as(&args.output)?;
     if sim.max_penetration() > 0.0 {
         eprintln!(
             "spatial_dynamics: deepest ground penetration {:.6} m",
@@ -151,6 +190,24 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
         );
     }
     Ok(())
+}
+
+/// The number of steps of `dt` in `duration`, which must be whole (to a part in 10⁹) and at
+/// most [`MAX_ROWS`].
+fn whole_steps(duration: f64, dt: f64) -> Result<usize, String> {
+    let steps = duration / dt;
+    if steps > MAX_ROWS {
+        return Err(format!(
+            "--duration {duration} s at --dt {dt} s is {steps:e} steps, more than {MAX_ROWS:e}"
+        ));
+    }
+    let whole = steps.round();
+    if (steps - whole).abs() > 1e-9 * whole.max(1.0) {
+        return Err(format!(
+            "--duration {duration} s is not a whole number of --dt {dt} s steps ({steps})"
+        ));
+    }
+    Ok(whole as usize)
 }
 
 /// The ground contact asked for, if any: `--contact` points, or the scene's own.
@@ -239,6 +296,18 @@ fn apply_map(
             ));
         }
         out[start..start + len].copy_from_slice(&values);
+        if column == Column::Position && *joint.kind == JointKind::Floating {
+            // The quaternion as the simulator keeps it, unit from the first row on.
+            let quat = &mut out[start + 3..start + 7];
+            if !quaternion_is_usable(quat) {
+                return Err(format!(
+                    "{flag}: joint '{name}': the quaternion (x, y, z, w) {value} is (nearly) zero \
+                     or too large to normalise"
+                ));
+            }
+            let norm = quaternion_norm(quat);
+            quat.iter_mut().for_each(|x| *x /= norm);
+        }
     }
     Ok(())
 }

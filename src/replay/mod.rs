@@ -31,6 +31,7 @@
 
 use crate::bag::{self, cdr, Bag, Flow, McapWriter, Wanted};
 use crate::joint_states::commands::Commands;
+use crate::output_file::{same_file, PartialFile};
 use crate::joint_states::joint_map::JointMap;
 use crate::ros::names::NameResolver;
 use clap::ValueEnum;
@@ -184,7 +185,7 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
     }
 
     // Written beside the output and renamed over it only when the run succeeds.
-    let partial = PartialFile::beside(&args.out)?;
+    let partial = PartialFile::beside(&args.out).map_err(|e| format!("--out {e}"))?;
     let mut writer = McapWriter::create(
         &partial.path,
         match args.compression {
@@ -347,66 +348,11 @@ fn refuse_output_over_input(out: &Path, bag: &Path, files: &[PathBuf]) -> Result
     Ok(())
 }
 
-/// Whether two paths name the same existing file or directory.
-fn same_file(a: &Path, b: &Path) -> bool {
-    match (std::fs::metadata(a), std::fs::metadata(b)) {
-        #[cfg(unix)]
-        (Ok(x), Ok(y)) => {
-            use std::os::unix::fs::MetadataExt;
-            x.dev() == y.dev() && x.ino() == y.ino()
-        }
-        #[cfg(not(unix))]
-        (Ok(_), Ok(_)) => std::fs::canonicalize(a).ok() == std::fs::canonicalize(b).ok(),
-        _ => false,
-    }
-}
+
 
 /// A topic as the bag records it ([`bag::same_topic`]).
 fn recorded<'t>(topics: &'t [bag::TopicInfo], topic: &str) -> Option<&'t bag::TopicInfo> {
     topics.iter().find(|t| bag::same_topic(&t.name, topic))
-}
-
-/// An output being written: a temporary file beside the final one, removed unless kept.
-struct PartialFile {
-    path: PathBuf,
-    kept: bool,
-}
-
-impl PartialFile {
-    /// `DIR/.NAME.PID.partial` for output `DIR/NAME`.
-    fn beside(out: &Path) -> Result<PartialFile, String> {
-        let name = out
-            .file_name()
-            .ok_or_else(|| format!("--out {}: not a file name", out.display()))?;
-        let mut partial = std::ffi::OsString::from(".");
-        partial.push(name);
-        partial.push(format!(".{}.partial", std::process::id()));
-        Ok(PartialFile {
-            path: out.with_file_name(partial),
-            kept: false,
-        })
-    }
-
-    /// Renames the finished file to `out` (replacing it).
-    fn keep_as(mut self, out: &Path) -> Result<(), String> {
-        std::fs::rename(&self.path, out).map_err(|e| {
-            format!(
-                "cannot rename {} to {}: {e}",
-                self.path.display(),
-                out.display()
-            )
-        })?;
-        self.kept = true;
-        Ok(())
-    }
-}
-
-impl Drop for PartialFile {
-    fn drop(&mut self) {
-        if !self.kept {
-            let _ = std::fs::remove_file(&self.path);
-        }
-    }
 }
 
 /// The model: `--urdf` / `--builtin`, else the bag's first robot_description, else the default arm.
