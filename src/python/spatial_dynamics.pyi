@@ -1,8 +1,10 @@
 """Rigid-body dynamics from URDF: inverse and forward dynamics, the mass matrix, frames, the
 centre of mass and the derivatives of dynamics, over the Rust library spatial_dynamics_core.
 
-Arguments are numpy float64 arrays (lists and other dtypes are converted): 1-D for one state,
-2-D with one state a row for N states, computed on every core with the GIL released and
+Arguments are real numbers: numpy arrays of a float or integer dtype, or sequences of numbers
+(anything but float64 C-contiguous aligned arrays is converted to float64; bool, complex,
+strings, dates, objects and None raise TypeError). 1-D for one state, 2-D with one state a row
+for N states, computed with the GIL released (on every core when the batch is worth it) and
 returned stacked (a leading axis of N). SI units; ``q`` and ``v`` in the order of
 ``Model.v_names``; a floating base's ``q = [x y z qx qy qz qw]`` and ``v = [linear; angular]``
 in the base frame; matrices row-major.
@@ -19,20 +21,31 @@ _Array = npt.NDArray[np.float64]
 
 class DynamicsError(ValueError):
     """Bad input (a NaN naming its coordinate, an unknown frame, a wrong shape naming the
-    argument) or a URDF the library cannot build; the message is the library's."""
+    argument) or a URDF the library cannot build; the message is the library's. Arguments that
+    are not real numbers raise TypeError, unreadable files the OSError subclass of their cause,
+    results too big to allocate MemoryError."""
 
 class Model:
-    """A robot model built from URDF (immutable). Safe to share between threads."""
+    """A robot model built from URDF (immutable). Safe to share between threads. Pickles
+    (as its URDF text and options); ``copy.copy`` and ``copy.deepcopy`` return the model
+    itself."""
 
     @staticmethod
     def from_urdf(
         path: Union[str, PathLike[str]], floating_base: bool = False, ignore_mimic: bool = False
     ) -> Model:
-        """The model of a URDF file. ``floating_base``: a free joint between the world and the
-        root link; ``ignore_mimic``: mimic joints get coordinates of their own."""
+        """The model of a URDF file (a regular file of at most 256 MiB). ``floating_base``: a
+        free joint between the world and the root link; ``ignore_mimic``: mimic joints get
+        coordinates of their own. A file that cannot be read raises the OSError subclass of its
+        cause (FileNotFoundError, PermissionError, IsADirectoryError); a device, a FIFO, a
+        bigger file or a URDF the library refuses raises DynamicsError naming the path."""
     @staticmethod
     def from_urdf_string(xml: str, floating_base: bool = False, ignore_mimic: bool = False) -> Model:
         """The model of URDF text."""
+    def __copy__(self) -> Model:
+        """The model itself (it is immutable)."""
+    def __deepcopy__(self, memo: dict) -> Model:
+        """The model itself (it is immutable)."""
     @property
     def nq(self) -> int:
         """Position coordinates."""
@@ -73,7 +86,9 @@ class Model:
     ) -> _Array:
         """A link's Jacobian, rows ``[linear; angular]``: ``(6, nv)`` or ``(N, 6, nv)``."""
     def center_of_mass(self, q: _ArrayLike) -> Tuple[Union[float, _Array], _Array, _Array]:
-        """``(mass, com, J)``: a float, ``(3,)``, ``(3, nv)``; or ``(N,)``, ``(N, 3)``,
+        """The centre of mass of the moving bodies: ``(mass, com, J)``, their mass (links welded
+        to the world left out, as Pinocchio's computeTotalMass), the position of their centre of
+        mass and its Jacobian: a float, ``(3,)``, ``(3, nv)``; or ``(N,)``, ``(N, 3)``,
         ``(N, 3, nv)``."""
     def rnea_derivatives(self, q: _ArrayLike, v: _ArrayLike, a: _ArrayLike) -> Tuple[_Array, _Array, _Array]:
         """``(dtau_dq, dtau_dv, M)``, each ``(nv, nv)`` or ``(N, nv, nv)``."""

@@ -18,9 +18,13 @@ The package is installed into the venv by launch_scripts/setup_python_env.sh.
 from __future__ import annotations
 
 import ast
+import copy
 import json
+import os
+import pickle
 import threading
 import time
+import timeit
 import zlib
 
 import numpy as np
@@ -250,13 +254,15 @@ def test_errors_raise_dynamics_error_naming_the_fault():
         m.forward_dynamics(s.q_ours, v, np.zeros((2, 2, 3)))
     with pytest.raises(sd.DynamicsError, match=r"a holds 2 states \(2-D\), q one state \(1-D\)"):
         m.rnea(s.q_ours, v, np.stack([v, v]))
-    with pytest.raises(sd.DynamicsError, match="q is not an array of numbers"):
+    with pytest.raises(TypeError, match="^q must be real numbers"):
         m.gravity(["x"] * m.nq)
+    with pytest.raises(sd.DynamicsError, match="q is not an array of numbers"):
+        m.gravity([[0.0] * m.nq, [0.0]])
     with pytest.raises(sd.DynamicsError, match="unknown"):
         m.forward_dynamics(s.q_ours, v, v, method="newton")
     with pytest.raises(sd.DynamicsError, match="cannot parse the URDF"):
         sd.Model.from_urdf_string("<robot name='r'><link name='a'>")
-    with pytest.raises(sd.DynamicsError):
+    with pytest.raises(FileNotFoundError):
         sd.Model.from_urdf(str(REPO / "no_such_file.urdf"))
 
 
@@ -338,3 +344,217 @@ def test_stubs_name_exactly_the_public_api():
     public = {n for n in dir(sd) if not n.startswith("_")} - {"spatial_dynamics"}
     assert module == public
     assert model == {n for n in dir(sd.Model) if not n.startswith("_")}
+
+
+ARM = REPO / "config" / "models" / "default_arm.urdf"
+
+
+def test_an_unaligned_array_is_read():
+    """A C-contiguous float64 array whose data is not 8-byte aligned (np.frombuffer at an odd
+    offset) is copied, not read in place: the results are those of an aligned copy."""
+    s = setup_of(PACKAGE_CASES[0])
+    m, q = s.model, s.q_ours
+    one = np.frombuffer(bytearray(8 * m.nq + 1), dtype=np.float64, offset=1)
+    two = np.frombuffer(bytearray(16 * m.nq + 1), dtype=np.float64, offset=1).reshape(2, m.nq)
+    assert one.flags.c_contiguous and not one.flags.aligned
+    assert two.flags.c_contiguous and not two.flags.aligned
+    # frombuffer over a bytearray is writeable: the state is written into the odd offset.
+    one[:] = q
+    two[:] = np.stack([q, q])
+    assert np.array_equal(m.gravity(one), m.gravity(q))
+    assert np.array_equal(m.gravity(two), m.gravity(np.stack([q, q])))
+
+
+def test_results_too_big_raise_memory_error():
+    """A batch whose results cannot be allocated (a broadcast view: rows that take no memory)
+    raises MemoryError naming the shape, before any argument is copied."""
+    s = setup_of(PACKAGE_CASES[0])
+    m = s.model
+    huge = np.broadcast_to(s.q_ours, (10**12, m.nq))
+    with pytest.raises(MemoryError, match=r"\(1000000000000, "):
+        m.gravity(huge)
+    beyond = np.broadcast_to(s.q_ours, (2**56, m.nq))  # (N, nv, nv) results: more bytes than isize holds
+    too_big = rf"^a result of shape \(72057594037927936, {m.nv}, {m.nv}\) would take more bytes"
+    with pytest.raises(MemoryError, match=too_big):
+        m.mass_matrix(beyond)
+    v = np.broadcast_to(s.v_ours, (2**56, m.nv))
+    with pytest.raises(MemoryError):
+        m.rnea_derivatives(beyond, v, v)
+
+
+class _Refuses:
+    """An array-like whose conversion raises `error`."""
+
+    def __init__(self, error):
+        self.error = error
+
+    def __array__(self, dtype=None, copy=None):
+        raise self.error
+
+
+def test_shapes_are_checked_before_conversion_and_numpy_errors_propagate():
+    """A wrong shape is refused from the array's shape alone (a broadcast view of 10^12 rows is
+    not copied); MemoryError and KeyboardInterrupt raised while converting an argument reach
+    the caller unchanged."""
+    s = setup_of(PACKAGE_CASES[0])
+    m = s.model
+    wide = np.broadcast_to(np.zeros(m.nq + 1, dtype=np.float32), (10**12, m.nq + 1))
+    with pytest.raises(sd.DynamicsError, match=rf"^q has shape \(1000000000000, {m.nq + 1}\)"):
+        m.gravity(wide)
+    rows = np.broadcast_to(np.zeros(m.nv, dtype=np.float32), (10**12, m.nv))
+    with pytest.raises(sd.DynamicsError, match=r"v holds 1000000000000 states \(2-D\), q 2 states"):
+        m.rnea(np.zeros((2, m.nq)), rows, rows)
+    with pytest.raises(MemoryError, match="no memory for q"):
+        m.gravity(_Refuses(MemoryError("no memory for q")))
+    with pytest.raises(KeyboardInterrupt):
+        m.rnea(s.q_ours, s.v_ours, _Refuses(KeyboardInterrupt()))
+
+
+@pytest.mark.parametrize(
+    "make, what",
+    [
+        (lambda n: np.zeros(n, dtype=complex), "an array of dtype complex128"),
+        (lambda n: np.ones(n, dtype=bool), "an array of dtype bool"),
+        (lambda n: np.zeros(n, dtype="M8[s]"), r"an array of dtype datetime64\[s\]"),
+        (lambda n: np.zeros(n, dtype=object), "an array of dtype object"),
+        (lambda n: ["1.5"] * n, r"list \(read by numpy as dtype <U3\)"),
+        (lambda n: b"0.25", "bytes"),
+        (lambda n: None, "NoneType"),
+        (lambda n: {}, "dict"),
+        (lambda n: object(), "object"),
+        (lambda n: [1.0] * (n - 1) + [None], "list"),
+    ],
+    ids=[
+        "complex", "bool", "datetime64", "object_array", "strings", "bytes", "None", "dict", "object",
+        "list_with_None",
+    ],
+)
+def test_only_real_numbers_are_taken(make, what):
+    """Arguments are real numbers: a float, signed or unsigned integer array, or a sequence of
+    them. Anything else is a TypeError naming the argument and what it was."""
+    s = setup_of(PACKAGE_CASES[0])
+    m = s.model
+    with pytest.raises(TypeError, match=rf"^q must be real numbers .*, not {what}"):
+        m.gravity(make(m.nq))
+    with pytest.raises(TypeError, match=rf"^tau must be real numbers .*, not {what}"):
+        m.forward_dynamics(s.q_ours, s.v_ours, make(m.nv))
+
+
+def test_real_dtypes_are_converted():
+    s = setup_of(PACKAGE_CASES[0])
+    m = s.model
+    q = np.arange(m.nq) - 2
+    want = m.gravity(q.astype(np.float64))
+    for dtype in (np.int8, np.int32, np.int64, np.float16, np.float32):
+        assert np.array_equal(m.gravity(q.astype(dtype)), want), dtype
+    assert np.array_equal(m.gravity(np.abs(q).astype(np.uint16)), m.gravity(np.abs(q).astype(np.float64)))
+    assert np.array_equal(m.gravity(tuple(q.tolist())), want)
+
+
+def chain_urdf(links: int) -> str:
+    parts = ["<robot name='chain'>", "<link name='l0'/>"]
+    for i in range(1, links + 1):
+        parts.append(
+            f"<link name='l{i}'><inertial><mass value='1'/><inertia ixx='0.01' iyy='0.01' izz='0.01'"
+            " ixy='0' ixz='0' iyz='0'/></inertial></link>"
+        )
+        parts.append(
+            f"<joint name='j{i}' type='revolute'><parent link='l{i - 1}'/><child link='l{i}'/>"
+            "<origin xyz='0 0 0.1'/><axis xyz='0 1 0'/>"
+            "<limit lower='-1' upper='1' effort='1' velocity='1'/></joint>"
+        )
+    parts.append("</robot>")
+    return "".join(parts)
+
+
+def fastest(call, number):
+    """The fastest of five runs of `number` calls, per call."""
+    return min(timeit.repeat(call, number=number, repeat=5)) / number
+
+
+def test_small_batches_cost_about_as_much_as_single_calls():
+    """A batch of a few rows runs on the calling thread with a workspace kept by the model: it
+    costs about what the same single calls do, not a thread start or a workspace (on a chain of
+    800 joints, two nv x nv matrices) per call. The bound, 3 times, leaves room for a loaded
+    machine."""
+    s = setup_of(PACKAGE_CASES[0])
+    m = s.model
+    q = np.stack([s.q_ours, s.q_ours])
+    v = np.stack([s.v_ours, s.v_ours])
+    batch = fastest(lambda: m.rnea(q, v, v), 200)
+    singles = fastest(lambda: (m.rnea(q[0], v[0], v[0]), m.rnea(q[1], v[1], v[1])), 200)
+    assert batch < 3 * singles, f"2 rows: {batch * 1e6:.1f} us as a batch, {singles * 1e6:.1f} us as single calls"
+    chain = sd.Model.from_urdf_string(chain_urdf(800))
+    one = np.zeros((1, chain.nq))
+    batch = fastest(lambda: chain.gravity(one), 20)
+    single = fastest(lambda: chain.gravity(one[0]), 20)
+    assert batch < 3 * single, f"chain, 1 row: {batch * 1e6:.1f} us as a batch, {single * 1e6:.1f} us single"
+
+
+def test_from_urdf_file_errors_are_os_errors(tmp_path):
+    """A file that cannot be read raises the OSError subclass of its cause, with the path as
+    its filename; a device, a FIFO or a file over 256 MiB is refused without being read
+    (DynamicsError naming the path); a URDF the library refuses names the file."""
+    missing = tmp_path / "missing.urdf"
+    with pytest.raises(FileNotFoundError) as raised:
+        sd.Model.from_urdf(missing)
+    assert raised.value.filename == str(missing)
+    with pytest.raises(IsADirectoryError) as raised:
+        sd.Model.from_urdf(str(tmp_path))
+    assert raised.value.filename == str(tmp_path)
+    if os.geteuid() != 0:  # root reads any file
+        locked = tmp_path / "locked.urdf"
+        locked.write_text(ARM.read_text())
+        locked.chmod(0)
+        with pytest.raises(PermissionError):
+            sd.Model.from_urdf(locked)
+    with pytest.raises(sd.DynamicsError, match="^/dev/zero is not a regular file"):
+        sd.Model.from_urdf("/dev/zero")
+    fifo = tmp_path / "fifo.urdf"
+    os.mkfifo(fifo)
+    with pytest.raises(sd.DynamicsError, match="is not a regular file"):
+        sd.Model.from_urdf(fifo)
+    big = tmp_path / "big.urdf"
+    with open(big, "wb") as f:
+        f.truncate((256 << 20) + 1)  # sparse: no disk, and not read
+    with pytest.raises(sd.DynamicsError, match=r"big.urdf is larger than 256 MiB"):
+        sd.Model.from_urdf(big)
+    bad = tmp_path / "bad.urdf"
+    bad.write_text("<robot name='r'><link name='a'>")
+    with pytest.raises(sd.DynamicsError, match=rf"^{bad}: cannot parse the URDF"):
+        sd.Model.from_urdf(bad)
+
+
+def test_a_model_pickles_and_copies():
+    """A model pickles (its URDF text and options, not its path) into one that gives the same
+    bits; copy.copy and copy.deepcopy give the model itself (it is immutable)."""
+    m = sd.Model.from_urdf(ARM, floating_base=True, ignore_mimic=True)
+    back = pickle.loads(pickle.dumps(m))
+    assert isinstance(back, sd.Model) and back is not m
+    assert (back.nq, back.nv, back.v_names, back.link_names) == (m.nq, m.nv, m.v_names, m.link_names)
+    assert back.forward_dynamics_method == m.forward_dynamics_method
+    rng = np.random.default_rng(3)
+    q = rng.standard_normal((4, m.nq))
+    q[:, 3:7] /= np.linalg.norm(q[:, 3:7], axis=1, keepdims=True)
+    v, a = rng.standard_normal((2, 4, m.nv))
+    assert np.array_equal(back.rnea(q, v, a), m.rnea(q, v, a))
+    assert np.array_equal(back.mass_matrix(q[0]), m.mass_matrix(q[0]))
+    fixed = pickle.loads(pickle.dumps(sd.Model.from_urdf(ARM)))
+    assert fixed.nv == m.nv - 6
+    assert copy.copy(m) is m and copy.deepcopy(m) is m
+    assert copy.deepcopy([m, m])[0] is m
+
+
+def test_center_of_mass_is_of_the_moving_bodies():
+    """The mass of center_of_mass leaves out links welded to the world, as Pinocchio's
+    computeTotalMass: default_arm's base counts only on a floating base. The docstring says
+    so."""
+    fixed, floating = sd.Model.from_urdf(ARM), sd.Model.from_urdf(ARM, floating_base=True)
+    q = np.zeros(floating.nq)
+    q[6] = 1.0
+    fixed_mass, floating_mass = fixed.center_of_mass(np.zeros(fixed.nq))[0], floating.center_of_mass(q)[0]
+    assert fixed_mass < floating_mass
+    reference = pin.buildModelFromUrdf(str(ARM))
+    assert abs(fixed_mass - pin.computeTotalMass(reference)) <= 1e-12 * floating_mass
+    doc = sd.Model.center_of_mass.__doc__
+    assert "total mass" not in doc and "moving bodies" in doc and "welded to the world" in doc

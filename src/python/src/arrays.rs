@@ -1,26 +1,43 @@
-//! Arguments as float64 rows: a C-contiguous float64 numpy array is borrowed as it is; anything
-//! else (a list, another dtype, a strided view) is converted once by `numpy.ascontiguousarray`.
-//! A 1-D argument is one state, a 2-D one N states (a row each); any other shape is a
-//! `DynamicsError` naming the argument and the length the model needs.
+//! Arguments as float64 rows, in two steps. [`Arg::inspect`] reads an argument's dtype and
+//! shape without converting it: a numpy array as it is, anything else (a list, a tuple, an
+//! object with `__array__`) through `numpy.asarray`. Only real numbers are taken (dtype kinds
+//! float, signed and unsigned integer): anything else (bool, complex, strings, bytes, dates,
+//! objects, `None`) is a `TypeError` naming the argument. A 1-D argument is one state, a 2-D one
+//! N states (a row each); any other shape is a `DynamicsError` naming the argument and the
+//! length the model needs. [`Arg::rows`] then reads the values: a C-contiguous, aligned,
+//! native float64 array is borrowed as it is, anything else is copied once into a new float64
+//! array. Exceptions other than `ValueError` raised by numpy on the way (`MemoryError`,
+//! `KeyboardInterrupt`) propagate unchanged.
 
 use crate::errors::error;
-use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use numpy::{
+    PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
+    PyUntypedArrayMethods,
+};
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::IntoPyDict;
 
-/// One argument, borrowed as float64 values, with the number of states it holds.
-pub struct Rows<'py> {
-    array: PyReadonlyArrayDyn<'py, f64>,
+/// One argument whose dtype and shape were checked, not yet read as float64.
+pub struct Arg<'py> {
+    name: String,
+    array: Bound<'py, PyUntypedArray>,
     /// `None` for one state (1-D), `Some(n)` for `n` rows (2-D).
     pub states: Option<usize>,
 }
 
-impl<'py> Rows<'py> {
-    /// `value` as rows of `len` values, the argument called `name`.
-    pub fn new(value: &Bound<'py, PyAny>, name: &str, len: usize) -> PyResult<Self> {
-        let array = match value.extract::<PyReadonlyArrayDyn<'py, f64>>() {
-            Ok(a) if a.is_c_contiguous() => a,
-            _ => contiguous(value, name)?,
+impl<'py> Arg<'py> {
+    /// `value`, the argument called `name`, as states of `len` values each.
+    pub fn inspect(value: &Bound<'py, PyAny>, name: &str, len: usize) -> PyResult<Self> {
+        let array = match value.cast::<PyUntypedArray>() {
+            Ok(array) => array.clone(),
+            Err(_) => as_array(value, name)?,
         };
+        let kind = array.dtype().kind();
+        if !matches!(kind, b'f' | b'i' | b'u') {
+            return Err(not_real(value, &array, name));
+        }
         let shape = array.shape();
         let states = match *shape {
             [n] if n == len => None,
@@ -32,36 +49,117 @@ impl<'py> Rows<'py> {
                 )))
             }
         };
-        Ok(Rows { array, states })
+        Ok(Arg {
+            name: name.to_string(),
+            array,
+            states,
+        })
     }
 
+    /// The values as float64 rows: borrowed when the array is C-contiguous, aligned and native
+    /// float64, otherwise copied into a new array.
+    pub fn rows(&self) -> PyResult<Rows<'py>> {
+        if let Ok(floats) = self.array.cast::<PyArrayDyn<f64>>() {
+            if floats.is_c_contiguous() && floats.is_aligned() {
+                if let Ok(borrowed) = floats.try_readonly() {
+                    return Ok(Rows { array: borrowed });
+                }
+            }
+        }
+        self.copy()
+    }
+
+    /// `numpy.array(self, dtype=float64, order="C")`: a new array, contiguous and aligned.
+    #[cold]
+    fn copy(&self) -> PyResult<Rows<'py>> {
+        static ARRAY: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+        static FLOAT64: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+        let py = self.array.py();
+        let float64 = FLOAT64.import(py, "numpy", "float64")?;
+        let copied = ARRAY
+            .import(py, "numpy", "array")?
+            .call(
+                (&self.array, float64),
+                Some(&[("order", "C")].into_py_dict(py)?),
+            )
+            .map_err(|e| relabel(py, e, &self.name))?;
+        let array = copied
+            .cast_into::<PyArrayDyn<f64>>()
+            .map_err(|_| error(format!("{} could not be read as float64 values", self.name)))?;
+        let borrowed = array
+            .try_readonly()
+            .map_err(|e| error(format!("{} cannot be read: {e}", self.name)))?;
+        Ok(Rows { array: borrowed })
+    }
+}
+
+/// One argument's values, float64, C-contiguous and aligned.
+pub struct Rows<'py> {
+    array: PyReadonlyArrayDyn<'py, f64>,
+}
+
+impl Rows<'_> {
     /// Every value, row after row.
-    pub fn values(&self) -> &[f64] {
+    pub fn values(&self) -> PyResult<&[f64]> {
         self.array
             .as_slice()
-            .expect("the array was made C-contiguous")
+            .map_err(|_| error("an argument's float64 copy is not contiguous"))
     }
 }
 
-/// `numpy.ascontiguousarray(value, dtype=float64)`, or an error naming the argument.
+/// `numpy.asarray(value)`: the array numpy reads from a list, tuple or other array-like. A
+/// `ValueError` (ragged rows) becomes a `DynamicsError` naming the argument; other exceptions
+/// propagate unchanged.
 #[cold]
-fn contiguous<'py>(
-    value: &Bound<'py, PyAny>,
-    name: &str,
-) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
+fn as_array<'py>(value: &Bound<'py, PyAny>, name: &str) -> PyResult<Bound<'py, PyUntypedArray>> {
+    static AS_ARRAY: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
     let py = value.py();
-    let numpy = py.import("numpy")?;
-    let converted = numpy
-        .getattr("ascontiguousarray")?
-        .call1((value, numpy.getattr("float64")?))
-        .map_err(|e| error(format!("{name} is not an array of numbers: {e}")))?;
-    let array = converted
-        .extract::<Bound<'py, PyArrayDyn<f64>>>()
-        .map_err(|e| error(format!("{name} is not an array of numbers: {e}")))?;
-    Ok(array.readonly())
+    let array = AS_ARRAY
+        .import(py, "numpy", "asarray")?
+        .call1((value,))
+        .map_err(|e| relabel(py, e, name))?;
+    array.cast_into::<PyUntypedArray>().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "{name} must be real numbers (a float or integer array, or a sequence of them)"
+        ))
+    })
 }
 
-/// A shape as Python prints it: `(3,)`, `(2, 3)`.
+/// `e` raised by numpy while reading the argument `name`: a `ValueError` becomes a
+/// `DynamicsError` naming the argument (with `e` as its cause), anything else is `e` itself.
+fn relabel(py: Python<'_>, e: PyErr, name: &str) -> PyErr {
+    if e.is_instance_of::<PyValueError>(py) {
+        let relabelled = error(format!("{name} is not an array of numbers: {e}"));
+        relabelled.set_cause(py, Some(e));
+        relabelled
+    } else {
+        e
+    }
+}
+
+/// The `TypeError` of an argument that is not real numbers: its dtype, and for a value that is
+/// not a numpy array, its Python type too.
+#[cold]
+fn not_real(value: &Bound<'_, PyAny>, array: &Bound<'_, PyUntypedArray>, name: &str) -> PyErr {
+    let dtype = array
+        .dtype()
+        .str()
+        .map_or_else(|_| "?".to_string(), |s| s.to_string());
+    let got = if value.is_instance_of::<PyUntypedArray>() {
+        format!("an array of dtype {dtype}")
+    } else {
+        let type_name = value
+            .get_type()
+            .name()
+            .map_or_else(|_| "?".to_string(), |s| s.to_string());
+        format!("{type_name} (read by numpy as dtype {dtype})")
+    };
+    PyTypeError::new_err(format!(
+        "{name} must be real numbers (a float or integer array, or a sequence of them), not {got}"
+    ))
+}
+
+/// A shape as Python prints it: `()`, `(3,)`, `(2, 3)`.
 pub fn shape_text(shape: &[usize]) -> String {
     match shape {
         [n] => format!("({n},)"),
@@ -78,19 +176,21 @@ pub fn shape_text(shape: &[usize]) -> String {
 
 /// The number of states of a call: `None` when every argument is 1-D, `Some(n)` when every one
 /// is 2-D with `n` rows; mixing the two, or rows that differ, is an error naming the arguments.
-pub fn states_of(args: &[(&str, &Rows<'_>)]) -> PyResult<Option<usize>> {
-    let Some((first_name, first)) = args.first() else {
+pub fn states_of(args: &[Arg<'_>]) -> PyResult<Option<usize>> {
+    let Some(first) = args.first() else {
         return Ok(None);
     };
-    for (name, rows) in &args[1..] {
-        if rows.states != first.states {
+    for arg in &args[1..] {
+        if arg.states != first.states {
             let describe = |s: Option<usize>| match s {
                 None => "one state (1-D)".to_string(),
                 Some(n) => format!("{n} states (2-D)"),
             };
             return Err(error(format!(
-                "{name} holds {}, {first_name} {}: give every argument as 1-D, or every one as 2-D with the same rows",
-                describe(rows.states),
+                "{} holds {}, {} {}: give every argument as 1-D, or every one as 2-D with the same rows",
+                arg.name,
+                describe(arg.states),
+                first.name,
                 describe(first.states)
             )));
         }

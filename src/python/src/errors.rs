@@ -1,6 +1,8 @@
-//! `DynamicsError`: every failure of the module, a subclass of `ValueError` whose message is
-//! the library's (naming the joint, coordinate, frame or file at fault) or names the argument
-//! whose shape or type is wrong.
+//! `DynamicsError`, a subclass of `ValueError`: what the library refuses, its message the
+//! library's (naming the joint, coordinate, frame or file at fault), and an argument of the
+//! wrong shape, naming it. Other failures raise Python's own exceptions: `TypeError` for an
+//! argument that is not real numbers, the `OSError` subclass of its cause for a URDF file that
+//! cannot be read, `MemoryError` for results too big to allocate.
 
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;

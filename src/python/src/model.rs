@@ -1,13 +1,15 @@
 //! `Model`: a robot model built from URDF (immutable), its coordinates' names, and the library's
-//! algorithms as methods. Each method takes numpy float64 arrays (lists are converted): 1-D for
-//! one state, 2-D for N states (a row each, results stacked). Conventions are the library's: SI
-//! units, `q` and `v` in the order of `v_names`, a floating base's `q = [x y z qx qy qz qw]`
-//! and `v = [linear; angular]` in the base frame; matrices row-major (numpy's C order).
+//! algorithms as methods. Each method takes real numbers (float64 arrays read in place, other
+//! float and integer arrays and sequences of numbers converted): 1-D for one state, 2-D for N
+//! states (a row each, results stacked). Conventions are the library's: SI units, `q` and `v`
+//! in the order of `v_names`, a floating base's `q = [x y z qx qy qz qw]` and
+//! `v = [linear; angular]` in the base frame; matrices row-major (numpy's C order).
 
-use crate::batch::{run, run_blocks};
+use crate::batch::{run, run_blocks, Workspaces};
 use crate::errors::{error, from_library};
 use nalgebra::DMatrix;
 use numpy::{PyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::PyOSError;
 use pyo3::prelude::*;
 use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics_core::algorithms::{
@@ -15,37 +17,58 @@ use spatial_dynamics_core::algorithms::{
     frame_jacobian, frame_placement, gravity, rnea, rnea_derivatives, rnea_rows,
     ForwardDynamicsMethod, ReferenceFrame,
 };
-use spatial_dynamics_core::{urdf, DynamicsError, Externals, ModelOptions, Workspace};
-use std::path::PathBuf;
-use std::sync::Mutex;
+use spatial_dynamics_core::{urdf, DynamicsError, Externals, ModelError, ModelOptions, Workspace};
+use std::fs::File;
+use std::io::Read;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 type Array<'py> = Bound<'py, PyArrayDyn<f64>>;
 
-/// A robot model built from URDF, with the scratch of its single-state calls.
+/// The largest URDF file `Model.from_urdf` reads: 256 MiB, far above any robot description
+/// (a full humanoid's is under 1 MiB), so that a huge file is refused before it is read.
+pub const MAX_URDF_BYTES: u64 = 256 << 20;
+
+/// A robot model built from URDF, with the URDF text and options it was built from (for
+/// pickling) and the workspaces of its calls.
 #[pyclass(frozen, module = "spatial_dynamics")]
 pub struct Model {
     model: spatial_dynamics_core::Model,
-    /// The workspace of single-state calls (N-state calls make one per thread).
-    workspace: Mutex<Workspace>,
+    /// Workspaces between calls: one per thread a call runs on, kept for the next.
+    workspaces: Workspaces,
     /// The method `method=None` uses: the library's `auto` choice for this model.
     method: ForwardDynamicsMethod,
+    /// The URDF text the model was built from.
+    xml: String,
+    floating_base: bool,
+    ignore_mimic: bool,
 }
 
 impl Model {
-    fn new(model: spatial_dynamics_core::Model) -> Self {
+    /// The model of URDF text `xml` with the options of `from_urdf_string`, or the library's
+    /// error.
+    fn build(xml: String, floating_base: bool, ignore_mimic: bool) -> Result<Self, ModelError> {
+        let options = ModelOptions {
+            floating_base,
+            ignore_mimic,
+            ..ModelOptions::default()
+        };
+        let model = urdf::model_from_str(&xml, &options)?;
         // `aba` when no method runs on the model (a singular mass matrix): forward dynamics
         // then says why.
         let method = choose_method(&model, AUTO_TOLERANCE, Duration::ZERO)
             .map_or(ForwardDynamicsMethod::Aba, |choice| choice.method);
-        Model {
-            workspace: Mutex::new(Workspace::new(&model)),
+        Ok(Model {
+            workspaces: Workspaces::new(&model),
             model,
             method,
-        }
+            xml,
+            floating_base,
+            ignore_mimic,
+        })
     }
 
-    /// [`run`] with this model and the workspace of its single-state calls.
+    /// [`run`] with this model and its workspaces.
     fn run<'py, const I: usize, const O: usize, K>(
         &self,
         py: Python<'py>,
@@ -56,7 +79,7 @@ impl Model {
     where
         K: Fn(&mut Workspace, [&[f64]; I], [&mut [f64]; O]) -> Result<(), DynamicsError> + Sync,
     {
-        run(py, &self.model, &self.workspace, inputs, outputs, kernel)
+        run(py, &self.model, &self.workspaces, inputs, outputs, kernel)
     }
 
     /// Three `(nv, nv)` matrices of the state `(q, v, x)` (`x` as its name and value; `nv`
@@ -93,13 +116,72 @@ impl Model {
         )?;
         Ok((d0, d1, d2))
     }
+}
 
-    fn options(floating_base: bool, ignore_mimic: bool) -> ModelOptions {
-        ModelOptions {
-            floating_base,
-            ignore_mimic,
-            ..ModelOptions::default()
+/// The text of the URDF file at `path`: a regular file of at most [`MAX_URDF_BYTES`], UTF-8.
+/// A file that cannot be opened or read is the `OSError` subclass of its errno
+/// (`FileNotFoundError`, `PermissionError`, `IsADirectoryError`, ...) with the path as its
+/// filename; a file of another kind (a device, a FIFO), a bigger one or one that is not UTF-8
+/// is a `DynamicsError` naming the path. The file is read with the GIL released.
+fn read_urdf(py: Python<'_>, path: &Path) -> PyResult<String> {
+    let shown = path.display().to_string();
+    let os_error = |e: std::io::Error| os_error(py, e, &shown);
+    // The path's kind and size are checked before it is opened (opening a FIFO waits for a
+    // writer), and the opened file's again (the path may have changed in between).
+    let check = |metadata: std::fs::Metadata| -> PyResult<()> {
+        if metadata.is_dir() {
+            let eisdir = py.import("errno")?.getattr("EISDIR")?.extract::<i32>()?;
+            return Err(os_error(std::io::Error::from_raw_os_error(eisdir)));
         }
+        if !metadata.is_file() {
+            return Err(error(format!(
+                "{shown} is not a regular file: a URDF is read from one"
+            )));
+        }
+        if metadata.len() > MAX_URDF_BYTES {
+            return Err(too_big(&shown));
+        }
+        Ok(())
+    };
+    check(std::fs::metadata(path).map_err(os_error)?)?;
+    let file = File::open(path).map_err(os_error)?;
+    check(file.metadata().map_err(os_error)?)?;
+    // At most one byte over the limit is read, should the file grow meanwhile.
+    let bytes = py
+        .detach(|| {
+            let mut bytes = Vec::new();
+            file.take(MAX_URDF_BYTES + 1)
+                .read_to_end(&mut bytes)
+                .map(|_| bytes)
+        })
+        .map_err(os_error)?;
+    if bytes.len() as u64 > MAX_URDF_BYTES {
+        return Err(too_big(&shown));
+    }
+    String::from_utf8(bytes).map_err(|e| error(format!("{shown} is not UTF-8 text: {e}")))
+}
+
+/// The `DynamicsError` of a URDF file over [`MAX_URDF_BYTES`].
+fn too_big(shown: &str) -> PyErr {
+    error(format!(
+        "{shown} is larger than {} MiB, the most a URDF file may take",
+        MAX_URDF_BYTES >> 20
+    ))
+}
+
+/// `e`, an error reading `filename`, as Python's `OSError(errno, strerror, filename)`, which is
+/// the subclass of the errno (`FileNotFoundError` for `ENOENT`, ...); an error without an errno
+/// is an `OSError` with Rust's message.
+fn os_error(py: Python<'_>, e: std::io::Error, filename: &str) -> PyErr {
+    match e.raw_os_error() {
+        Some(errno) => {
+            let strerror = py
+                .import("os")
+                .and_then(|os| os.getattr("strerror")?.call1((errno,))?.extract::<String>())
+                .unwrap_or_else(|_| e.to_string());
+            PyOSError::new_err((errno, strerror, filename.to_string()))
+        }
+        None => PyOSError::new_err(format!("{filename}: {e}")),
     }
 }
 
@@ -126,7 +208,11 @@ fn reference_frame(reference: &str) -> PyResult<ReferenceFrame> {
 
 #[pymethods]
 impl Model {
-    /// The model of the URDF file at `path`.
+    /// The model of the URDF file at `path`, a regular file of at most 256 MiB of UTF-8 text.
+    /// A file that cannot be read raises the `OSError` subclass of its cause
+    /// (`FileNotFoundError`, `PermissionError`, `IsADirectoryError`); another kind of file (a
+    /// device, a FIFO), a bigger one or a URDF the library refuses raises `DynamicsError`, its
+    /// message starting with the path.
     #[staticmethod]
     #[pyo3(signature = (path, floating_base=false, ignore_mimic=false))]
     fn from_urdf(
@@ -135,9 +221,9 @@ impl Model {
         floating_base: bool,
         ignore_mimic: bool,
     ) -> PyResult<Self> {
-        let options = Self::options(floating_base, ignore_mimic);
-        py.detach(|| urdf::model_from_file(&path, &options).map(Model::new))
-            .map_err(from_library)
+        let xml = read_urdf(py, &path)?;
+        py.detach(|| Model::build(xml, floating_base, ignore_mimic))
+            .map_err(|e| error(format!("{}: {e}", path.display())))
     }
 
     /// The model of the URDF text `xml`.
@@ -145,13 +231,36 @@ impl Model {
     #[pyo3(signature = (xml, floating_base=false, ignore_mimic=false))]
     fn from_urdf_string(
         py: Python<'_>,
-        xml: &str,
+        xml: String,
         floating_base: bool,
         ignore_mimic: bool,
     ) -> PyResult<Self> {
-        let options = Self::options(floating_base, ignore_mimic);
-        py.detach(|| urdf::model_from_str(xml, &options).map(Model::new))
+        py.detach(|| Model::build(xml, floating_base, ignore_mimic))
             .map_err(from_library)
+    }
+
+    /// Pickling: `Model.from_urdf_string` with the URDF text and options the model was built
+    /// from (a model read from a file does not need the file to be unpickled).
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, (String, bool, bool))> {
+        let build = py.get_type::<Model>().getattr("from_urdf_string")?;
+        Ok((
+            build,
+            (self.xml.clone(), self.floating_base, self.ignore_mimic),
+        ))
+    }
+
+    /// The model itself: a `Model` is immutable (its workspaces are scratch that no result
+    /// depends on), so a copy would behave the same.
+    fn __copy__(slf: Py<Self>) -> Py<Self> {
+        slf
+    }
+
+    /// The model itself, as `__copy__`: a `Model` is immutable.
+    fn __deepcopy__(slf: Py<Self>, _memo: &Bound<'_, PyAny>) -> Py<Self> {
+        slf
     }
 
     /// Position coordinates.
@@ -209,7 +318,7 @@ impl Model {
         let [tau] = run_blocks(
             py,
             m,
-            &self.workspace,
+            &self.workspaces,
             [("q", q, nq), ("v", v, nv), ("a", a, nv)],
             [&[nv]],
             &|ws: &mut Workspace, [q, v, a]: [&[f64]; 3], [tau]: [&mut [f64]; 1]| {
@@ -328,9 +437,10 @@ impl Model {
         Ok(j)
     }
 
-    /// The centre of mass: `(mass, com, J)`, the total mass (kg, a float), its position in the
-    /// world `(3,)` and its Jacobian `(3, nv)` (world axes); `(N,)`, `(N, 3)`, `(N, 3, nv)` for
-    /// N states.
+    /// The centre of mass of the moving bodies: `(mass, com, J)`, their mass (kg, a float; links
+    /// welded to the world are left out, as in Pinocchio's computeTotalMass, so a floating base
+    /// counts every link), the position of their centre of mass in the world `(3,)` and its
+    /// Jacobian `(3, nv)` (world axes); `(N,)`, `(N, 3)`, `(N, 3, nv)` for N states.
     fn center_of_mass<'py>(
         &self,
         py: Python<'py>,
