@@ -24,7 +24,6 @@ import os
 import pickle
 import threading
 import time
-import timeit
 import zlib
 
 import numpy as np
@@ -449,46 +448,6 @@ def test_real_dtypes_are_converted():
         assert np.array_equal(m.gravity(q.astype(dtype)), want), dtype
     assert np.array_equal(m.gravity(np.abs(q).astype(np.uint16)), m.gravity(np.abs(q).astype(np.float64)))
     assert np.array_equal(m.gravity(tuple(q.tolist())), want)
-
-
-def chain_urdf(links: int) -> str:
-    parts = ["<robot name='chain'>", "<link name='l0'/>"]
-    for i in range(1, links + 1):
-        parts.append(
-            f"<link name='l{i}'><inertial><mass value='1'/><inertia ixx='0.01' iyy='0.01' izz='0.01'"
-            " ixy='0' ixz='0' iyz='0'/></inertial></link>"
-        )
-        parts.append(
-            f"<joint name='j{i}' type='revolute'><parent link='l{i - 1}'/><child link='l{i}'/>"
-            "<origin xyz='0 0 0.1'/><axis xyz='0 1 0'/>"
-            "<limit lower='-1' upper='1' effort='1' velocity='1'/></joint>"
-        )
-    parts.append("</robot>")
-    return "".join(parts)
-
-
-def fastest(call, number):
-    """The fastest of five runs of `number` calls, per call."""
-    return min(timeit.repeat(call, number=number, repeat=5)) / number
-
-
-def test_small_batches_cost_about_as_much_as_single_calls():
-    """A batch of a few rows runs on the calling thread with a workspace kept by the model: it
-    costs about what the same single calls do, not a thread start or a workspace (on a chain of
-    800 joints, two nv x nv matrices) per call. The bound, 3 times, leaves room for a loaded
-    machine."""
-    s = setup_of(PACKAGE_CASES[0])
-    m = s.model
-    q = np.stack([s.q_ours, s.q_ours])
-    v = np.stack([s.v_ours, s.v_ours])
-    batch = fastest(lambda: m.rnea(q, v, v), 200)
-    singles = fastest(lambda: (m.rnea(q[0], v[0], v[0]), m.rnea(q[1], v[1], v[1])), 200)
-    assert batch < 3 * singles, f"2 rows: {batch * 1e6:.1f} us as a batch, {singles * 1e6:.1f} us as single calls"
-    chain = sd.Model.from_urdf_string(chain_urdf(800))
-    one = np.zeros((1, chain.nq))
-    batch = fastest(lambda: chain.gravity(one), 20)
-    single = fastest(lambda: chain.gravity(one[0]), 20)
-    assert batch < 3 * single, f"chain, 1 row: {batch * 1e6:.1f} us as a batch, {single * 1e6:.1f} us single"
 
 
 def test_from_urdf_file_errors_are_os_errors(tmp_path):
