@@ -702,14 +702,23 @@ fn simulate_checks_its_arguments_before_writing() {
     let out = csv.to_str().unwrap();
     refused(base(urdf.to_str().unwrap(), &[]), "is the model's file");
     assert_eq!(std::fs::read(&urdf).unwrap(), before);
-    refused(base(out, &["--substeps", "0"]), "--substeps must be at least 1");
-    refused(base(out, &["--duration", "0.105"]), "not a whole number of --dt");
+    refused(
+        base(out, &["--substeps", "0"]),
+        "--substeps must be at least 1",
+    );
+    refused(
+        base(out, &["--duration", "0.105"]),
+        "not a whole number of --dt",
+    );
     refused(base(out, &["--dt", "1e-300"]), "more than 1e7");
     refused(
         base(out, &["--substeps", "1000000000"]),
         "more than 1e9 sub-steps",
     );
-    refused(base(out, &["--effort-until", "NaN"]), "--effort-until must be");
+    refused(
+        base(out, &["--effort-until", "NaN"]),
+        "--effort-until must be",
+    );
     refused(base(out, &["--effort-until=-1"]), "--effort-until must be");
     assert!(!csv.exists());
 
@@ -729,10 +738,22 @@ fn simulate_checks_its_arguments_before_writing() {
     run_ok(&args, "");
     let text = std::fs::read_to_string(&csv).unwrap();
     let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
-    let first: Vec<f64> = text.lines().nth(1).unwrap().split(',').map(|x| x.parse().unwrap()).collect();
-    let w = header.iter().position(|c| *c == "root_joint.position[6]").unwrap();
+    let first: Vec<f64> = text
+        .lines()
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    let w = header
+        .iter()
+        .position(|c| *c == "root_joint.position[6]")
+        .unwrap();
     assert_eq!(first[w], 1.0, "{text}");
-    let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
     assert_eq!(names.len(), 2, "{names:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -6,16 +6,16 @@
 //! and exits non-zero; a run that fails otherwise leaves no file (and an earlier one as it was).
 
 use super::ModelArgs;
+use crate::output_file::{same_file, PartialFile};
 use clap::Args;
+use spatial_dynamics_core::model::{quaternion_is_usable, quaternion_norm, JointKind};
 use spatial_dynamics_core::sim::{
     ContactPoint, Ground, Integrator, Passive, SimConfig, Simulator, State,
 };
 use spatial_dynamics_core::spatial::Vector3;
-use spatial_dynamics_core::model::{quaternion_is_usable, quaternion_norm, JointKind};
 use spatial_dynamics_core::{ForwardDynamicsMethod, Model};
 use std::collections::BTreeMap;
 use std::io::Write;
-use crate::output_file::{same_file, PartialFile};
 use std::path::PathBuf;
 
 /// The most rows (steps) a run may write: about 3 hours at 1 kHz.
@@ -101,7 +101,11 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
             "--effort-until must be a time of at least 0 s, got {until}"
         ));
     }
-    if let Some(urdf) = model_args.urdf.as_deref().filter(|u| same_file(u, &args.output)) {
+    if let Some(urdf) = model_args
+        .urdf
+        .as_deref()
+        .filter(|u| same_file(u, &args.output))
+    {
         return Err(format!(
             "--output {} is the model's file {}: the trajectory would replace it",
             args.output.display(),

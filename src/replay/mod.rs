@@ -31,8 +31,8 @@
 
 use crate::bag::{self, cdr, Bag, Flow, McapWriter, Wanted};
 use crate::joint_states::commands::Commands;
-use crate::output_file::{same_file, PartialFile};
 use crate::joint_states::joint_map::JointMap;
+use crate::output_file::{same_file, PartialFile};
 use crate::ros::names::NameResolver;
 use clap::ValueEnum;
 use decode::Decoder;
@@ -347,8 +347,6 @@ fn refuse_output_over_input(out: &Path, bag: &Path, files: &[PathBuf]) -> Result
     }
     Ok(())
 }
-
-
 
 /// A topic as the bag records it ([`bag::same_topic`]).
 fn recorded<'t>(topics: &'t [bag::TopicInfo], topic: &str) -> Option<&'t bag::TopicInfo> {

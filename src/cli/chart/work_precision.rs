@@ -249,6 +249,7 @@ fn stopped_notes(runs: &[Run]) -> Vec<String> {
         let why = match e {
             SimError::EnergyBlowUp { .. } => "energy created".to_string(),
             SimError::NonFinite { .. } => "state not finite".to_string(),
+            SimError::NotConverged { .. } => "Newton not converged".to_string(),
             SimError::Dynamics { source, .. } => source.to_string(),
         };
         let key = format!("{}, {}: stopped ({why}) at h =", r.problem, r.integrator);

@@ -85,6 +85,22 @@ pub(super) fn first_evaluation(
     Ok(true)
 }
 
+/// Why a step could not be taken.
+#[derive(Debug)]
+pub(super) enum StepError {
+    /// Forward dynamics failed.
+    Dynamics(DynamicsError),
+    /// Implicit Euler's Newton iterations did not bring the residual down to their tolerance
+    /// (`residual`: `|r| / (1 + |v'|)` at the last iterate).
+    NotConverged { residual: f64 },
+}
+
+impl From<DynamicsError> for StepError {
+    fn from(e: DynamicsError) -> Self {
+        StepError::Dynamics(e)
+    }
+}
+
 /// One step of length `h`, after its [`first_evaluation`] (`s.k_a[0] = a(q, v)`).
 pub(super) fn advance(
     integrator: Integrator,
@@ -94,7 +110,7 @@ pub(super) fn advance(
     state: &mut State,
     tau: &[f64],
     h: f64,
-) -> Result<(), DynamicsError> {
+) -> Result<(), StepError> {
     match integrator {
         Integrator::ExplicitEuler => {
             s.configuration
@@ -188,8 +204,14 @@ fn dexp_inv_in_place(configuration: &Configuration, dir: &[f64], c: f64, k: &mut
     }
 }
 
+/// Newton iterations implicit Euler takes at most before it gives up on a step.
+pub(super) const MAX_NEWTON_ITERATIONS: usize = 20;
+
 /// Backward Euler with Newton iterations on `v'`:
-/// `r(v') = v' − v − h a(q ⊕ h v', v') = 0`, `J = I − h ∂a/∂v − h² ∂a/∂q` (by differencing `r`).
+/// `r(v') = v' − v − h a(q ⊕ h v', v') = 0`, `J = I − h ∂a/∂v − h² ∂a/∂q` (by differencing `r`),
+/// until `|r| ≤ 10⁻¹² (1 + |v'|)`. A step whose iterations do not get there in
+/// [`MAX_NEWTON_ITERATIONS`] is not taken ([`StepError::NotConverged`]): it would not be a
+/// backward-Euler step.
 fn implicit_euler(
     eval: &mut Evaluator,
     s: &mut Scratch,
@@ -197,12 +219,12 @@ fn implicit_euler(
     state: &mut State,
     tau: &[f64],
     h: f64,
-) -> Result<(), DynamicsError> {
+) -> Result<(), StepError> {
     let n = state.v.len();
     let [v_new, ..] = &mut s.k_v;
     let [a_new, ..] = &mut s.k_a;
     v_new.copy_from_slice(&state.v);
-    for _ in 0..4 {
+    for iteration in 0.. {
         s.configuration
             .integrate(&state.q, v_new, h, &mut s.q_stage)?;
         eval.acceleration(model, &s.q_stage, v_new, tau, a_new)?;
@@ -211,8 +233,12 @@ fn implicit_euler(
             s.residual[i] = v_new[i] - state.v[i] - h * a_new[i];
             norm += s.residual[i] * s.residual[i];
         }
-        if norm.sqrt() <= 1e-12 * (1.0 + v_new.iter().map(|x| x * x).sum::<f64>().sqrt()) {
+        let residual = norm.sqrt() / (1.0 + v_new.iter().map(|x| x * x).sum::<f64>().sqrt());
+        if residual <= 1e-12 {
             break;
+        }
+        if iteration == MAX_NEWTON_ITERATIONS {
+            return Err(StepError::NotConverged { residual });
         }
         for j in 0..n {
             let eps = 1e-7 * (1.0 + v_new[j].abs());
@@ -234,7 +260,8 @@ fn implicit_euler(
     }
     state.v.copy_from_slice(v_new);
     s.configuration
-        .integrate_in_place(&mut state.q, &state.v, h)
+        .integrate_in_place(&mut state.q, &state.v, h)?;
+    Ok(())
 }
 /// Solves `A x = b` in place by Gaussian elimination with partial pivoting (`b` becomes `x`).
 fn solve_in_place(a: &mut nalgebra::DMatrix<f64>, b: &mut nalgebra::DVector<f64>) {

@@ -23,6 +23,7 @@ use energy_guard::EnergyGuard;
 pub use energy_guard::{ENERGY_CHECK_INTERVAL_S, ENERGY_TOLERANCE_J};
 pub use forces::{Passive, PassiveForces};
 pub use integrator::Integrator;
+use integrator::StepError;
 pub use servo::{CommandInterface, Servo, ServoAxis};
 
 use crate::algorithms::energy::AbaEnergy;
@@ -90,6 +91,9 @@ pub enum SimError {
     NonFinite { t: f64, coordinate: String },
     /// The energy grew beyond what the initial energy and the work of the commands allow.
     EnergyBlowUp { t: f64, energy: f64, bound: f64 },
+    /// Implicit Euler's Newton iterations did not converge on the step from time `t`
+    /// (`residual`: relative, at the last iterate).
+    NotConverged { t: f64, residual: f64 },
 }
 
 impl fmt::Display for SimError {
@@ -97,6 +101,11 @@ impl fmt::Display for SimError {
         match self {
             SimError::Dynamics { t, source } => write!(f, "at t = {t:.6} s: {source}"),
             SimError::NonFinite { t, coordinate } => write!(f, "at t = {t:.6} s: the state of '{coordinate}' is no longer finite"),
+            SimError::NotConverged { t, residual } => write!(
+                f,
+                "at t = {t:.6} s: implicit Euler's Newton iterations did not converge (relative residual {residual:.1e} after {} iterations): take a smaller step",
+                integrator::MAX_NEWTON_ITERATIONS
+            ),
             SimError::EnergyBlowUp { t, energy, bound } => write!(
                 f,
                 "at t = {t:.6} s: the energy rose to {energy:.6e} J, above {bound:.6e} J (the initial energy plus the work of the commands plus a tolerance): the integrator is creating energy"
@@ -307,7 +316,9 @@ impl Simulator {
                 let (kinetic, potential) = self.energy_at_start(model, state, evaluated)?;
                 self.guard.record(state.t, kinetic, potential)?;
             }
+            let t = state.t;
             evaluated
+                .map_err(StepError::Dynamics)
                 .and_then(|_| {
                     integrator::advance(
                         integrator,
@@ -319,7 +330,10 @@ impl Simulator {
                         h,
                     )
                 })
-                .map_err(|source| SimError::Dynamics { t: state.t, source })?;
+                .map_err(|e| match e {
+                    StepError::Dynamics(source) => SimError::Dynamics { t, source },
+                    StepError::NotConverged { residual } => SimError::NotConverged { t, residual },
+                })?;
             state.t += h;
             // The larger of the powers at the sub-step's two ends: a command accelerating a
             // joint from rest does work the power at the start alone (zero) would not count.

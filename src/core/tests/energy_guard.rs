@@ -229,3 +229,58 @@ fn work_done_from_rest_is_counted() {
         );
     }
 }
+
+#[test]
+fn implicit_euler_takes_only_steps_that_solve_its_equation() {
+    // Backward Euler: v₁ = v₀ + h a(q₀ ⊕ h v₁, v₁). From a folded arm at 50 ms the Newton
+    // iterations fail after a few steps: every step taken must solve the equation (checked by
+    // forward dynamics of its own), and the step that cannot be solved is refused by name.
+    use spatial_dynamics_core::algorithms::forward_dynamics::forward_dynamics;
+    use spatial_dynamics_core::{Externals, Workspace};
+    let model = load(DEFAULT_ARM_URDF);
+    let mut q0 = model.neutral();
+    q0[1] = 1.5;
+    q0[3] = -2.0;
+    let h = 0.05;
+    let config = SimConfig {
+        integrator: Integrator::ImplicitEuler,
+        dt: h,
+        ..Default::default()
+    };
+    let mut sim = Simulator::new(&model, config).unwrap();
+    let mut state = State::at_rest(&model, q0);
+    let mut ws = Workspace::new(&model);
+    let tau = vec![0.0; model.nv()];
+    let mut taken = 0;
+    let err = loop {
+        let before = state.clone();
+        if let Err(e) = sim.step(&model, &mut state, &tau) {
+            break e;
+        }
+        taken += 1;
+        let mut q1 = vec![0.0; model.nq()];
+        model.integrate(&before.q, &state.v, h, &mut q1).unwrap();
+        assert_eq!(q1, state.q);
+        let a = forward_dynamics(
+            &model,
+            &mut ws,
+            &state.q,
+            &state.v,
+            &tau,
+            ForwardDynamicsMethod::Aba,
+            &Externals::none(),
+        )
+        .unwrap();
+        for i in 0..model.nv() {
+            let r = state.v[i] - before.v[i] - h * a[i];
+            assert!(
+                r.abs() < 1e-9 * (1.0 + state.v[i].abs()),
+                "step {taken}, v[{i}]: residual {r}"
+            );
+        }
+        assert!(taken < 1000, "the run was expected to fail");
+    };
+    assert!(taken >= 2, "{err}");
+    assert!(matches!(err, SimError::NotConverged { .. }), "{err}");
+    assert!(err.to_string().contains("did not converge"), "{err}");
+}
