@@ -96,7 +96,7 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
             args.substeps
         ));
     }
-    if let Some(until) = args.effort_until.filter(|t| !(*t >= 0.0)) {
+    if let Some(until) = args.effort_until.filter(|t| t.is_nan() || *t < 0.0) {
         return Err(format!(
             "--effort-until must be a time of at least 0 s, got {until}"
         ));

@@ -271,10 +271,10 @@ fn implicit_euler_takes_only_steps_that_solve_its_equation() {
             &Externals::none(),
         )
         .unwrap();
-        for i in 0..model.nv() {
-            let r = state.v[i] - before.v[i] - h * a[i];
+        for (i, ((v1, v0), a)) in state.v.iter().zip(&before.v).zip(a).enumerate() {
+            let r = v1 - v0 - h * a;
             assert!(
-                r.abs() < 1e-9 * (1.0 + state.v[i].abs()),
+                r.abs() < 1e-9 * (1.0 + v1.abs()),
                 "step {taken}, v[{i}]: residual {r}"
             );
         }
