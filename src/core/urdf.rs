@@ -21,15 +21,7 @@ const IGNORED_ELEMENTS: [&str; 5] = ["visual", "collision", "material", "gazebo"
 
 /// Builds a model from URDF text.
 pub fn model_from_str(text: &str, options: &ModelOptions) -> Result<Model, ModelError> {
-    let model = builder_from_str(text)?.build(options)?;
-    if model.nv > MAX_COORDINATES {
-        return Err(ModelError::Invalid(format!(
-            "the model has {} coordinates, more than {MAX_COORDINATES}: its mass matrix alone would take {:.1} GB",
-            model.nv,
-            (model.nv * model.nv * 8) as f64 / 1e9
-        )));
-    }
-    Ok(model)
+    builder_from_str(text)?.build(options)
 }
 
 /// The links and joints of URDF text, ready to build.
@@ -56,16 +48,18 @@ pub fn model_from_file(path: &Path, options: &ModelOptions) -> Result<Model, Mod
 }
 
 /// Limits no real robot description comes near (TALOS, a full humanoid, has about 2 000 XML
-/// elements nested 6 deep), so that a huge or hostile text is refused with a reason instead of
-/// exhausting the stack (the XML tree is walked recursively) or memory (a model with `n`
-/// coordinates needs two `n × n` matrices: 6.4 GB at the limit).
+/// elements nested 6 deep, 50 coordinates), so that a huge or hostile text is refused with a
+/// reason instead of exhausting the stack (the XML tree is walked recursively) or memory.
+/// Memory is bounded by the model itself: the builder refuses a model whose workspace would
+/// take more than [`Workspace::MAX_BYTES`](crate::Workspace::MAX_BYTES) (2 GiB: ten `nv × nv`
+/// matrices, and lists of ancestors that grow as the square of a chain's length), which a
+/// revolute chain reaches at about 4 800 links.
 pub const MAX_DEPTH: usize = 100;
 /// See [`MAX_DEPTH`]: XML elements in the whole description.
 pub const MAX_ELEMENTS: usize = 1_000_000;
-/// See [`MAX_DEPTH`]: `<link>` elements, and `<joint>` elements, each.
+/// See [`MAX_DEPTH`]: `<link>` elements, and `<joint>` elements, each (fixed joints fuse their
+/// links into one body, so many links need not make a big model).
 pub const MAX_LINKS: usize = 20_000;
-/// See [`MAX_DEPTH`]: coordinates (`nv`) of the model built.
-pub const MAX_COORDINATES: usize = 20_000;
 
 /// Parses the text with the elements dynamics does not need removed. The XML is read as a
 /// stream first, so that nesting, element and link counts are checked before any of it is

@@ -10,6 +10,7 @@ use super::{
 };
 use crate::error::ModelError;
 use crate::spatial::Transform;
+use crate::Workspace;
 use std::collections::{HashMap, HashSet};
 
 /// Collects links and joints, then builds the model.
@@ -49,6 +50,7 @@ impl ModelBuilder {
     pub fn build(&self, options: &ModelOptions) -> Result<Model, ModelError> {
         let mut model = self.build_in_link_frames(options)?;
         orient_bodies(&mut model);
+        check_footprint(&model)?;
         Ok(model)
     }
 
@@ -454,6 +456,27 @@ fn dof_parents(model: &Model) -> Vec<Option<usize>> {
         }
     }
     parent
+}
+
+/// Refuses a model whose workspace would take more than [`Workspace::MAX_BYTES`], before any
+/// workspace is made for it.
+fn check_footprint(model: &Model) -> Result<(), ModelError> {
+    let footprint = Workspace::footprint(model);
+    if footprint.total() <= Workspace::MAX_BYTES {
+        return Ok(());
+    }
+    let gb = |bytes: usize| bytes as f64 / 1e9;
+    Err(ModelError::Invalid(format!(
+        "the model has {} bodies and {} coordinates: a workspace for it would take about {:.1} GB \
+         ({:.1} GB of nv × nv matrices, {:.1} GB of ancestor and support lists, which grow as the \
+         square of the tree's depth), more than the {:.1} GB a model may need",
+        model.nbodies(),
+        model.nv,
+        gb(footprint.total()),
+        gb(footprint.matrices),
+        gb(footprint.lists),
+        gb(Workspace::MAX_BYTES)
+    )))
 }
 
 /// A link's mass must be finite and non-negative, its inertia finite.
