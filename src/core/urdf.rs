@@ -40,11 +40,53 @@ pub(crate) fn builder_from_str(text: &str) -> Result<ModelBuilder, ModelError> {
     Ok(builder)
 }
 
-/// Builds a model from a URDF file.
+/// Builds a model from a URDF file: a regular file of at most [`MAX_FILE_BYTES`] of UTF-8.
 pub fn model_from_file(path: &Path, options: &ModelOptions) -> Result<Model, ModelError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| ModelError::Io(format!("{}: {e}", path.display())))?;
+    let text = read_file(path)?;
     model_from_str(&text, options)
+}
+
+/// The largest URDF file read: 64 MiB (TALOS's URDF, a full humanoid, is 0.2 MB). A bigger file,
+/// or one that is not a regular file (`/dev/zero`, a pipe, a directory), is refused before it is
+/// read.
+pub const MAX_FILE_BYTES: u64 = 64 << 20;
+
+/// The text of the file at `path`, read through a bound of [`MAX_FILE_BYTES`] (the file may grow
+/// while it is read).
+fn read_file(path: &Path) -> Result<String, ModelError> {
+    use std::io::Read;
+    let io = |e: std::io::Error| ModelError::Io(format!("{}: {e}", path.display()));
+    let too_big = || {
+        Err(ModelError::Io(format!(
+            "{}: the file is bigger than {MAX_FILE_BYTES} bytes (64 MiB), the most a URDF may have",
+            path.display()
+        )))
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let meta = file.metadata().map_err(io)?;
+    if !meta.is_file() {
+        return Err(ModelError::Io(format!(
+            "{}: not a regular file (a URDF is read from a file of at most {MAX_FILE_BYTES} bytes)",
+            path.display()
+        )));
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return too_big();
+    }
+    let mut bytes = Vec::new();
+    file.take(MAX_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return too_big();
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        ModelError::Io(format!(
+            "{}: not UTF-8 text (invalid byte at offset {})",
+            path.display(),
+            e.utf8_error().valid_up_to()
+        ))
+    })
 }
 
 /// Limits no real robot description comes near (TALOS, a full humanoid, has about 2 000 XML
