@@ -182,9 +182,10 @@ impl ModelBuilder {
         })
     }
 
-    /// The position joint `j` is held at, if it does not move: its `--lock` value, the neutral
-    /// position if the reduction freezes it, or its mimic leader's held position mapped through
-    /// it. The flag tells whether the user asked for it (a lock) or the reduction did (a freeze).
+    /// The position joint `j` is held at, if it does not move: its `--lock` value (for a mimic
+    /// follower, [`Plan::new`] has checked that it agrees with its leader's), its mimic leader's
+    /// held position mapped through it, or the neutral position if the reduction freezes it.
+    /// The flag tells whether the user asked for it (a lock) or the reduction did (a freeze).
     fn lock_position(
         &self,
         j: usize,
@@ -193,22 +194,27 @@ impl ModelBuilder {
         options: &ModelOptions,
     ) -> Option<(Vec<f64>, bool)> {
         let joint = &self.joints[j];
-        let held = |k: usize| {
+        let locked = |k: usize| {
             let name = &self.joints[k].name;
-            if let Some((_, v)) = options.locked.iter().find(|(n, _)| n == name) {
-                Some((vec![*v], true))
-            } else {
-                let kind = self.joints[k].kind.as_ref()?;
-                plan.frozen[k].then(|| (neutral_position(kind), false))
-            }
+            options
+                .locked
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, v)| (vec![*v], true))
         };
-        held(j).or_else(|| match (&joint.mimic, options.ignore_mimic) {
+        let frozen = |k: usize| {
+            let kind = self.joints[k].kind.as_ref()?;
+            plan.frozen[k].then(|| (neutral_position(kind), false))
+        };
+        let held = |k: usize| locked(k).or_else(|| frozen(k));
+        let led = || match (&joint.mimic, options.ignore_mimic) {
             (Some((leader, multiplier, offset)), false) => {
                 let l = topo.joints.iter().position(|x| x.name == *leader)?;
                 held(l).map(|(q, by_user)| (vec![multiplier * q[0] + offset], by_user))
             }
             _ => None,
-        })
+        };
+        locked(j).or_else(led).or_else(|| frozen(j))
     }
 
     fn index_links(&self) -> Result<HashMap<&str, usize>, ModelError> {

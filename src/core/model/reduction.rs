@@ -126,7 +126,10 @@ impl Plan {
     }
 
     /// A mimic follower cannot freeze while its leader keeps moving (the coupling would break);
-    /// the converse is fine (the follower locks with its leader).
+    /// the converse is fine (the follower locks with its leader). A `--lock` on a follower is
+    /// taken only when its leader is held too (locked, or frozen at its neutral position) at a
+    /// position the lock agrees with: `q_follower = multiplier · q_leader + offset` within
+    /// [`MIMIC_LOCK_TOLERANCE`] (relative beyond 1).
     fn check_mimic(&self, topo: &Topology, options: &ModelOptions) -> Result<(), ModelError> {
         if options.ignore_mimic {
             return Ok(());
@@ -137,18 +140,58 @@ impl Plan {
             .enumerate()
             .map(|(j, joint)| (joint.name.as_str(), j))
             .collect();
-        for (f, follower) in topo.joints.iter().enumerate() {
-            let Some(&l) = follower
-                .mimic
-                .as_ref()
-                .and_then(|m| index.get(m.0.as_str()))
-            else {
-                continue;
-            };
-            let user_locked = options
+        let lock = |name: &str| {
+            options
                 .locked
                 .iter()
-                .any(|(n, _)| *n == topo.joints[l].name);
+                .find(|(n, _)| n == name)
+                .map(|(_, v)| *v)
+        };
+        for (f, follower) in topo.joints.iter().enumerate() {
+            let Some((leader, multiplier, offset)) = &follower.mimic else {
+                continue;
+            };
+            let l = index.get(leader.as_str()).copied();
+            let removed = self.pruned[f] || follower.kind.is_none();
+            if let (Some(value), false) = (lock(&follower.name), removed) {
+                let refuse = |why: String| {
+                    Err(ModelError::Invalid(format!(
+                        "cannot lock joint '{}' at {value:e}: it mimics '{leader}' ({} = {multiplier:e} · {leader} + {offset:e}), {why}",
+                        follower.name, follower.name
+                    )))
+                };
+                let held = match l {
+                    None => return refuse("which does not exist".into()),
+                    Some(l) => match &topo.joints[l].kind {
+                        None => return refuse("which is not a moving joint".into()),
+                        Some(kind) if kind.nq() != 1 => {
+                            return refuse(
+                                "which is not a revolute, continuous or prismatic joint".into(),
+                            )
+                        }
+                        Some(kind) => lock(leader)
+                            .or_else(|| self.frozen[l].then(|| neutral_position(kind)[0])),
+                    },
+                };
+                let Some(q_leader) = held else {
+                    return refuse(format!(
+                        "which stays moving: lock '{leader}' instead (its followers lock with it)"
+                    ));
+                };
+                let expected = multiplier * q_leader + offset;
+                let agrees =
+                    (value - expected).abs() <= MIMIC_LOCK_TOLERANCE * expected.abs().max(1.0);
+                if !agrees {
+                    return refuse(format!(
+                        "held at {q_leader:e}, which puts '{}' at {expected:e}",
+                        follower.name
+                    ));
+                }
+            }
+            let Some(l) = l else {
+                continue;
+            };
+            let user_locked = lock(&topo.joints[l].name).is_some();
             let leader_moves = !self.frozen[l] && !self.pruned[l] && !user_locked;
             if self.frozen[f] && leader_moves {
                 return Err(ModelError::Invalid(format!(
@@ -160,6 +203,11 @@ impl Plan {
         Ok(())
     }
 }
+
+/// How far a `--lock` on a mimic follower may be from its leader's held position mapped through
+/// the mimic (relative to the position when beyond 1): about what a position typed with seven
+/// significant digits misses by.
+const MIMIC_LOCK_TOLERANCE: f64 = 1e-6;
 
 /// Marks, among the kept moving joints, those whose whole subtree has zero spatial inertia,
 /// carries no tip and leads no mimic joint outside it (largest subtrees first).

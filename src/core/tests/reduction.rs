@@ -306,3 +306,66 @@ fn bad_reductions_are_refused_by_name() {
         "joint 'finger_right' mimics 'finger_left', which stays moving",
     );
 }
+
+/// A lock on a mimic follower is taken only with its leader held at a position the lock agrees
+/// with (`thumb = −0.5 · wrist + 0.1`); a lock on the leader locks its followers with it.
+#[test]
+fn a_mimic_follower_locks_only_with_its_leader() {
+    let full = load(MIMIC_GRIPPER_URDF, ModelOptions::default());
+    let locked = |locks: &[(&str, f64)]| ModelOptions {
+        locked: locks.iter().map(|(n, v)| (n.to_string(), *v)).collect(),
+        ..Default::default()
+    };
+    let refused = |locks: &[(&str, f64)]| {
+        urdf::model_from_str(MIMIC_GRIPPER_URDF, &locked(locks))
+            .unwrap_err()
+            .to_string()
+    };
+    let err = refused(&[("thumb", 0.3)]);
+    assert!(
+        err.contains("cannot lock joint 'thumb' at 3e-1: it mimics 'wrist' (thumb = -5e-1 · wrist + 1e-1), which stays moving: lock 'wrist' instead"),
+        "{err}"
+    );
+    let err = refused(&[("wrist", 0.4), ("thumb", 0.2)]);
+    assert!(
+        err.contains("cannot lock joint 'thumb' at 2e-1: it mimics 'wrist'")
+            && err.contains("held at 4e-1, which puts 'thumb' at -1e-1"),
+        "{err}"
+    );
+    for locks in [
+        &[("wrist", 0.4), ("thumb", -0.1)][..],
+        &[("wrist", 0.4)][..],
+    ] {
+        let reduced = load(MIMIC_GRIPPER_URDF, locked(locks));
+        let thumb = reduced.locked_joints().iter().find(|(n, _)| n == "thumb");
+        assert!(
+            thumb.is_some_and(|(_, q)| (q + 0.1).abs() < 1e-12),
+            "{locks:?}: {:?}",
+            reduced.locked_joints()
+        );
+        assert_eq!(reduced.nv(), 1);
+        assert_exact(&full, &reduced, 31);
+    }
+}
+
+/// A follower frozen with its frozen leader takes the leader's position mapped through the
+/// mimic, not its own neutral position: the thumb at −0.5 · 0 + 0.1 when the wrist is outside
+/// the kept part.
+#[test]
+fn a_frozen_follower_of_a_frozen_leader_follows_it() {
+    let full = load(MIMIC_GRIPPER_URDF, ModelOptions::default());
+    let reduced = load(
+        MIMIC_GRIPPER_URDF,
+        ModelOptions {
+            root: Some("palm".into()),
+            tips: vec!["left_finger".into(), "right_finger".into()],
+            ..Default::default()
+        },
+    );
+    let frozen = &reduced.reduction().frozen_joints;
+    assert!(
+        frozen.iter().any(|(n, q)| n == "thumb" && q == &[0.1]),
+        "{frozen:?}"
+    );
+    assert_exact(&full, &reduced, 37);
+}

@@ -48,7 +48,10 @@ fn a_file_over_the_size_limit_is_refused_with_its_path_and_the_limit() {
         .to_string();
     std::fs::remove_dir_all(&dir).unwrap();
     assert!(
-        err.contains(&format!("{}: the file is bigger than 67108864 bytes", path.display())),
+        err.contains(&format!(
+            "{}: the file is bigger than 67108864 bytes",
+            path.display()
+        )),
         "{err}"
     );
 }
@@ -58,7 +61,10 @@ fn a_file_at_the_size_limit_is_read() {
     let dir = scratch("limit");
     let path = dir.join("limit.urdf");
     let head = r#"<robot name="r"><link name="a"/></robot>"#;
-    let text = format!("{head}{}", " ".repeat(urdf::MAX_FILE_BYTES as usize - head.len()));
+    let text = format!(
+        "{head}{}",
+        " ".repeat(urdf::MAX_FILE_BYTES as usize - head.len())
+    );
     std::fs::write(&path, text).unwrap();
     let result = urdf::model_from_file(&path, &ModelOptions::default());
     std::fs::remove_dir_all(&dir).unwrap();
