@@ -247,6 +247,7 @@ fn joint_spec(joint: &urdf_rs::Joint) -> Result<JointSpec, ModelError> {
         }
     };
     let l = &joint.limit;
+    check_limits(joint, &context)?;
     let unbounded = matches!(joint.joint_type, T::Continuous | T::Floating | T::Planar);
     let limits = JointLimits {
         lower: if unbounded {
@@ -284,4 +285,40 @@ fn joint_spec(joint: &urdf_rs::Joint) -> Result<JointSpec, ModelError> {
         }),
         limits,
     })
+}
+
+/// `<limit>` and `<dynamics>` must be finite, `lower ≤ upper`, effort, velocity, damping and
+/// friction not negative.
+fn check_limits(joint: &urdf_rs::Joint, context: &str) -> Result<(), ModelError> {
+    let l = &joint.limit;
+    let d = joint.dynamics.as_ref();
+    let values = [
+        ("<limit lower>", l.lower),
+        ("<limit upper>", l.upper),
+        ("<limit effort>", l.effort),
+        ("<limit velocity>", l.velocity),
+        ("<dynamics damping>", d.map_or(0.0, |d| d.damping)),
+        ("<dynamics friction>", d.map_or(0.0, |d| d.friction)),
+    ];
+    for (attribute, value) in values {
+        if !value.is_finite() {
+            return Err(ModelError::Invalid(format!(
+                "{context}: {attribute} is {value}, not a finite number"
+            )));
+        }
+    }
+    for (attribute, value) in &values[2..] {
+        if *value < 0.0 {
+            return Err(ModelError::Invalid(format!(
+                "{context}: {attribute} is {value:e}, it must not be negative"
+            )));
+        }
+    }
+    if l.lower > l.upper {
+        return Err(ModelError::Invalid(format!(
+            "{context}: <limit lower> {:e} is above <limit upper> {:e}",
+            l.lower, l.upper
+        )));
+    }
+    Ok(())
 }

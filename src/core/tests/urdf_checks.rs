@@ -70,3 +70,74 @@ fn a_file_at_the_size_limit_is_read() {
     std::fs::remove_dir_all(&dir).unwrap();
     assert_eq!(result.unwrap().links().len(), 1);
 }
+
+// ---- joints -------------------------------------------------------------------------------------
+
+/// A one-joint robot whose joint `j` carries `extra` (a `<limit>`, `<dynamics>`, `<axis>`…).
+fn one_joint(kind: &str, extra: &str) -> String {
+    format!(
+        r#"<robot name="r"><link name="a"/>
+  <link name="b"><inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>
+  <joint name="j" type="{kind}"><parent link="a"/><child link="b"/>{extra}</joint></robot>"#
+    )
+}
+
+#[test]
+fn bad_limits_and_dynamics_are_refused_naming_the_joint_and_attribute() {
+    let limit = r#"<limit lower="-1" upper="1" effort="5" velocity="2"/>"#;
+    let cases = [
+        (
+            limit.replace("-1", "nan"),
+            "<limit lower> is NaN, not a finite number",
+        ),
+        (
+            limit.replace("\"1\"", "\"inf\""),
+            "<limit upper> is inf, not a finite number",
+        ),
+        (
+            limit.replace("5", "-5"),
+            "<limit effort> is -5e0, it must not be negative",
+        ),
+        (
+            limit.replace("2", "-2"),
+            "<limit velocity> is -2e0, it must not be negative",
+        ),
+        (
+            r#"<limit lower="1" upper="-1" effort="5" velocity="2"/>"#.to_string(),
+            "<limit lower> 1e0 is above <limit upper> -1e0",
+        ),
+        (
+            format!(r#"{limit}<dynamics damping="-0.5"/>"#),
+            "<dynamics damping> is -5e-1, it must not be negative",
+        ),
+        (
+            format!(r#"{limit}<dynamics damping="NaN"/>"#),
+            "<dynamics damping> is NaN, not a finite number",
+        ),
+        (
+            format!(r#"{limit}<dynamics friction="-1"/>"#),
+            "<dynamics friction> is -1e0, it must not be negative",
+        ),
+        (
+            format!(r#"{limit}<dynamics friction="inf"/>"#),
+            "<dynamics friction> is inf, not a finite number",
+        ),
+    ];
+    for kind in ["revolute", "prismatic"] {
+        for (extra, expected) in &cases {
+            let err = error(&one_joint(kind, extra));
+            assert!(
+                err.contains(&format!("joint 'j': {expected}")),
+                "{kind} {extra}: {err}"
+            );
+        }
+    }
+    // Sound limits and dynamics load, and a missing <limit> is no limit.
+    let ok = model(&one_joint(
+        "revolute",
+        &format!(r#"{limit}<dynamics damping="0.5" friction="0.1"/>"#),
+    ))
+    .unwrap();
+    assert_eq!(ok.nv(), 1);
+    assert_eq!(model(&one_joint("continuous", "")).unwrap().nv(), 1);
+}
