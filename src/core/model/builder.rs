@@ -328,11 +328,30 @@ impl TreeState {
                 reduction.removed_links.push(link.name.clone());
             }
         }
+        if !(x_body_joint.rot.iter().chain(x_body_joint.trans.iter())).all(|x| x.is_finite()) {
+            return Err(ModelError::Invalid(format!(
+                "link '{}': its placement in the body it belongs to is not finite (joint '{}' places it too far)",
+                link.name, joint.name
+            )));
+        }
         match kind {
             None => {
                 if let Some(body) = parent.body {
                     let fused = x_body_joint.transpose_apply_inertia(&link.inertia);
-                    self.model.bodies[body].inertia += fused;
+                    let inertia = &mut self.model.bodies[body].inertia;
+                    *inertia += fused;
+                    if !inertia_is_finite(inertia) {
+                        return Err(ModelError::Invalid(format!(
+                            "link '{}': fused through fixed joint '{}' into body '{}', it makes that body's inertia overflow (its mass {:e} kg at ({:e}, {:e}, {:e}) m)",
+                            link.name,
+                            joint.name,
+                            self.model.bodies[body].name,
+                            link.inertia.mass,
+                            x_body_joint.trans.x,
+                            x_body_joint.trans.y,
+                            x_body_joint.trans.z
+                        )));
+                    }
                 }
                 self.model.fused_links.push(link.name.clone());
                 if joint.kind.is_none() {
@@ -483,6 +502,10 @@ fn check_footprint(model: &Model) -> Result<(), ModelError> {
         gb(footprint.lists),
         gb(Workspace::MAX_BYTES)
     )))
+}
+
+fn inertia_is_finite(i: &crate::spatial::Inertia) -> bool {
+    i.mass.is_finite() && i.h.iter().chain(i.i_bar.iter()).all(|x| x.is_finite())
 }
 
 /// A link's mass must be finite and non-negative, its inertia finite.

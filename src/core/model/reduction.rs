@@ -121,6 +121,7 @@ impl Plan {
             .map(|j| moving(j) && !kept[j] && !pruned[j])
             .collect();
         let plan = Plan { frozen, pruned };
+        check_locks(topo, options)?;
         plan.check_mimic(topo, options)?;
         Ok(plan)
     }
@@ -202,6 +203,34 @@ impl Plan {
         }
         Ok(())
     }
+}
+
+/// Each joint is locked at most once, and a revolute or prismatic joint within its `<limit>`
+/// range (when it has one: `lower < upper`; a missing `<limit>` gives none), as the joint could
+/// stand there.
+fn check_locks(topo: &Topology, options: &ModelOptions) -> Result<(), ModelError> {
+    let mut seen = std::collections::HashSet::new();
+    for (name, value) in &options.locked {
+        if !seen.insert(name.as_str()) {
+            return Err(ModelError::Invalid(format!(
+                "joint '{name}' is locked twice: give one position for it"
+            )));
+        }
+        let Some(joint) = topo.joints.iter().find(|j| j.name == *name) else {
+            continue;
+        };
+        let (lower, upper) = (joint.limits.lower, joint.limits.upper);
+        let bounded = matches!(
+            joint.kind,
+            Some(JointKind::Revolute { .. } | JointKind::Prismatic { .. })
+        ) && lower < upper;
+        if bounded && !(lower..=upper).contains(value) {
+            return Err(ModelError::Invalid(format!(
+                "cannot lock joint '{name}' at {value:e}: outside its limits [{lower:e}, {upper:e}]"
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// How far a `--lock` on a mimic follower may be from its leader's held position mapped through

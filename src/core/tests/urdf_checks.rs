@@ -141,3 +141,82 @@ fn bad_limits_and_dynamics_are_refused_naming_the_joint_and_attribute() {
     assert_eq!(ok.nv(), 1);
     assert_eq!(model(&one_joint("continuous", "")).unwrap().nv(), 1);
 }
+
+// ---- links and locks ----------------------------------------------------------------------------
+
+const INERTIAL: &str = r#"<inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>"#;
+
+/// A base, a revolute `j1` to `a` and a prismatic `p` (limits ±1) to `b`.
+fn slide() -> String {
+    format!(
+        r#"<robot name="r"><link name="base">{INERTIAL}</link><link name="a">{INERTIAL}</link><link name="b">{INERTIAL}</link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><origin xyz="0 0 0.5"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
+  <joint name="p" type="prismatic"><parent link="a"/><child link="b"/><origin xyz="0 0 0.5"/><axis xyz="1 0 0"/><limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
+</robot>"#
+    )
+}
+
+fn with_locks(text: &str, locks: &[(&str, f64)]) -> Result<Model, ModelError> {
+    let options = ModelOptions {
+        locked: locks.iter().map(|(n, v)| (n.to_string(), *v)).collect(),
+        ..Default::default()
+    };
+    urdf::model_from_str(text, &options)
+}
+
+#[test]
+fn a_fused_inertia_that_overflows_is_refused_naming_the_link() {
+    // A 1e10 kg link fixed 1e200 m away: its inertia about the body's origin is m d² = inf.
+    let text = slide()
+        .replace(r#"type="prismatic""#, r#"type="fixed""#)
+        .replace(
+            r#"<origin xyz="0 0 0.5"/><axis xyz="1 0 0"/>"#,
+            r#"<origin xyz="1e200 0 0"/>"#,
+        )
+        .replace(
+            r#"<link name="b"><inertial><mass value="1"/>"#,
+            r#"<link name="b"><inertial><mass value="1e10"/>"#,
+        );
+    let err = model(&text).unwrap_err().to_string();
+    assert!(
+        err.contains("link 'b': fused through fixed joint 'p' into body 'a', it makes that body's inertia overflow (its mass 1e10 kg at (1e200, 0e0, 0e0) m)"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_lock_outside_the_joint_limits_is_refused_naming_the_joint_value_and_limits() {
+    for (joint, value) in [("p", 1e200), ("p", 1.5), ("j1", -1.0 - 1e-9)] {
+        let err = with_locks(&slide(), &[(joint, value)])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains(&format!(
+                "cannot lock joint '{joint}' at {value:e}: outside its limits [-1e0, 1e0]"
+            )),
+            "{err}"
+        );
+    }
+    // At a limit is within; a continuous joint, or a revolute joint without <limit>, has no range.
+    assert_eq!(
+        with_locks(&slide(), &[("p", 1.0), ("j1", -1.0)])
+            .unwrap()
+            .nv(),
+        0
+    );
+    let continuous = slide().replace(r#"type="revolute""#, r#"type="continuous""#);
+    assert_eq!(with_locks(&continuous, &[("j1", 7.0)]).unwrap().nv(), 1);
+    let no_limit = slide().replace(
+        r#"<axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="10" velocity="1"/>"#,
+        r#"<axis xyz="0 1 0"/>"#,
+    );
+    assert_eq!(with_locks(&no_limit, &[("j1", 2.0)]).unwrap().nv(), 1);
+}
+
+#[test]
+fn a_joint_locked_twice_is_refused_by_name() {
+    let err = with_locks(&slide(), &[("j1", 0.1), ("p", 0.2), ("j1", 0.3)])
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("joint 'j1' is locked twice"), "{err}");
+}
