@@ -526,17 +526,21 @@ fn check_inertia(link: &BodySpec) -> Result<(), ModelError> {
     Ok(())
 }
 
-/// Physical doubts about a link's inertia that real URDFs do have (so they warn rather than
-/// refuse): rotational inertia about the centre of mass not positive semi-definite, or principal
-/// moments breaking the triangle inequality `I1 + I2 ≥ I3`.
+/// Physical doubts about a link's inertia (massive or not) that real URDFs do have (so they warn
+/// rather than refuse): rotational inertia about the centre of mass not positive semi-definite,
+/// or principal moments breaking the triangle inequality `I1 + I2 ≥ I3`.
 fn inertia_doubts(link: &BodySpec) -> Option<String> {
     let i = &link.inertia;
-    if i.mass <= 0.0 {
+    // I_c = Ī + m c× c× = Ī + h× h× / m; without mass, Ī itself.
+    let i_com = if i.mass > 0.0 {
+        let hx = crate::spatial::skew(&i.h);
+        i.i_bar + hx * hx / i.mass
+    } else {
+        i.i_bar
+    };
+    if i_com.iter().all(|x| *x == 0.0) {
         return None;
     }
-    // I_c = Ī + m c× c× = Ī + h× h× / m.
-    let hx = crate::spatial::skew(&i.h);
-    let i_com = i.i_bar + hx * hx / i.mass;
     let mut moments = nalgebra::SymmetricEigen::new(i_com).eigenvalues;
     moments.as_mut_slice().sort_by(f64::total_cmp);
     let scale = moments[2].abs().max(f64::MIN_POSITIVE);

@@ -220,3 +220,32 @@ fn a_joint_locked_twice_is_refused_by_name() {
         .to_string();
     assert!(err.contains("joint 'j1' is locked twice"), "{err}");
 }
+
+#[test]
+fn a_massless_link_with_a_doubtful_inertia_warns_as_a_massive_one() {
+    let text = |inertia: &str| {
+        format!(
+            r#"<robot name="r"><link name="a"/><link name="b"><inertial><mass value="0"/><inertia {inertia}/></inertial></link>
+  <joint name="j" type="continuous"><parent link="a"/><child link="b"/></joint></robot>"#
+        )
+    };
+    let warnings = |inertia: &str| model(&text(inertia)).unwrap().warnings().to_vec();
+    let not_psd = warnings(r#"ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="-1""#);
+    assert!(
+        not_psd.len() == 1
+            && not_psd[0]
+                .contains("link 'b': its rotational inertia is not positive semi-definite"),
+        "{not_psd:?}"
+    );
+    let triangle = warnings(r#"ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="5""#);
+    assert!(
+        triangle.len() == 1 && triangle[0].contains("link 'b': its principal moments"),
+        "{triangle:?}"
+    );
+    for fine in [
+        r#"ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0""#,
+        r#"ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1.5""#,
+    ] {
+        assert!(warnings(fine).is_empty(), "{fine}: {:?}", warnings(fine));
+    }
+}
