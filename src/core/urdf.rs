@@ -113,12 +113,21 @@ fn parse(text: &str) -> Result<urdf_rs::Robot, ModelError> {
         )))
     };
     let mut parser = xml::Parser::new();
-    parser.feed_str(text);
+    // A byte-order mark is no content.
+    parser.feed_str(text.strip_prefix('\u{feff}').unwrap_or(text));
     let mut builder = xml::ElementBuilder::new();
     let (mut depth, mut elements, mut links, mut joints) = (0usize, 0usize, 0usize, 0usize);
     let mut root = None;
-    for event in parser {
+    for event in parser.by_ref() {
         match &event {
+            Ok(xml::Event::Characters(t) | xml::Event::CDATA(t))
+                if depth == 0 && !t.trim().is_empty() =>
+            {
+                return Err(ModelError::Parse(format!(
+                    "text {} before the root <robot> element",
+                    snippet(t)
+                )));
+            }
             Ok(xml::Event::ElementStart(tag)) => {
                 depth += 1;
                 elements += 1;
@@ -148,8 +157,40 @@ fn parse(text: &str) -> Result<urdf_rs::Robot, ModelError> {
             break;
         }
     }
-    let mut root =
-        root.ok_or_else(|| ModelError::Parse(format!("{}", xml::BuilderError::NoElement)))?;
+    let mut root = root.ok_or_else(|| {
+        ModelError::Parse(if depth == 0 {
+            "no XML element: the text is empty, or only comments and declarations".into()
+        } else {
+            format!("unexpected end of the text: {depth} element(s) are still open")
+        })
+    })?;
+    // Nothing but comments, declarations and white space may follow the root element.
+    for event in parser {
+        let after = |what: String| {
+            Err(ModelError::Parse(format!(
+                "{what} after the root element's end </{}>: a URDF is one <robot> element",
+                root.name
+            )))
+        };
+        match event {
+            Ok(xml::Event::ElementStart(tag)) => return after(format!("element <{}>", tag.name)),
+            Ok(xml::Event::ElementEnd(tag)) => return after(format!("end tag </{}>", tag.name)),
+            Ok(xml::Event::Characters(t) | xml::Event::CDATA(t)) if !t.trim().is_empty() => {
+                return after(format!("text {}", snippet(&t)))
+            }
+            Err(e) => return after(format!("malformed XML ({e})")),
+            _ => {}
+        }
+    }
+    // Text after the last tag is never emitted as an event (it may go on in a later feed).
+    let tail = &text[text.rfind('>').map_or(0, |i| i + 1)..];
+    if !tail.trim().is_empty() {
+        return Err(ModelError::Parse(format!(
+            "text {} after the root element's end </{}>: a URDF is one <robot> element",
+            snippet(tail),
+            root.name
+        )));
+    }
     if root.name != "robot" {
         return Err(ModelError::Parse(format!(
             "the root element is <{}>, not <robot>",
@@ -158,6 +199,15 @@ fn parse(text: &str) -> Result<urdf_rs::Robot, ModelError> {
     }
     strip(&mut root);
     urdf_rs::read_from_string(&root.to_string()).map_err(|e| ModelError::Parse(e.to_string()))
+}
+
+/// `text`, trimmed and quoted, its first 40 characters at most.
+fn snippet(text: &str) -> String {
+    let text = text.trim();
+    match text.char_indices().nth(40) {
+        Some((end, _)) => format!("'{}…'", &text[..end]),
+        None => format!("'{text}'"),
+    }
 }
 
 fn strip(element: &mut xml::Element) {
@@ -223,12 +273,15 @@ fn joint_spec(joint: &urdf_rs::Joint) -> Result<JointSpec, ModelError> {
     let context = format!("joint '{}'", joint.name);
     let axis = vector(&joint.axis.xyz);
     let unit_axis = || {
-        let norm = axis.norm();
-        if norm > 1e-9 && norm.is_finite() {
-            Ok(axis / norm)
+        // Scaled by its largest component first, so that no square overflows or underflows.
+        let largest = axis.amax();
+        let scaled = axis / largest;
+        let norm = scaled.norm();
+        if largest.is_finite() && largest * norm > 1e-9 && norm.is_finite() {
+            Ok(scaled / norm)
         } else {
             Err(ModelError::Invalid(format!(
-                "{context}: <axis xyz> ({}, {}, {}) is not a usable direction",
+                "{context}: <axis xyz> ({:e}, {:e}, {:e}) is not a usable direction",
                 axis.x, axis.y, axis.z
             )))
         }

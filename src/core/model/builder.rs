@@ -152,6 +152,12 @@ impl ModelBuilder {
             parent_joint[child] = Some(j);
             children[link_index[joint.parent.as_str()]].push(j);
         }
+        if self.links.is_empty() {
+            return invalid(format!(
+                "robot '{}' has no links: a URDF needs at least one <link> element (directly inside <robot>)",
+                self.name
+            ));
+        }
         let roots: Vec<usize> = (0..self.links.len())
             .filter(|&l| parent_joint[l].is_none())
             .collect();
@@ -513,7 +519,7 @@ fn check_inertia(link: &BodySpec) -> Result<(), ModelError> {
     let i = &link.inertia;
     if !(i.mass.is_finite() && i.mass >= 0.0) {
         return Err(ModelError::Invalid(format!(
-            "link '{}': mass must be finite and not negative, got {}",
+            "link '{}': mass must be finite and not negative, got {:e}",
             link.name, i.mass
         )));
     }

@@ -249,3 +249,100 @@ fn a_massless_link_with_a_doubtful_inertia_warns_as_a_massive_one() {
         assert!(warnings(fine).is_empty(), "{fine}: {:?}", warnings(fine));
     }
 }
+
+// ---- the XML ------------------------------------------------------------------------------------
+
+const ONE_LINK: &str = r#"<robot name="r"><link name="a"/></robot>"#;
+
+#[test]
+fn an_empty_robot_is_said_to_have_no_links() {
+    for text in [
+        r#"<robot name="r"></robot>"#,
+        r#"<robot name="r"><group><link name="a"/></group></robot>"#,
+    ] {
+        let err = error(text);
+        assert!(
+            err.contains("robot 'r' has no links: a URDF needs at least one <link> element"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn content_outside_the_root_element_is_refused_naming_it() {
+    let cases = [
+        (
+            format!("{ONE_LINK}<robot name=\"s\"><link name=\"z\"/></robot>"),
+            "element <robot> after the root element's end </robot>",
+        ),
+        (
+            format!(
+                r#"{ONE_LINK}<joint name="j2" type="fixed"><parent link="a"/><child link="b"/></joint>"#
+            ),
+            "element <joint> after the root element's end </robot>",
+        ),
+        (
+            format!("{ONE_LINK} garbage"),
+            "text 'garbage' after the root element's end </robot>",
+        ),
+        (
+            format!("{ONE_LINK}</robot>"),
+            "after the root element's end </robot>",
+        ),
+        (
+            format!("garbage {ONE_LINK}"),
+            "text 'garbage' before the root <robot> element",
+        ),
+    ];
+    for (text, expected) in &cases {
+        let Err(err) = model(text).map(|_| ()) else {
+            panic!("{text}: loaded");
+        };
+        let err = err.to_string();
+        assert!(err.contains(expected), "{text}: {err}");
+    }
+    // White space, comments and declarations around the root, and a byte-order mark, are fine.
+    for text in [
+        format!("\n<?xml version=\"1.0\"?>\n<!-- a -->\n{ONE_LINK}\n<!-- b -->\n"),
+        format!("\u{feff}{ONE_LINK}"),
+    ] {
+        assert_eq!(model(&text).unwrap().links().len(), 1, "{text}");
+    }
+}
+
+#[test]
+fn an_unexpected_end_of_the_text_says_so() {
+    let err = error(r#"<robot name="r"><link name="a"/>"#);
+    assert!(
+        err.contains("unexpected end of the text: 1 element(s) are still open"),
+        "{err}"
+    );
+    for empty in ["", "  \n", "<!-- only a comment -->"] {
+        let err = error(empty);
+        assert!(err.contains("no XML element"), "{empty:?}: {err}");
+    }
+}
+
+#[test]
+fn a_huge_axis_is_a_direction_and_errors_print_numbers_short() {
+    for (xyz, unit) in [("1e200 0 0", "1 0 0"), ("1e200 1e200 0", "1 1 0")] {
+        let axis = |xyz: &str| {
+            let m = model(&one_joint("continuous", &format!(r#"<axis xyz="{xyz}"/>"#))).unwrap();
+            let joint = &m.bodies()[0].joint;
+            (joint.kind, joint.coords)
+        };
+        assert_eq!(axis(xyz), axis(unit), "{xyz}");
+    }
+    let err = error(&one_joint("continuous", r#"<axis xyz="0 0 1e-300"/>"#));
+    assert!(
+        err.contains("joint 'j': <axis xyz> (0e0, 0e0, 1e-300) is not a usable direction"),
+        "{err}"
+    );
+    let err = error(
+        r#"<robot name="r"><link name="a"><inertial><mass value="-1e200"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link></robot>"#,
+    );
+    assert!(
+        err.contains("link 'a': mass must be finite and not negative, got -1e200"),
+        "{err}"
+    );
+}
