@@ -182,6 +182,12 @@ impl ModelBuilder {
             link_names: self.links.iter().map(|l| l.name.as_str()).collect(),
             inertias: self.links.iter().map(|l| &l.inertia).collect(),
             link_index,
+            joint_index: self
+                .joints
+                .iter()
+                .enumerate()
+                .map(|(j, joint)| (joint.name.as_str(), j))
+                .collect(),
             children,
             parent_joint,
             root,
@@ -215,7 +221,7 @@ impl ModelBuilder {
         let held = |k: usize| locked(k).or_else(|| frozen(k));
         let led = || match (&joint.mimic, options.ignore_mimic) {
             (Some((leader, multiplier, offset)), false) => {
-                let l = topo.joints.iter().position(|x| x.name == *leader)?;
+                let l = *topo.joint_index.get(leader.as_str())?;
                 held(l).map(|(q, by_user)| (vec![multiplier * q[0] + offset], by_user))
             }
             _ => None,
@@ -417,6 +423,11 @@ impl TreeState {
         }
         self.model.nq = nq;
         self.model.nv = nv;
+        // Each joint name's first body (a URDF joint may share the floating base's name).
+        let mut body_of: HashMap<String, usize> = HashMap::new();
+        for (b, body) in self.model.bodies.iter().enumerate() {
+            body_of.entry(body.joint.name.clone()).or_insert(b);
+        }
         for b in 0..self.model.bodies.len() {
             let Some((leader, multiplier, offset)) = self.mimic[b].clone() else {
                 continue;
@@ -434,12 +445,7 @@ impl TreeState {
             if !(multiplier.is_finite() && offset.is_finite()) {
                 return bad("its multiplier and offset must be finite");
             }
-            let Some(l) = self
-                .model
-                .bodies
-                .iter()
-                .position(|x| x.joint.name == leader)
-            else {
+            let Some(&l) = body_of.get(leader.as_str()) else {
                 return bad("there is no moving joint of that name");
             };
             if self.mimic[l].is_some() {

@@ -30,6 +30,8 @@ pub(super) struct Topology<'a> {
     pub link_names: Vec<&'a str>,
     pub inertias: Vec<&'a Inertia>,
     pub link_index: HashMap<&'a str, usize>,
+    /// Joint indices by name.
+    pub joint_index: HashMap<&'a str, usize>,
     /// Joints whose parent is each link, in document order.
     pub children: Vec<Vec<usize>>,
     /// The joint whose child is each link (`None` for the root).
@@ -135,12 +137,7 @@ impl Plan {
         if options.ignore_mimic {
             return Ok(());
         }
-        let index: HashMap<&str, usize> = topo
-            .joints
-            .iter()
-            .enumerate()
-            .map(|(j, joint)| (joint.name.as_str(), j))
-            .collect();
+        let index = &topo.joint_index;
         let lock = |name: &str| {
             options
                 .locked
@@ -216,7 +213,11 @@ fn check_locks(topo: &Topology, options: &ModelOptions) -> Result<(), ModelError
                 "joint '{name}' is locked twice: give one position for it"
             )));
         }
-        let Some(joint) = topo.joints.iter().find(|j| j.name == *name) else {
+        let Some(joint) = topo
+            .joint_index
+            .get(name.as_str())
+            .map(|&j| &topo.joints[j])
+        else {
             continue;
         };
         let (lower, upper) = (joint.limits.lower, joint.limits.upper);
@@ -239,7 +240,10 @@ fn check_locks(topo: &Topology, options: &ModelOptions) -> Result<(), ModelError
 const MIMIC_LOCK_TOLERANCE: f64 = 1e-6;
 
 /// Marks, among the kept moving joints, those whose whole subtree has zero spatial inertia,
-/// carries no tip and leads no mimic joint outside it (largest subtrees first).
+/// carries no tip and leads no mimic joint outside it (largest subtrees first). Linear in the
+/// joints and mimic joints: each joint's subtree is an interval of the depth-first order, and a
+/// subtree leads a follower outside it exactly when the followers of the leaders inside it do
+/// not all fall in that interval (their first and last positions, summed up the tree, tell).
 fn prune_massless(
     topo: &Topology,
     base: usize,
@@ -249,47 +253,70 @@ fn prune_massless(
     pruned: &mut [bool],
 ) {
     let order = topo.joints_below(base);
-    // Bottom-up (reverse depth-first order): a link's subtree is massless and tip-free when the
-    // link is and every child subtree is.
+    let n = topo.joints.len();
+    // Joint j's subtree (j and every joint below its child) is order[pos[j]..pos[j] + size[j]].
+    let mut pos = vec![usize::MAX; n];
+    for (p, &j) in order.iter().enumerate() {
+        pos[j] = p;
+    }
+    let mut size = vec![1usize; n];
+    for &j in order.iter().rev() {
+        if let Some(up) = topo.parent_joint[topo.parent(j)].filter(|&up| pos[up] != usize::MAX) {
+            size[up] += size[j];
+        }
+    }
+    // The first and last depth-first positions of the followers of the leaders in each subtree
+    // (a follower outside the base's subtree counts as before everything).
+    let mut followers: Vec<Option<(isize, isize)>> = vec![None; n];
+    if !options.ignore_mimic {
+        for (f, joint) in topo.joints.iter().enumerate() {
+            let Some(l) = joint
+                .mimic
+                .as_ref()
+                .and_then(|(leader, _, _)| topo.joint_index.get(leader.as_str()).copied())
+            else {
+                continue;
+            };
+            let at = if pos[f] == usize::MAX {
+                -1
+            } else {
+                pos[f] as isize
+            };
+            followers[l] = Some(followers[l].map_or((at, at), |(lo, hi)| (lo.min(at), hi.max(at))));
+        }
+    }
     let mut empty: Vec<bool> = (0..topo.inertias.len())
         .map(|l| is_zero(topo.inertias[l]) && !tip_links[l])
         .collect();
+    // Bottom-up (reverse depth-first order): a link's subtree is massless and tip-free when the
+    // link is and every child subtree is; followers gather the same way.
     for &j in order.iter().rev() {
         if !empty[topo.child(j)] {
             empty[topo.parent(j)] = false;
         }
+        if let (Some(up), Some((lo, hi))) = (topo.parent_joint[topo.parent(j)], followers[j]) {
+            if pos[up] != usize::MAX {
+                followers[up] =
+                    Some(followers[up].map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+            }
+        }
     }
-    let mut removed = vec![false; topo.joints.len()];
+    let leads_outside = |j: usize| {
+        followers[j].is_some_and(|(lo, hi)| {
+            let (start, end) = (pos[j] as isize, (pos[j] + size[j]) as isize);
+            lo < start || hi >= end
+        })
+    };
+    let mut removed = vec![false; n];
     for &j in &order {
-        if removed[j] || !kept[j] || !empty[topo.child(j)] {
+        if removed[j] || !kept[j] || !empty[topo.child(j)] || leads_outside(j) {
             continue;
         }
-        let subtree: Vec<usize> = std::iter::once(j)
-            .chain(topo.joints_below(topo.child(j)))
-            .collect();
-        if !options.ignore_mimic && leads_outside(topo, &subtree) {
-            continue;
-        }
-        for &k in &subtree {
+        for &k in &order[pos[j]..pos[j] + size[j]] {
             removed[k] = true;
             pruned[k] = true;
         }
     }
-}
-
-/// True when a joint outside `subtree` mimics one inside it.
-fn leads_outside(topo: &Topology, subtree: &[usize]) -> bool {
-    let inside: Vec<&str> = subtree
-        .iter()
-        .map(|&j| topo.joints[j].name.as_str())
-        .collect();
-    topo.joints.iter().enumerate().any(|(f, joint)| {
-        !subtree.contains(&f)
-            && joint
-                .mimic
-                .as_ref()
-                .is_some_and(|(leader, _, _)| inside.contains(&leader.as_str()))
-    })
 }
 
 /// Zero mass, first moment and rotational inertia: a link that weighs nothing and spins freely.

@@ -369,3 +369,64 @@ fn a_frozen_follower_of_a_frozen_leader_follows_it() {
     );
     assert_exact(&full, &reduced, 37);
 }
+
+/// A massless chain of 4 000 joints with a massive joint elsewhere mimicking its last: no joint
+/// of the chain can go (each subtree leads the follower outside it), and deciding so is linear
+/// (it took seconds when each subtree's followers were looked for among every joint, cubic).
+#[test]
+fn pruning_with_a_mimic_into_a_long_massless_chain_is_fast() {
+    let n = 4000;
+    let inertial = r#"<inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>"#;
+    let mut text = format!(
+        r#"<robot name="r"><link name="base">{inertial}</link><link name="f">{inertial}</link>"#
+    );
+    let mut prev = "base".to_string();
+    for i in 1..=n {
+        text += &format!(
+            r#"<link name="cl{i}"/><joint name="c{i}" type="continuous"><parent link="{prev}"/><child link="cl{i}"/><axis xyz="0 1 0"/></joint>"#
+        );
+        prev = format!("cl{i}");
+    }
+    text += &format!(
+        r#"<joint name="jf" type="continuous"><parent link="base"/><child link="f"/><axis xyz="0 1 0"/><mimic joint="c{n}"/></joint></robot>"#
+    );
+    let options = ModelOptions {
+        prune_massless: true,
+        ..Default::default()
+    };
+    let start = std::time::Instant::now();
+    let model = load(&text, options.clone());
+    let took = start.elapsed();
+    assert!(model.reduction().pruned_joints.is_empty());
+    assert_eq!(model.nv(), n);
+    assert!(took.as_secs_f64() < 2.0, "{took:?}");
+    // Without the mimic joint the whole chain goes.
+    let free = load(
+        &text.replace(&format!(r#"<mimic joint="c{n}"/>"#), ""),
+        options.clone(),
+    );
+    assert_eq!((free.reduction().pruned_joints.len(), free.nv()), (n, 1));
+    // A mimic joint inside the chain (c3 follows c2) goes with it; one leading from below c2 to
+    // outside keeps c1 and c2 and lets c3 … go.
+    let inside = text
+        .replace(&format!(r#"<mimic joint="c{n}"/>"#), "")
+        .replace(
+            r#"<child link="cl3"/><axis xyz="0 1 0"/>"#,
+            r#"<child link="cl3"/><axis xyz="0 1 0"/><mimic joint="c2"/>"#,
+        );
+    let inside = load(&inside, options.clone());
+    assert_eq!(
+        (inside.reduction().pruned_joints.len(), inside.nv()),
+        (n, 1)
+    );
+    let out = load(
+        &text.replace(
+            &format!(r#"<mimic joint="c{n}"/>"#),
+            r#"<mimic joint="c2"/>"#,
+        ),
+        options,
+    );
+    let pruned = &out.reduction().pruned_joints;
+    assert_eq!((pruned.len(), pruned[0].as_str()), (n - 2, "c3"));
+    assert_eq!(out.nv(), 2);
+}
