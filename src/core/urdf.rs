@@ -41,9 +41,17 @@ pub(crate) fn builder_from_str(text: &str) -> Result<ModelBuilder, ModelError> {
 }
 
 /// Builds a model from a URDF file: a regular file of at most [`MAX_FILE_BYTES`] of UTF-8.
+/// Errors start with the file's path.
 pub fn model_from_file(path: &Path, options: &ModelOptions) -> Result<Model, ModelError> {
     let text = read_file(path)?;
-    model_from_str(&text, options)
+    model_from_str(&text, options).map_err(|e| {
+        let at = |m: String| format!("{}: {m}", path.display());
+        match e {
+            ModelError::Parse(m) => ModelError::Parse(at(m)),
+            ModelError::Invalid(m) => ModelError::Invalid(at(m)),
+            io => io,
+        }
+    })
 }
 
 /// The largest URDF file read: 64 MiB (TALOS's URDF, a full humanoid, is 0.2 MB). A bigger file,
@@ -118,15 +126,21 @@ fn parse(text: &str) -> Result<urdf_rs::Robot, ModelError> {
     let mut builder = xml::ElementBuilder::new();
     let (mut depth, mut elements, mut links, mut joints) = (0usize, 0usize, 0usize, 0usize);
     let mut root = None;
+    // The open elements' names (at most MAX_DEPTH), and the <link> or <joint> being read, for
+    // the errors.
+    let mut open: Vec<String> = Vec::new();
+    let mut within = String::new();
     for event in parser.by_ref() {
         match &event {
             Ok(xml::Event::Characters(t) | xml::Event::CDATA(t))
                 if depth == 0 && !t.trim().is_empty() =>
             {
-                return Err(ModelError::Parse(format!(
-                    "text {} before the root <robot> element",
-                    snippet(t)
-                )));
+                // The XML reader ends a declaration at its first '>'.
+                return Err(ModelError::Parse(if t.trim_start().starts_with(']') {
+                    "a <!DOCTYPE> with an internal subset ([…]) is not supported".into()
+                } else {
+                    format!("text {} before the root <robot> element", snippet(t))
+                }));
             }
             Ok(xml::Event::ElementStart(tag)) => {
                 depth += 1;
@@ -148,20 +162,41 @@ fn parse(text: &str) -> Result<urdf_rs::Robot, ModelError> {
                 if links.max(joints) > MAX_LINKS {
                     return too_big(format!("more than {MAX_LINKS} links or joints"));
                 }
+                open.push(tag.name.clone());
+                if depth == 2 {
+                    within = match tag.attributes.get(&("name".to_string(), None)) {
+                        Some(name) => format!(" (in <{} name=\"{name}\">)", tag.name),
+                        None => format!(" (in a <{}> without a name)", tag.name),
+                    };
+                }
             }
-            Ok(xml::Event::ElementEnd(_)) => depth = depth.saturating_sub(1),
+            Ok(xml::Event::ElementEnd(tag)) => {
+                if let Some(top) = open.pop().filter(|top| *top != tag.name) {
+                    return Err(ModelError::Parse(format!(
+                        "the end tag </{}> does not close <{top}>{within}",
+                        tag.name
+                    )));
+                }
+                depth = depth.saturating_sub(1);
+                if depth < 2 {
+                    within.clear();
+                }
+            }
             _ => {}
         }
         if let Some(element) = builder.handle_event(event) {
-            root = Some(element.map_err(|e| ModelError::Parse(format!("{e}")))?);
+            root = Some(element.map_err(|e| ModelError::Parse(format!("{e}{within}")))?);
             break;
         }
     }
     let mut root = root.ok_or_else(|| {
-        ModelError::Parse(if depth == 0 {
+        ModelError::Parse(if open.is_empty() {
             "no XML element: the text is empty, or only comments and declarations".into()
         } else {
-            format!("unexpected end of the text: {depth} element(s) are still open")
+            format!(
+                "unexpected end of the text: <{}> still open{within}",
+                open.join("> <")
+            )
         })
     })?;
     // Nothing but comments, declarations and white space may follow the root element.
@@ -198,7 +233,29 @@ fn parse(text: &str) -> Result<urdf_rs::Robot, ModelError> {
         )));
     }
     strip(&mut root);
-    urdf_rs::read_from_string(&root.to_string()).map_err(|e| ModelError::Parse(e.to_string()))
+    urdf_rs::read_from_string(&root.to_string()).map_err(|e| {
+        ModelError::Parse(match culprit(&root) {
+            Some(element) => format!("{element}: {e}"),
+            None => e.to_string(),
+        })
+    })
+}
+
+/// The first `<link>` or `<joint>` that `urdf-rs` refuses on its own, as `<link name="…">`: the
+/// element a whole-robot error comes from (it names none).
+fn culprit(root: &xml::Element) -> Option<String> {
+    root.children.iter().find_map(|child| match child {
+        xml::Xml::ElementNode(e) if e.name == "link" || e.name == "joint" => {
+            let alone = format!(r#"<robot name="r">{e}</robot>"#);
+            urdf_rs::read_from_string(&alone).is_err().then(|| {
+                match e.get_attribute("name", None) {
+                    Some(name) => format!(r#"<{} name="{name}">"#, e.name),
+                    None => format!("a <{}> without a name", e.name),
+                }
+            })
+        }
+        _ => None,
+    })
 }
 
 /// `text`, trimmed and quoted, its first 40 characters at most.

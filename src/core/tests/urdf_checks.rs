@@ -293,6 +293,10 @@ fn content_outside_the_root_element_is_refused_naming_it() {
             format!("garbage {ONE_LINK}"),
             "text 'garbage' before the root <robot> element",
         ),
+        (
+            format!("<!DOCTYPE robot [<!ENTITY m \"2.5\">]>{ONE_LINK}"),
+            "a <!DOCTYPE> with an internal subset ([…]) is not supported",
+        ),
     ];
     for (text, expected) in &cases {
         let Err(err) = model(text).map(|_| ()) else {
@@ -314,7 +318,12 @@ fn content_outside_the_root_element_is_refused_naming_it() {
 fn an_unexpected_end_of_the_text_says_so() {
     let err = error(r#"<robot name="r"><link name="a"/>"#);
     assert!(
-        err.contains("unexpected end of the text: 1 element(s) are still open"),
+        err.contains("unexpected end of the text: <robot> still open"),
+        "{err}"
+    );
+    let err = error("<robot name=\"r\"><link name=\"a\"><inertial>\n");
+    assert!(
+        err.contains(r#"unexpected end of the text: <robot> <link> <inertial> still open (in <link name="a">)"#),
         "{err}"
     );
     for empty in ["", "  \n", "<!-- only a comment -->"] {
@@ -345,4 +354,57 @@ fn a_huge_axis_is_a_direction_and_errors_print_numbers_short() {
         err.contains("link 'a': mass must be finite and not negative, got -1e200"),
         "{err}"
     );
+}
+
+#[test]
+fn parse_errors_name_the_element_and_the_file() {
+    let inertial = |body: &str| {
+        format!(
+            r#"<robot name="r"><link name="a"/><link name="b"><inertial>{body}</inertial></link>
+  <joint name="j" type="continuous"><parent link="a"/><child link="b"/></joint></robot>"#
+        )
+    };
+    let cases = [
+        (inertial(r#"<mass value="1"/>"#), r#"<link name="b">: "#),
+        (
+            inertial(
+                r#"<mass value="heavy"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>"#,
+            ),
+            r#"<link name="b">: "#,
+        ),
+        (
+            one_joint("revolute", r#"<axis xyz="0 0 1"/><axis xyz="1 0 0"/>"#),
+            r#"<joint name="j">: "#,
+        ),
+        (
+            r#"<robot name="r"><link name="a"><inertial></inertia></link></robot>"#.to_string(),
+            r#"the end tag </inertia> does not close <inertial> (in <link name="a">)"#,
+        ),
+    ];
+    for (text, expected) in &cases {
+        let err = error(text);
+        assert!(err.contains(expected), "{text}: {err}");
+    }
+    let dir = scratch("errors");
+    let path = dir.join("bad.urdf");
+    std::fs::write(&path, &cases[0].0).unwrap();
+    let err = urdf::model_from_file(&path, &ModelOptions::default())
+        .unwrap_err()
+        .to_string();
+    std::fs::write(
+        &path,
+        one_joint(
+            "revolute",
+            r#"<limit lower="1" upper="0" effort="1" velocity="1"/>"#,
+        ),
+    )
+    .unwrap();
+    let invalid = urdf::model_from_file(&path, &ModelOptions::default())
+        .unwrap_err()
+        .to_string();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let prefix = format!(r#"{}: <link name="b">: "#, path.display());
+    assert!(err.contains(&prefix), "{err}");
+    let prefix = format!("{}: joint 'j': <limit lower>", path.display());
+    assert!(invalid.contains(&prefix), "{invalid}");
 }
