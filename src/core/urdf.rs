@@ -21,15 +21,7 @@ const IGNORED_ELEMENTS: [&str; 5] = ["visual", "collision", "material", "gazebo"
 
 /// Builds a model from URDF text.
 pub fn model_from_str(text: &str, options: &ModelOptions) -> Result<Model, ModelError> {
-    let model = builder_from_str(text)?.build(options)?;
-    if model.nv > MAX_COORDINATES {
-        return Err(ModelError::Invalid(format!(
-            "the model has {} coordinates, more than {MAX_COORDINATES}: its mass matrix alone would take {:.1} GB",
-            model.nv,
-            (model.nv * model.nv * 8) as f64 / 1e9
-        )));
-    }
-    Ok(model)
+    builder_from_str(text)?.build(options)
 }
 
 /// The links and joints of URDF text, ready to build.
@@ -48,24 +40,76 @@ pub(crate) fn builder_from_str(text: &str) -> Result<ModelBuilder, ModelError> {
     Ok(builder)
 }
 
-/// Builds a model from a URDF file.
+/// Builds a model from a URDF file: a regular file of at most [`MAX_FILE_BYTES`] of UTF-8.
+/// Errors start with the file's path.
 pub fn model_from_file(path: &Path, options: &ModelOptions) -> Result<Model, ModelError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| ModelError::Io(format!("{}: {e}", path.display())))?;
-    model_from_str(&text, options)
+    let text = read_file(path)?;
+    model_from_str(&text, options).map_err(|e| {
+        let at = |m: String| format!("{}: {m}", path.display());
+        match e {
+            ModelError::Parse(m) => ModelError::Parse(at(m)),
+            ModelError::Invalid(m) => ModelError::Invalid(at(m)),
+            io => io,
+        }
+    })
+}
+
+/// The largest URDF file read: 64 MiB (TALOS's URDF, a full humanoid, is 0.2 MB). A bigger file,
+/// or one that is not a regular file (`/dev/zero`, a pipe, a directory), is refused before it is
+/// read.
+pub const MAX_FILE_BYTES: u64 = 64 << 20;
+
+/// The text of the file at `path`, read through a bound of [`MAX_FILE_BYTES`] (the file may grow
+/// while it is read).
+fn read_file(path: &Path) -> Result<String, ModelError> {
+    use std::io::Read;
+    let io = |e: std::io::Error| ModelError::Io(format!("{}: {e}", path.display()));
+    let too_big = || {
+        Err(ModelError::Io(format!(
+            "{}: the file is bigger than {MAX_FILE_BYTES} bytes (64 MiB), the most a URDF may have",
+            path.display()
+        )))
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let meta = file.metadata().map_err(io)?;
+    if !meta.is_file() {
+        return Err(ModelError::Io(format!(
+            "{}: not a regular file (a URDF is read from a file of at most {MAX_FILE_BYTES} bytes)",
+            path.display()
+        )));
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return too_big();
+    }
+    let mut bytes = Vec::new();
+    file.take(MAX_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return too_big();
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        ModelError::Io(format!(
+            "{}: not UTF-8 text (invalid byte at offset {})",
+            path.display(),
+            e.utf8_error().valid_up_to()
+        ))
+    })
 }
 
 /// Limits no real robot description comes near (TALOS, a full humanoid, has about 2 000 XML
-/// elements nested 6 deep), so that a huge or hostile text is refused with a reason instead of
-/// exhausting the stack (the XML tree is walked recursively) or memory (a model with `n`
-/// coordinates needs two `n × n` matrices: 6.4 GB at the limit).
+/// elements nested 6 deep, 50 coordinates), so that a huge or hostile text is refused with a
+/// reason instead of exhausting the stack (the XML tree is walked recursively) or memory.
+/// Memory is bounded by the model itself: the builder refuses a model whose workspace would
+/// take more than [`Workspace::MAX_BYTES`](crate::Workspace::MAX_BYTES) (2 GiB: ten `nv × nv`
+/// matrices, and lists of ancestors that grow as the square of a chain's length), which a
+/// revolute chain reaches at about 4 800 links.
 pub const MAX_DEPTH: usize = 100;
 /// See [`MAX_DEPTH`]: XML elements in the whole description.
 pub const MAX_ELEMENTS: usize = 1_000_000;
-/// See [`MAX_DEPTH`]: `<link>` elements, and `<joint>` elements, each.
+/// See [`MAX_DEPTH`]: `<link>` elements, and `<joint>` elements, each (fixed joints fuse their
+/// links into one body, so many links need not make a big model).
 pub const MAX_LINKS: usize = 20_000;
-/// See [`MAX_DEPTH`]: coordinates (`nv`) of the model built.
-pub const MAX_COORDINATES: usize = 20_000;
 
 /// Parses the text with the elements dynamics does not need removed. The XML is read as a
 /// stream first, so that nesting, element and link counts are checked before any of it is
@@ -77,12 +121,27 @@ fn parse(text: &str) -> Result<urdf_rs::Robot, ModelError> {
         )))
     };
     let mut parser = xml::Parser::new();
-    parser.feed_str(text);
+    // A byte-order mark is no content.
+    parser.feed_str(text.strip_prefix('\u{feff}').unwrap_or(text));
     let mut builder = xml::ElementBuilder::new();
     let (mut depth, mut elements, mut links, mut joints) = (0usize, 0usize, 0usize, 0usize);
     let mut root = None;
-    for event in parser {
+    // The open elements' names (at most MAX_DEPTH), and the <link> or <joint> being read, for
+    // the errors.
+    let mut open: Vec<String> = Vec::new();
+    let mut within = String::new();
+    for event in parser.by_ref() {
         match &event {
+            Ok(xml::Event::Characters(t) | xml::Event::CDATA(t))
+                if depth == 0 && !t.trim().is_empty() =>
+            {
+                // The XML reader ends a declaration at its first '>'.
+                return Err(ModelError::Parse(if t.trim_start().starts_with(']') {
+                    "a <!DOCTYPE> with an internal subset ([…]) is not supported".into()
+                } else {
+                    format!("text {} before the root <robot> element", snippet(t))
+                }));
+            }
             Ok(xml::Event::ElementStart(tag)) => {
                 depth += 1;
                 elements += 1;
@@ -103,17 +162,70 @@ fn parse(text: &str) -> Result<urdf_rs::Robot, ModelError> {
                 if links.max(joints) > MAX_LINKS {
                     return too_big(format!("more than {MAX_LINKS} links or joints"));
                 }
+                open.push(tag.name.clone());
+                if depth == 2 {
+                    within = match tag.attributes.get(&("name".to_string(), None)) {
+                        Some(name) => format!(" (in <{} name=\"{name}\">)", tag.name),
+                        None => format!(" (in a <{}> without a name)", tag.name),
+                    };
+                }
             }
-            Ok(xml::Event::ElementEnd(_)) => depth = depth.saturating_sub(1),
+            Ok(xml::Event::ElementEnd(tag)) => {
+                if let Some(top) = open.pop().filter(|top| *top != tag.name) {
+                    return Err(ModelError::Parse(format!(
+                        "the end tag </{}> does not close <{top}>{within}",
+                        tag.name
+                    )));
+                }
+                depth = depth.saturating_sub(1);
+                if depth < 2 {
+                    within.clear();
+                }
+            }
             _ => {}
         }
         if let Some(element) = builder.handle_event(event) {
-            root = Some(element.map_err(|e| ModelError::Parse(format!("{e}")))?);
+            root = Some(element.map_err(|e| ModelError::Parse(format!("{e}{within}")))?);
             break;
         }
     }
-    let mut root =
-        root.ok_or_else(|| ModelError::Parse(format!("{}", xml::BuilderError::NoElement)))?;
+    let mut root = root.ok_or_else(|| {
+        ModelError::Parse(if open.is_empty() {
+            "no XML element: the text is empty, or only comments and declarations".into()
+        } else {
+            format!(
+                "unexpected end of the text: <{}> still open{within}",
+                open.join("> <")
+            )
+        })
+    })?;
+    // Nothing but comments, declarations and white space may follow the root element.
+    for event in parser {
+        let after = |what: String| {
+            Err(ModelError::Parse(format!(
+                "{what} after the root element's end </{}>: a URDF is one <robot> element",
+                root.name
+            )))
+        };
+        match event {
+            Ok(xml::Event::ElementStart(tag)) => return after(format!("element <{}>", tag.name)),
+            Ok(xml::Event::ElementEnd(tag)) => return after(format!("end tag </{}>", tag.name)),
+            Ok(xml::Event::Characters(t) | xml::Event::CDATA(t)) if !t.trim().is_empty() => {
+                return after(format!("text {}", snippet(&t)))
+            }
+            Err(e) => return after(format!("malformed XML ({e})")),
+            _ => {}
+        }
+    }
+    // Text after the last tag is never emitted as an event (it may go on in a later feed).
+    let tail = &text[text.rfind('>').map_or(0, |i| i + 1)..];
+    if !tail.trim().is_empty() {
+        return Err(ModelError::Parse(format!(
+            "text {} after the root element's end </{}>: a URDF is one <robot> element",
+            snippet(tail),
+            root.name
+        )));
+    }
     if root.name != "robot" {
         return Err(ModelError::Parse(format!(
             "the root element is <{}>, not <robot>",
@@ -121,7 +233,38 @@ fn parse(text: &str) -> Result<urdf_rs::Robot, ModelError> {
         )));
     }
     strip(&mut root);
-    urdf_rs::read_from_string(&root.to_string()).map_err(|e| ModelError::Parse(e.to_string()))
+    urdf_rs::read_from_string(&root.to_string()).map_err(|e| {
+        ModelError::Parse(match culprit(&root) {
+            Some(element) => format!("{element}: {e}"),
+            None => e.to_string(),
+        })
+    })
+}
+
+/// The first `<link>` or `<joint>` that `urdf-rs` refuses on its own, as `<link name="…">`: the
+/// element a whole-robot error comes from (it names none).
+fn culprit(root: &xml::Element) -> Option<String> {
+    root.children.iter().find_map(|child| match child {
+        xml::Xml::ElementNode(e) if e.name == "link" || e.name == "joint" => {
+            let alone = format!(r#"<robot name="r">{e}</robot>"#);
+            urdf_rs::read_from_string(&alone).is_err().then(|| {
+                match e.get_attribute("name", None) {
+                    Some(name) => format!(r#"<{} name="{name}">"#, e.name),
+                    None => format!("a <{}> without a name", e.name),
+                }
+            })
+        }
+        _ => None,
+    })
+}
+
+/// `text`, trimmed and quoted, its first 40 characters at most.
+fn snippet(text: &str) -> String {
+    let text = text.trim();
+    match text.char_indices().nth(40) {
+        Some((end, _)) => format!("'{}…'", &text[..end]),
+        None => format!("'{text}'"),
+    }
 }
 
 fn strip(element: &mut xml::Element) {
@@ -187,12 +330,15 @@ fn joint_spec(joint: &urdf_rs::Joint) -> Result<JointSpec, ModelError> {
     let context = format!("joint '{}'", joint.name);
     let axis = vector(&joint.axis.xyz);
     let unit_axis = || {
-        let norm = axis.norm();
-        if norm > 1e-9 && norm.is_finite() {
-            Ok(axis / norm)
+        // Scaled by its largest component first, so that no square overflows or underflows.
+        let largest = axis.amax();
+        let scaled = axis / largest;
+        let norm = scaled.norm();
+        if largest.is_finite() && largest * norm > 1e-9 && norm.is_finite() {
+            Ok(scaled / norm)
         } else {
             Err(ModelError::Invalid(format!(
-                "{context}: <axis xyz> ({}, {}, {}) is not a usable direction",
+                "{context}: <axis xyz> ({:e}, {:e}, {:e}) is not a usable direction",
                 axis.x, axis.y, axis.z
             )))
         }
@@ -211,6 +357,7 @@ fn joint_spec(joint: &urdf_rs::Joint) -> Result<JointSpec, ModelError> {
         }
     };
     let l = &joint.limit;
+    check_limits(joint, &context)?;
     let unbounded = matches!(joint.joint_type, T::Continuous | T::Floating | T::Planar);
     let limits = JointLimits {
         lower: if unbounded {
@@ -248,4 +395,40 @@ fn joint_spec(joint: &urdf_rs::Joint) -> Result<JointSpec, ModelError> {
         }),
         limits,
     })
+}
+
+/// `<limit>` and `<dynamics>` must be finite, `lower ≤ upper`, effort, velocity, damping and
+/// friction not negative.
+fn check_limits(joint: &urdf_rs::Joint, context: &str) -> Result<(), ModelError> {
+    let l = &joint.limit;
+    let d = joint.dynamics.as_ref();
+    let values = [
+        ("<limit lower>", l.lower),
+        ("<limit upper>", l.upper),
+        ("<limit effort>", l.effort),
+        ("<limit velocity>", l.velocity),
+        ("<dynamics damping>", d.map_or(0.0, |d| d.damping)),
+        ("<dynamics friction>", d.map_or(0.0, |d| d.friction)),
+    ];
+    for (attribute, value) in values {
+        if !value.is_finite() {
+            return Err(ModelError::Invalid(format!(
+                "{context}: {attribute} is {value}, not a finite number"
+            )));
+        }
+    }
+    for (attribute, value) in &values[2..] {
+        if *value < 0.0 {
+            return Err(ModelError::Invalid(format!(
+                "{context}: {attribute} is {value:e}, it must not be negative"
+            )));
+        }
+    }
+    if l.lower > l.upper {
+        return Err(ModelError::Invalid(format!(
+            "{context}: <limit lower> {:e} is above <limit upper> {:e}",
+            l.lower, l.upper
+        )));
+    }
+    Ok(())
 }

@@ -103,7 +103,74 @@ pub struct Workspace {
     pub(crate) lanes: LaneScratch,
 }
 
+/// The `nv × nv` matrices of `f64` a workspace holds: `H`, its factor, the derivatives' four
+/// `∂τ`/`∂q̈` matrices and `M⁻¹`, and their right-hand side of three `nv × nv` blocks.
+const SQUARE_MATRICES: usize = 10;
+/// Bytes a workspace and its plan hold per body, and per velocity coordinate, besides the
+/// square matrices and the plan's lists of ancestors and supports (an upper estimate: about
+/// 4 KiB and 100 bytes are used).
+const BODY_BYTES: usize = 8 << 10;
+const COORDINATE_BYTES: usize = 512;
+
+/// What a workspace for a model takes, by [`Workspace::estimated_bytes`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Footprint {
+    /// The `nv × nv` matrices: `SQUARE_MATRICES × 8 nv²` bytes.
+    pub(crate) matrices: usize,
+    /// The plan's lists of each coordinate's ancestors and each body's support: 8 bytes an
+    /// entry, the sum of the coordinates' and the bodies' depths (`n²/2` each on a chain).
+    pub(crate) lists: usize,
+    /// Everything else, per body and per coordinate.
+    pub(crate) other: usize,
+}
+
+impl Footprint {
+    /// The total in bytes.
+    pub(crate) fn total(&self) -> usize {
+        self.matrices
+            .saturating_add(self.lists)
+            .saturating_add(self.other)
+    }
+}
+
 impl Workspace {
+    /// The most a model's workspace may take ([`Workspace::estimated_bytes`]): 2 GiB. The model
+    /// builder refuses models above it, so that a workspace never exhausts memory. A revolute
+    /// chain reaches it at about 4 800 links, any tree at about 5 100 coordinates.
+    pub const MAX_BYTES: usize = 2 << 30;
+
+    /// An upper estimate of the bytes [`Workspace::new`] allocates for `model`, counted from the
+    /// model's sizes before anything is allocated.
+    pub fn estimated_bytes(model: &Model) -> usize {
+        Self::footprint(model).total()
+    }
+
+    /// [`Workspace::estimated_bytes`], by kind.
+    pub(crate) fn footprint(model: &Model) -> Footprint {
+        let nv = model.nv;
+        let mut depth = vec![0usize; model.nbodies()];
+        let mut lists = 0usize;
+        for (i, body) in model.bodies.iter().enumerate() {
+            depth[i] = body.parent.map_or(1, |p| depth[p] + 1);
+            lists = lists.saturating_add(depth[i]);
+        }
+        if let Some(lambda) = &model.dof_parent {
+            let mut dof_depth = vec![0usize; nv];
+            for k in 0..nv {
+                dof_depth[k] = lambda[k].map_or(0, |p| dof_depth[p] + 1);
+                lists = lists.saturating_add(dof_depth[k]);
+            }
+        }
+        Footprint {
+            matrices: nv.saturating_mul(nv).saturating_mul(8 * SQUARE_MATRICES),
+            lists: lists.saturating_mul(8),
+            other: model
+                .nbodies()
+                .saturating_mul(BODY_BYTES)
+                .saturating_add(nv.saturating_mul(COORDINATE_BYTES)),
+        }
+    }
+
     /// Buffers sized for `model`.
     pub fn new(model: &Model) -> Self {
         let n = model.nbodies();
@@ -239,5 +306,52 @@ impl Workspace {
     /// `ⁱX_λ(i)` of body `i` from the last call.
     pub fn parent_to_body(&self, i: usize) -> Transform {
         self.x_up[i]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::examples::{self, pendulum_urdf};
+    use crate::{urdf, ModelOptions};
+
+    /// The estimate counts every `nv × nv` buffer a workspace holds and every entry of the
+    /// plan's ancestor and support lists: on a chain (lists of n²/2), a branching tree, a
+    /// floating base (six coordinates a body) and mimic joints (no ancestor lists).
+    #[test]
+    fn the_estimate_counts_the_square_matrices_and_the_lists() {
+        let cases = [
+            (pendulum_urdf(40, 0.5, 0.7), false),
+            (include_str!("tests/models/tree.urdf").to_string(), false),
+            (examples::DEFAULT_ARM_URDF.to_string(), true),
+            (examples::MIMIC_GRIPPER_URDF.to_string(), false),
+        ];
+        for (text, floating_base) in cases {
+            let options = ModelOptions {
+                floating_base,
+                ..ModelOptions::default()
+            };
+            let model = urdf::model_from_str(&text, &options).unwrap();
+            let ws = Workspace::new(&model);
+            let d = &ws.derivatives;
+            let squares = [
+                &ws.mass_matrix,
+                &ws.factor,
+                &d.dtau_dq,
+                &d.dtau_dv,
+                &d.ddq_dq,
+                &d.ddq_dv,
+                &d.minv,
+            ]
+            .iter()
+            .map(|m| m.len())
+            .sum::<usize>()
+                + d.rhs.len();
+            let footprint = Workspace::footprint(&model);
+            assert_eq!(8 * squares, footprint.matrices, "{}", model.name);
+            let lists = ws.plan.supports.entries()
+                + ws.plan.dof_ancestors.as_ref().map_or(0, |a| a.entries());
+            assert_eq!(8 * lists, footprint.lists, "{}", model.name);
+        }
     }
 }

@@ -10,6 +10,7 @@ use super::{
 };
 use crate::error::ModelError;
 use crate::spatial::Transform;
+use crate::Workspace;
 use std::collections::{HashMap, HashSet};
 
 /// Collects links and joints, then builds the model.
@@ -49,6 +50,7 @@ impl ModelBuilder {
     pub fn build(&self, options: &ModelOptions) -> Result<Model, ModelError> {
         let mut model = self.build_in_link_frames(options)?;
         orient_bodies(&mut model);
+        check_footprint(&model)?;
         Ok(model)
     }
 
@@ -150,6 +152,12 @@ impl ModelBuilder {
             parent_joint[child] = Some(j);
             children[link_index[joint.parent.as_str()]].push(j);
         }
+        if self.links.is_empty() {
+            return invalid(format!(
+                "robot '{}' has no links: a URDF needs at least one <link> element (directly inside <robot>)",
+                self.name
+            ));
+        }
         let roots: Vec<usize> = (0..self.links.len())
             .filter(|&l| parent_joint[l].is_none())
             .collect();
@@ -174,15 +182,22 @@ impl ModelBuilder {
             link_names: self.links.iter().map(|l| l.name.as_str()).collect(),
             inertias: self.links.iter().map(|l| &l.inertia).collect(),
             link_index,
+            joint_index: self
+                .joints
+                .iter()
+                .enumerate()
+                .map(|(j, joint)| (joint.name.as_str(), j))
+                .collect(),
             children,
             parent_joint,
             root,
         })
     }
 
-    /// The position joint `j` is held at, if it does not move: its `--lock` value, the neutral
-    /// position if the reduction freezes it, or its mimic leader's held position mapped through
-    /// it. The flag tells whether the user asked for it (a lock) or the reduction did (a freeze).
+    /// The position joint `j` is held at, if it does not move: its `--lock` value (for a mimic
+    /// follower, [`Plan::new`] has checked that it agrees with its leader's), its mimic leader's
+    /// held position mapped through it, or the neutral position if the reduction freezes it.
+    /// The flag tells whether the user asked for it (a lock) or the reduction did (a freeze).
     fn lock_position(
         &self,
         j: usize,
@@ -191,22 +206,27 @@ impl ModelBuilder {
         options: &ModelOptions,
     ) -> Option<(Vec<f64>, bool)> {
         let joint = &self.joints[j];
-        let held = |k: usize| {
+        let locked = |k: usize| {
             let name = &self.joints[k].name;
-            if let Some((_, v)) = options.locked.iter().find(|(n, _)| n == name) {
-                Some((vec![*v], true))
-            } else {
-                let kind = self.joints[k].kind.as_ref()?;
-                plan.frozen[k].then(|| (neutral_position(kind), false))
-            }
+            options
+                .locked
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, v)| (vec![*v], true))
         };
-        held(j).or_else(|| match (&joint.mimic, options.ignore_mimic) {
+        let frozen = |k: usize| {
+            let kind = self.joints[k].kind.as_ref()?;
+            plan.frozen[k].then(|| (neutral_position(kind), false))
+        };
+        let held = |k: usize| locked(k).or_else(|| frozen(k));
+        let led = || match (&joint.mimic, options.ignore_mimic) {
             (Some((leader, multiplier, offset)), false) => {
-                let l = topo.joints.iter().position(|x| x.name == *leader)?;
+                let l = *topo.joint_index.get(leader.as_str())?;
                 held(l).map(|(q, by_user)| (vec![multiplier * q[0] + offset], by_user))
             }
             _ => None,
-        })
+        };
+        locked(j).or_else(led).or_else(|| frozen(j))
     }
 
     fn index_links(&self) -> Result<HashMap<&str, usize>, ModelError> {
@@ -320,11 +340,30 @@ impl TreeState {
                 reduction.removed_links.push(link.name.clone());
             }
         }
+        if !(x_body_joint.rot.iter().chain(x_body_joint.trans.iter())).all(|x| x.is_finite()) {
+            return Err(ModelError::Invalid(format!(
+                "link '{}': its placement in the body it belongs to is not finite (joint '{}' places it too far)",
+                link.name, joint.name
+            )));
+        }
         match kind {
             None => {
                 if let Some(body) = parent.body {
                     let fused = x_body_joint.transpose_apply_inertia(&link.inertia);
-                    self.model.bodies[body].inertia += fused;
+                    let inertia = &mut self.model.bodies[body].inertia;
+                    *inertia += fused;
+                    if !inertia_is_finite(inertia) {
+                        return Err(ModelError::Invalid(format!(
+                            "link '{}': fused through fixed joint '{}' into body '{}', it makes that body's inertia overflow (its mass {:e} kg at ({:e}, {:e}, {:e}) m)",
+                            link.name,
+                            joint.name,
+                            self.model.bodies[body].name,
+                            link.inertia.mass,
+                            x_body_joint.trans.x,
+                            x_body_joint.trans.y,
+                            x_body_joint.trans.z
+                        )));
+                    }
                 }
                 self.model.fused_links.push(link.name.clone());
                 if joint.kind.is_none() {
@@ -384,6 +423,11 @@ impl TreeState {
         }
         self.model.nq = nq;
         self.model.nv = nv;
+        // Each joint name's first body (a URDF joint may share the floating base's name).
+        let mut body_of: HashMap<String, usize> = HashMap::new();
+        for (b, body) in self.model.bodies.iter().enumerate() {
+            body_of.entry(body.joint.name.clone()).or_insert(b);
+        }
         for b in 0..self.model.bodies.len() {
             let Some((leader, multiplier, offset)) = self.mimic[b].clone() else {
                 continue;
@@ -401,12 +445,7 @@ impl TreeState {
             if !(multiplier.is_finite() && offset.is_finite()) {
                 return bad("its multiplier and offset must be finite");
             }
-            let Some(l) = self
-                .model
-                .bodies
-                .iter()
-                .position(|x| x.joint.name == leader)
-            else {
+            let Some(&l) = body_of.get(leader.as_str()) else {
                 return bad("there is no moving joint of that name");
             };
             if self.mimic[l].is_some() {
@@ -456,12 +495,37 @@ fn dof_parents(model: &Model) -> Vec<Option<usize>> {
     parent
 }
 
+/// Refuses a model whose workspace would take more than [`Workspace::MAX_BYTES`], before any
+/// workspace is made for it.
+fn check_footprint(model: &Model) -> Result<(), ModelError> {
+    let footprint = Workspace::footprint(model);
+    if footprint.total() <= Workspace::MAX_BYTES {
+        return Ok(());
+    }
+    let gb = |bytes: usize| bytes as f64 / 1e9;
+    Err(ModelError::Invalid(format!(
+        "the model has {} bodies and {} coordinates: a workspace for it would take about {:.1} GB \
+         ({:.1} GB of nv × nv matrices, {:.1} GB of ancestor and support lists, which grow as the \
+         square of the tree's depth), more than the {:.1} GB a model may need",
+        model.nbodies(),
+        model.nv,
+        gb(footprint.total()),
+        gb(footprint.matrices),
+        gb(footprint.lists),
+        gb(Workspace::MAX_BYTES)
+    )))
+}
+
+fn inertia_is_finite(i: &crate::spatial::Inertia) -> bool {
+    i.mass.is_finite() && i.h.iter().chain(i.i_bar.iter()).all(|x| x.is_finite())
+}
+
 /// A link's mass must be finite and non-negative, its inertia finite.
 fn check_inertia(link: &BodySpec) -> Result<(), ModelError> {
     let i = &link.inertia;
     if !(i.mass.is_finite() && i.mass >= 0.0) {
         return Err(ModelError::Invalid(format!(
-            "link '{}': mass must be finite and not negative, got {}",
+            "link '{}': mass must be finite and not negative, got {:e}",
             link.name, i.mass
         )));
     }
@@ -474,17 +538,21 @@ fn check_inertia(link: &BodySpec) -> Result<(), ModelError> {
     Ok(())
 }
 
-/// Physical doubts about a link's inertia that real URDFs do have (so they warn rather than
-/// refuse): rotational inertia about the centre of mass not positive semi-definite, or principal
-/// moments breaking the triangle inequality `I1 + I2 ≥ I3`.
+/// Physical doubts about a link's inertia (massive or not) that real URDFs do have (so they warn
+/// rather than refuse): rotational inertia about the centre of mass not positive semi-definite,
+/// or principal moments breaking the triangle inequality `I1 + I2 ≥ I3`.
 fn inertia_doubts(link: &BodySpec) -> Option<String> {
     let i = &link.inertia;
-    if i.mass <= 0.0 {
+    // I_c = Ī + m c× c× = Ī + h× h× / m; without mass, Ī itself.
+    let i_com = if i.mass > 0.0 {
+        let hx = crate::spatial::skew(&i.h);
+        i.i_bar + hx * hx / i.mass
+    } else {
+        i.i_bar
+    };
+    if i_com.iter().all(|x| *x == 0.0) {
         return None;
     }
-    // I_c = Ī + m c× c× = Ī + h× h× / m.
-    let hx = crate::spatial::skew(&i.h);
-    let i_com = i.i_bar + hx * hx / i.mass;
     let mut moments = nalgebra::SymmetricEigen::new(i_com).eigenvalues;
     moments.as_mut_slice().sort_by(f64::total_cmp);
     let scale = moments[2].abs().max(f64::MIN_POSITIVE);

@@ -30,6 +30,8 @@ pub(super) struct Topology<'a> {
     pub link_names: Vec<&'a str>,
     pub inertias: Vec<&'a Inertia>,
     pub link_index: HashMap<&'a str, usize>,
+    /// Joint indices by name.
+    pub joint_index: HashMap<&'a str, usize>,
     /// Joints whose parent is each link, in document order.
     pub children: Vec<Vec<usize>>,
     /// The joint whose child is each link (`None` for the root).
@@ -121,34 +123,73 @@ impl Plan {
             .map(|j| moving(j) && !kept[j] && !pruned[j])
             .collect();
         let plan = Plan { frozen, pruned };
+        check_locks(topo, options)?;
         plan.check_mimic(topo, options)?;
         Ok(plan)
     }
 
     /// A mimic follower cannot freeze while its leader keeps moving (the coupling would break);
-    /// the converse is fine (the follower locks with its leader).
+    /// the converse is fine (the follower locks with its leader). A `--lock` on a follower is
+    /// taken only when its leader is held too (locked, or frozen at its neutral position) at a
+    /// position the lock agrees with: `q_follower = multiplier · q_leader + offset` within
+    /// [`MIMIC_LOCK_TOLERANCE`] (relative beyond 1).
     fn check_mimic(&self, topo: &Topology, options: &ModelOptions) -> Result<(), ModelError> {
         if options.ignore_mimic {
             return Ok(());
         }
-        let index: HashMap<&str, usize> = topo
-            .joints
-            .iter()
-            .enumerate()
-            .map(|(j, joint)| (joint.name.as_str(), j))
-            .collect();
-        for (f, follower) in topo.joints.iter().enumerate() {
-            let Some(&l) = follower
-                .mimic
-                .as_ref()
-                .and_then(|m| index.get(m.0.as_str()))
-            else {
-                continue;
-            };
-            let user_locked = options
+        let index = &topo.joint_index;
+        let lock = |name: &str| {
+            options
                 .locked
                 .iter()
-                .any(|(n, _)| *n == topo.joints[l].name);
+                .find(|(n, _)| n == name)
+                .map(|(_, v)| *v)
+        };
+        for (f, follower) in topo.joints.iter().enumerate() {
+            let Some((leader, multiplier, offset)) = &follower.mimic else {
+                continue;
+            };
+            let l = index.get(leader.as_str()).copied();
+            let removed = self.pruned[f] || follower.kind.is_none();
+            if let (Some(value), false) = (lock(&follower.name), removed) {
+                let refuse = |why: String| {
+                    Err(ModelError::Invalid(format!(
+                        "cannot lock joint '{}' at {value:e}: it mimics '{leader}' ({} = {multiplier:e} · {leader} + {offset:e}), {why}",
+                        follower.name, follower.name
+                    )))
+                };
+                let held = match l {
+                    None => return refuse("which does not exist".into()),
+                    Some(l) => match &topo.joints[l].kind {
+                        None => return refuse("which is not a moving joint".into()),
+                        Some(kind) if kind.nq() != 1 => {
+                            return refuse(
+                                "which is not a revolute, continuous or prismatic joint".into(),
+                            )
+                        }
+                        Some(kind) => lock(leader)
+                            .or_else(|| self.frozen[l].then(|| neutral_position(kind)[0])),
+                    },
+                };
+                let Some(q_leader) = held else {
+                    return refuse(format!(
+                        "which stays moving: lock '{leader}' instead (its followers lock with it)"
+                    ));
+                };
+                let expected = multiplier * q_leader + offset;
+                let agrees =
+                    (value - expected).abs() <= MIMIC_LOCK_TOLERANCE * expected.abs().max(1.0);
+                if !agrees {
+                    return refuse(format!(
+                        "held at {q_leader:e}, which puts '{}' at {expected:e}",
+                        follower.name
+                    ));
+                }
+            }
+            let Some(l) = l else {
+                continue;
+            };
+            let user_locked = lock(&topo.joints[l].name).is_some();
             let leader_moves = !self.frozen[l] && !self.pruned[l] && !user_locked;
             if self.frozen[f] && leader_moves {
                 return Err(ModelError::Invalid(format!(
@@ -161,8 +202,48 @@ impl Plan {
     }
 }
 
+/// Each joint is locked at most once, and a revolute or prismatic joint within its `<limit>`
+/// range (when it has one: `lower < upper`; a missing `<limit>` gives none), as the joint could
+/// stand there.
+fn check_locks(topo: &Topology, options: &ModelOptions) -> Result<(), ModelError> {
+    let mut seen = std::collections::HashSet::new();
+    for (name, value) in &options.locked {
+        if !seen.insert(name.as_str()) {
+            return Err(ModelError::Invalid(format!(
+                "joint '{name}' is locked twice: give one position for it"
+            )));
+        }
+        let Some(joint) = topo
+            .joint_index
+            .get(name.as_str())
+            .map(|&j| &topo.joints[j])
+        else {
+            continue;
+        };
+        let (lower, upper) = (joint.limits.lower, joint.limits.upper);
+        let bounded = matches!(
+            joint.kind,
+            Some(JointKind::Revolute { .. } | JointKind::Prismatic { .. })
+        ) && lower < upper;
+        if bounded && !(lower..=upper).contains(value) {
+            return Err(ModelError::Invalid(format!(
+                "cannot lock joint '{name}' at {value:e}: outside its limits [{lower:e}, {upper:e}]"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// How far a `--lock` on a mimic follower may be from its leader's held position mapped through
+/// the mimic (relative to the position when beyond 1): about what a position typed with seven
+/// significant digits misses by.
+const MIMIC_LOCK_TOLERANCE: f64 = 1e-6;
+
 /// Marks, among the kept moving joints, those whose whole subtree has zero spatial inertia,
-/// carries no tip and leads no mimic joint outside it (largest subtrees first).
+/// carries no tip and leads no mimic joint outside it (largest subtrees first). Linear in the
+/// joints and mimic joints: each joint's subtree is an interval of the depth-first order, and a
+/// subtree leads a follower outside it exactly when the followers of the leaders inside it do
+/// not all fall in that interval (their first and last positions, summed up the tree, tell).
 fn prune_massless(
     topo: &Topology,
     base: usize,
@@ -172,47 +253,70 @@ fn prune_massless(
     pruned: &mut [bool],
 ) {
     let order = topo.joints_below(base);
-    // Bottom-up (reverse depth-first order): a link's subtree is massless and tip-free when the
-    // link is and every child subtree is.
+    let n = topo.joints.len();
+    // Joint j's subtree (j and every joint below its child) is order[pos[j]..pos[j] + size[j]].
+    let mut pos = vec![usize::MAX; n];
+    for (p, &j) in order.iter().enumerate() {
+        pos[j] = p;
+    }
+    let mut size = vec![1usize; n];
+    for &j in order.iter().rev() {
+        if let Some(up) = topo.parent_joint[topo.parent(j)].filter(|&up| pos[up] != usize::MAX) {
+            size[up] += size[j];
+        }
+    }
+    // The first and last depth-first positions of the followers of the leaders in each subtree
+    // (a follower outside the base's subtree counts as before everything).
+    let mut followers: Vec<Option<(isize, isize)>> = vec![None; n];
+    if !options.ignore_mimic {
+        for (f, joint) in topo.joints.iter().enumerate() {
+            let Some(l) = joint
+                .mimic
+                .as_ref()
+                .and_then(|(leader, _, _)| topo.joint_index.get(leader.as_str()).copied())
+            else {
+                continue;
+            };
+            let at = if pos[f] == usize::MAX {
+                -1
+            } else {
+                pos[f] as isize
+            };
+            followers[l] = Some(followers[l].map_or((at, at), |(lo, hi)| (lo.min(at), hi.max(at))));
+        }
+    }
     let mut empty: Vec<bool> = (0..topo.inertias.len())
         .map(|l| is_zero(topo.inertias[l]) && !tip_links[l])
         .collect();
+    // Bottom-up (reverse depth-first order): a link's subtree is massless and tip-free when the
+    // link is and every child subtree is; followers gather the same way.
     for &j in order.iter().rev() {
         if !empty[topo.child(j)] {
             empty[topo.parent(j)] = false;
         }
+        if let (Some(up), Some((lo, hi))) = (topo.parent_joint[topo.parent(j)], followers[j]) {
+            if pos[up] != usize::MAX {
+                followers[up] =
+                    Some(followers[up].map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+            }
+        }
     }
-    let mut removed = vec![false; topo.joints.len()];
+    let leads_outside = |j: usize| {
+        followers[j].is_some_and(|(lo, hi)| {
+            let (start, end) = (pos[j] as isize, (pos[j] + size[j]) as isize);
+            lo < start || hi >= end
+        })
+    };
+    let mut removed = vec![false; n];
     for &j in &order {
-        if removed[j] || !kept[j] || !empty[topo.child(j)] {
+        if removed[j] || !kept[j] || !empty[topo.child(j)] || leads_outside(j) {
             continue;
         }
-        let subtree: Vec<usize> = std::iter::once(j)
-            .chain(topo.joints_below(topo.child(j)))
-            .collect();
-        if !options.ignore_mimic && leads_outside(topo, &subtree) {
-            continue;
-        }
-        for &k in &subtree {
+        for &k in &order[pos[j]..pos[j] + size[j]] {
             removed[k] = true;
             pruned[k] = true;
         }
     }
-}
-
-/// True when a joint outside `subtree` mimics one inside it.
-fn leads_outside(topo: &Topology, subtree: &[usize]) -> bool {
-    let inside: Vec<&str> = subtree
-        .iter()
-        .map(|&j| topo.joints[j].name.as_str())
-        .collect();
-    topo.joints.iter().enumerate().any(|(f, joint)| {
-        !subtree.contains(&f)
-            && joint
-                .mimic
-                .as_ref()
-                .is_some_and(|(leader, _, _)| inside.contains(&leader.as_str()))
-    })
 }
 
 /// Zero mass, first moment and rotational inertia: a link that weighs nothing and spins freely.

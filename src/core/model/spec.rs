@@ -38,7 +38,9 @@ pub struct ModelOptions {
     /// Gravity in world coordinates (m/s²).
     pub gravity: Vector3,
     /// Joints frozen at a position: each becomes fixed and its child link fuses into the parent
-    /// body (a mimic follower of a locked leader is locked with it).
+    /// body (a mimic follower of a locked leader is locked with it; a follower may be locked only
+    /// with its leader held, at `multiplier · leader + offset`). Each joint at most once; a
+    /// revolute or prismatic joint within its limits when it has a range (`lower < upper`).
     pub locked: Vec<(String, f64)>,
     /// Keep only the subtree below this link (it becomes the fixed base): every joint outside
     /// it is frozen at its `locked` value or neutral position, and its links are fixed to the

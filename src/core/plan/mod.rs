@@ -260,8 +260,17 @@ impl Ancestors {
     /// makes it); `None` otherwise.
     pub fn new(lambda: &[Option<usize>]) -> Option<Self> {
         let n = lambda.len();
-        let mut list = Vec::new();
-        let mut start = vec![0];
+        if (0..n).any(|k| lambda[k].is_some_and(|p| p >= k)) {
+            return None;
+        }
+        // Sized once (a chain's list holds n(n − 1)/2 entries: no doubling past it).
+        let mut depth = vec![0usize; n];
+        for k in 0..n {
+            depth[k] = lambda[k].map_or(0, |p| depth[p] + 1);
+        }
+        let mut list = Vec::with_capacity(depth.iter().sum());
+        let mut start = Vec::with_capacity(n + 1);
+        start.push(0);
         for k in 0..n {
             list.extend(std::iter::successors(lambda[k], |&i| lambda[i]));
             start.push(list.len());
@@ -271,9 +280,6 @@ impl Ancestors {
         let mut size = vec![1; n];
         for k in (0..n).rev() {
             if let Some(p) = lambda[k] {
-                if p >= k {
-                    return None;
-                }
                 end[p] = end[p].max(end[k]);
                 size[p] += size[k];
             }
@@ -296,6 +302,12 @@ impl Ancestors {
     /// The number of degrees of freedom.
     pub fn len(&self) -> usize {
         self.start.len() - 1
+    }
+
+    /// The entries of all the lists (for the workspace's footprint).
+    #[cfg(test)]
+    pub(crate) fn entries(&self) -> usize {
+        self.list.len()
     }
 }
 
@@ -323,8 +335,14 @@ pub struct Supports {
 impl Supports {
     /// From the model's tree (every parent before its children).
     pub fn new(model: &Model) -> Self {
-        let mut list = Vec::new();
-        let mut start = vec![0];
+        // Sized once (a chain's list holds n(n + 1)/2 entries: no doubling past it).
+        let mut depth = vec![0usize; model.nbodies()];
+        for (i, body) in model.bodies.iter().enumerate() {
+            depth[i] = body.parent.map_or(1, |p| depth[p] + 1);
+        }
+        let mut list = Vec::with_capacity(depth.iter().sum());
+        let mut start = Vec::with_capacity(model.nbodies() + 1);
+        start.push(0);
         let mut turns_and_slides: Vec<bool> = Vec::with_capacity(model.nbodies());
         for (i, body) in model.bodies.iter().enumerate() {
             let kind = body.joint.kind;
@@ -347,6 +365,12 @@ impl Supports {
             start,
             turns_and_slides,
         }
+    }
+
+    /// The entries of all the supports (for the workspace's footprint).
+    #[cfg(test)]
+    pub(crate) fn entries(&self) -> usize {
+        self.list.len()
     }
 
     /// The support of body `i`, root first, ending with `i`.

@@ -1,7 +1,9 @@
-//! Big inputs: a 10 000-link chain and a 10 000-link tree load (no recursion over the tree, no
-//! quadratic look-ups that take minutes) and every algorithm runs on them; a 50 MB description
-//! (a huge comment, a giant attribute, deep nesting, very many links) is answered with a model or a
-//! clear error, never a crash or an out-of-memory abort. Times are printed (`--nocapture`).
+//! Big inputs: a 4 000-link chain and a 4 000-link tree load (no recursion over the tree, no
+//! quadratic look-ups that take minutes) and every algorithm runs on them; a model whose
+//! workspace would pass `Workspace::MAX_BYTES` (an 8 000-link chain) is refused before anything
+//! is allocated for it, while 20 000 links fused by fixed joints load; a 50 MB description (a huge
+//! comment, a giant attribute, deep nesting, very many links) is answered with a model or a clear
+//! error, never a crash or an out-of-memory abort. Times are printed (`--nocapture`).
 
 use spatial_dynamics_core::algorithms::kinematics::{body_motion, body_placements};
 use spatial_dynamics_core::algorithms::{
@@ -13,7 +15,7 @@ use spatial_dynamics_core::{
 };
 use std::time::{Duration, Instant};
 
-const LINKS: usize = 10_000;
+const LINKS: usize = 4_000;
 
 /// A link with a rod-like inertia (positive definite, mass 1 kg).
 fn link(name: &str) -> String {
@@ -171,16 +173,16 @@ fn load(label: &str, text: &str, links: usize) -> Model {
 }
 
 #[test]
-fn ten_thousand_link_chain_loads_and_every_algorithm_runs() {
+fn four_thousand_link_chain_loads_and_every_algorithm_runs() {
     let model = load("chain", &robot(LINKS, |i| i - 1), LINKS);
-    // On a chain H is dense and its factorisation O(n³) (minutes at n = 10 000): the CRBA and
+    // On a chain H is dense and its factorisation O(n³) (a minute at n = 4 000): the CRBA and
     // n+1-RNEA forward dynamics run on the 1 000-link chain below.
     run_every_algorithm("chain", &model, &[]);
 }
 
 #[test]
-fn ten_thousand_link_tree_loads_and_every_algorithm_runs() {
-    // A binary tree: link i hangs from link i / 2 (depth 14): H is sparse, LᵀL cheap. The
+fn four_thousand_link_tree_loads_and_every_algorithm_runs() {
+    // A binary tree: link i hangs from link i / 2 (depth 12): H is sparse, LᵀL cheap. The
     // n+1-RNEA method is O(n²) RNEA work plus a dense O(n³) Cholesky by design (it is the
     // reference method): it runs on the 1 000-link tree below.
     let model = load("tree", &robot(LINKS, |i| i / 2), LINKS);
@@ -278,11 +280,41 @@ fn fifty_megabytes_of_links_are_refused() {
 
 #[test]
 fn too_many_coordinates_are_refused_with_the_memory_they_would_take() {
-    // 4 000 floating joints: 24 000 coordinates, H alone 4.6 GB.
+    // 4 000 floating joints: 24 000 coordinates, ten nv × nv matrices of 4.6 GB each.
     let text = robot(4000, |i| i - 1).replace("type=\"continuous\"", "type=\"floating\"");
     let err = load_big("24 000 coordinates", &text).unwrap_err();
     assert!(
-        err.contains("24000 coordinates, more than 20000") && err.contains("4.6 GB"),
+        err.contains("4000 bodies and 24000 coordinates")
+            && err.contains("about 48.5 GB")
+            && err.contains("46.1 GB of nv × nv matrices")
+            && err.contains("more than the 2.1 GB a model may need"),
         "{err}"
     );
+}
+
+/// An 8 000-link chain: its matrices (5.1 GB) and its lists of ancestors and supports (32 million
+/// entries each, 0.5 GB) would exhaust a small machine's memory; refused before any is allocated.
+#[test]
+fn a_chain_whose_workspace_would_pass_the_budget_is_refused() {
+    let text = robot(8000, |i| i - 1);
+    let err = load_big("8 000-link chain", &text).unwrap_err();
+    assert!(
+        err.contains("8000 bodies and 8000 coordinates")
+            && err.contains("5.1 GB of nv × nv matrices, 0.5 GB of ancestor and support lists")
+            && err.contains("more than the 2.1 GB"),
+        "{err}"
+    );
+    // At 4 800 links the chain still fits.
+    let model = load("chain 4800", &robot(4800, |i| i - 1), 4800);
+    assert!(Workspace::estimated_bytes(&model) <= Workspace::MAX_BYTES);
+}
+
+/// 20 000 links (the most `urdf::MAX_LINKS` lets through) joined by fixed joints make one body:
+/// accepted, and small.
+#[test]
+fn twenty_thousand_fixed_links_load() {
+    let text =
+        robot(urdf::MAX_LINKS - 1, |i| i - 1).replace("type=\"continuous\"", "type=\"fixed\"");
+    let model = load_big("20 000 fixed links", &text).unwrap();
+    assert_eq!((model.links().len(), model.nv()), (urdf::MAX_LINKS, 0));
 }

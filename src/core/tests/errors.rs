@@ -178,7 +178,7 @@ fn bad_descriptions_are_named() {
         ),
         (
             r#"<robot name="x"><link name="a"/><link name="b"/><joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 0"/><limit lower="0" upper="1" effort="1" velocity="1"/></joint></robot>"#,
-            "joint 'j': <axis xyz> (0, 0, 0)",
+            "joint 'j': <axis xyz> (0e0, 0e0, 0e0)",
         ),
         (
             r#"<robot name="x"><link name="a"><inertial><mass value="-1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link></robot>"#,
