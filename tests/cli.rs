@@ -613,7 +613,7 @@ fn eval_answers_derivative_requests() {
 #[test]
 fn commands_refuse_or_end_cleanly_before_doing_harm() {
     let mut child = Command::new(env!("CARGO_BIN_EXE_spatial_dynamics"))
-        .args(["model", "--builtin", "pendulum:5000"])
+        .args(["model", "--builtin", "pendulum:2000"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()

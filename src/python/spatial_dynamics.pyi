@@ -34,7 +34,7 @@ class Model:
     def from_urdf(
         path: Union[str, PathLike[str]], floating_base: bool = False, ignore_mimic: bool = False
     ) -> Model:
-        """The model of a URDF file (a regular file of at most 256 MiB). ``floating_base``: a
+        """The model of a URDF file (a regular file of at most 64 MiB). ``floating_base``: a
         free joint between the world and the root link; ``ignore_mimic``: mimic joints get
         coordinates of their own. A file that cannot be read raises the OSError subclass of its
         cause (FileNotFoundError, PermissionError, IsADirectoryError); a device, a FIFO, a

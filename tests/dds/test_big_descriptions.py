@@ -1,8 +1,8 @@
-"""Big robot descriptions reaching the node: a 10 000-link chain on the latched robot_description
-topic and a 10 000-link tree as the robot_description parameter are loaded and served; 50 MB descriptions (a huge comment: loads; 170 000
+"""Big robot descriptions reaching the node: a 4 000-link chain on the latched robot_description
+topic and a 4 000-link tree as the robot_description parameter are loaded and served; 50 MB descriptions (a huge comment: loads; 170 000
 links: refused, naming the limit) on the topic and as a parameter leave the node alive and
 serving, the old model kept when the new one is refused. Times are printed (pytest -s).
-The 10 000-link answers are checked against the statics of the robot written out here (checked in
+The 4 000-link answers are checked against the statics of the robot written out here (checked in
 turn against Pinocchio on 12-link versions).
 """
 
@@ -22,7 +22,7 @@ DM = "/spatial_dynamics/describe_model"
 ID = "/spatial_dynamics/inverse_dynamics"
 STATUS = "spatial_dynamics: dynamics"
 BIG = 50 << 20
-LINKS = 10_000
+LINKS = 4_000
 
 
 def link(name):
@@ -84,7 +84,7 @@ def gravity_torques(n, parent, q):
     """g(q) of robot(n, parent) by statics, written out here: link i's joint frame is its parent's
     turned by Rx(0.1) and moved 0.1 m down, then turned about the joint axis by q_i; each link is
     1 kg with its centre 0.05 m below its joint; the torque holding joint k is minus the moment,
-    about its axis, of the weight of everything it carries (Pinocchio cannot build a 10 000-link
+    about its axis, of the weight of everything it carries (Pinocchio cannot build a 4 000-link
     model here: its reader overflows the stack on the chain and its data runs out of memory; this
     is checked against it on small robots below)."""
     g = np.array([0.0, 0.0, -9.81])

@@ -452,7 +452,7 @@ def test_real_dtypes_are_converted():
 
 def test_from_urdf_file_errors_are_os_errors(tmp_path):
     """A file that cannot be read raises the OSError subclass of its cause, with the path as
-    its filename; a device, a FIFO or a file over 256 MiB is refused without being read
+    its filename; a device, a FIFO or a file over 64 MiB is refused without being read
     (DynamicsError naming the path); a URDF the library refuses names the file."""
     missing = tmp_path / "missing.urdf"
     with pytest.raises(FileNotFoundError) as raised:
@@ -475,8 +475,8 @@ def test_from_urdf_file_errors_are_os_errors(tmp_path):
         sd.Model.from_urdf(fifo)
     big = tmp_path / "big.urdf"
     with open(big, "wb") as f:
-        f.truncate((256 << 20) + 1)  # sparse: no disk, and not read
-    with pytest.raises(sd.DynamicsError, match=r"big.urdf is larger than 256 MiB"):
+        f.truncate((64 << 20) + 1)  # sparse: no disk, and not read
+    with pytest.raises(sd.DynamicsError, match=r"big.urdf is larger than 64 MiB"):
         sd.Model.from_urdf(big)
     bad = tmp_path / "bad.urdf"
     bad.write_text("<robot name='r'><link name='a'>")

@@ -25,9 +25,10 @@ use std::time::Duration;
 
 type Array<'py> = Bound<'py, PyArrayDyn<f64>>;
 
-/// The largest URDF file `Model.from_urdf` reads: 256 MiB, far above any robot description
-/// (a full humanoid's is under 1 MiB), so that a huge file is refused before it is read.
-pub const MAX_URDF_BYTES: u64 = 256 << 20;
+/// The largest URDF file `Model.from_urdf` reads: the library's limit (64 MiB), far above any
+/// robot description (a full humanoid's is under 1 MiB), so that a huge file is refused before
+/// it is read.
+pub const MAX_URDF_BYTES: u64 = spatial_dynamics_core::urdf::MAX_FILE_BYTES;
 
 /// A robot model built from URDF, with the URDF text and options it was built from (for
 /// pickling) and the workspaces of its calls.
@@ -208,7 +209,7 @@ fn reference_frame(reference: &str) -> PyResult<ReferenceFrame> {
 
 #[pymethods]
 impl Model {
-    /// The model of the URDF file at `path`, a regular file of at most 256 MiB of UTF-8 text.
+    /// The model of the URDF file at `path`, a regular file of at most 64 MiB of UTF-8 text.
     /// A file that cannot be read raises the `OSError` subclass of its cause
     /// (`FileNotFoundError`, `PermissionError`, `IsADirectoryError`); another kind of file (a
     /// device, a FIFO), a bigger one or a URDF the library refuses raises `DynamicsError`, its
