@@ -746,3 +746,66 @@ fn bench_refuses_settings_past_their_limits() {
         assert!(v["ns_per_call"][kernel].as_f64().unwrap() > 0.0, "{out}");
     }
 }
+
+/// `--sim-initial` is always checked, whether a simulation kernel is timed or not: a JSON
+/// object with no keys but "q" and "v", each an array of the model's length; an error names the
+/// flag and the key.
+#[test]
+fn bench_checks_the_simulation_initial_state() {
+    for (kernels, initial, needle) in [
+        ("sim_rk4", r#"{"Q":[1.0]}"#, r#"unknown key "Q""#),
+        ("sim_rk4", "[1.0]", "expected a JSON object"),
+        ("rnea", "not json", "not JSON"),
+        ("rnea", r#"{"Q":[1.0]}"#, r#"unknown key "Q""#),
+        (
+            "rnea",
+            r#"{"q":[1.0,2.0]}"#,
+            r#""q" must be an array of 1 finite numbers"#,
+        ),
+        (
+            "sim_rk4",
+            r#"{"v":[null]}"#,
+            r#""v" must be an array of 1 finite numbers"#,
+        ),
+        ("sim_rk4", r#"{"q":1.0}"#, r#""q" must be an array"#),
+    ] {
+        let args = [
+            "bench",
+            "--builtin",
+            "pendulum:1",
+            "--kernels",
+            kernels,
+            "--states",
+            "4",
+            "--repeats",
+            "1",
+            "--min-time",
+            "0.001",
+            "--sim-steps",
+            "10",
+            "--sim-initial",
+            initial,
+        ];
+        let (ok, err) = run_within(&args, 20);
+        assert!(
+            !ok && err.contains("--sim-initial") && err.contains(needle),
+            "{initial}: {err}"
+        );
+    }
+    let (v, out) = bench_json(&[
+        "--builtin",
+        "pendulum:1",
+        "--kernels",
+        "sim_rk4",
+        "--repeats",
+        "1",
+        "--sim-steps",
+        "10",
+        "--sim-initial",
+        r#"{"v":[2.0]}"#,
+    ]);
+    assert!(
+        v["sim_end"]["sim_rk4"]["q"][0].as_f64().unwrap() > 0.01,
+        "{out}"
+    );
+}

@@ -189,6 +189,7 @@ pub fn run(
     for m in std::iter::once(&model).chain(&full) {
         settings.check_memory(m)?;
     }
+    let initial = sim_settings.initial(&model)?;
     let (sim_kernels, only): (Vec<&String>, Vec<&String>) =
         only.iter().partition(|k| SIM_KERNELS.contains(&k.as_str()));
     let all: Vec<&str> = KERNELS
@@ -206,7 +207,6 @@ pub fn run(
         .iter()
         .map(|k| {
             let integrator = sim::integrator_of(k).expect("a simulation kernel");
-            let initial = sim_settings.initial(&model)?;
             sim::time_simulation(&model, integrator, &initial, sim_settings, settings)
                 .map(|t| (k.as_str(), t))
         })

@@ -28,8 +28,9 @@ pub struct SimSettings {
     /// Simulation kernels: the step, seconds.
     #[arg(long, value_name = "SECONDS", default_value_t = 1e-3)]
     pub sim_dt: f64,
-    /// Simulation kernels: the initial state, {"q": [...], "v": [...]} in the model's coordinate
-    /// order (default: the neutral configuration at rest).
+    /// Simulation kernels: the initial state, a JSON object {"q": [...], "v": [...]} in the
+    /// model's coordinate order, nq and nv finite numbers; either key may be left out (default:
+    /// the neutral configuration at rest). Checked even when no simulation kernel is timed.
     #[arg(long, value_name = "JSON")]
     pub sim_initial: Option<String>,
 }
@@ -57,16 +58,27 @@ impl SimSettings {
         Ok(())
     }
 
-    /// The initial state; the error names the flag and what is wrong with it.
+    /// The initial state; the error names the flag, and the key that is wrong.
     pub fn initial(&self, model: &Model) -> Result<State, String> {
         self.check()?;
         let mut state = State::at_rest(model, model.neutral());
         let Some(text) = &self.sim_initial else {
             return Ok(state);
         };
-        let value: Value = serde_json::from_str(text).map_err(|e| format!("--sim-initial: {e}"))?;
+        let value: Value =
+            serde_json::from_str(text).map_err(|e| format!("--sim-initial: not JSON: {e}"))?;
+        let Value::Object(fields) = value else {
+            return Err(format!(
+                "--sim-initial: expected a JSON object {{\"q\": [...], \"v\": [...]}}, got {text}"
+            ));
+        };
+        if let Some(key) = fields.keys().find(|k| !["q", "v"].contains(&k.as_str())) {
+            return Err(format!(
+                "--sim-initial: unknown key \"{key}\" (the keys are \"q\" and \"v\")"
+            ));
+        }
         for (key, target) in [("q", &mut state.q), ("v", &mut state.v)] {
-            let Some(given) = value.get(key) else {
+            let Some(given) = fields.get(key) else {
                 continue;
             };
             let numbers: Option<Vec<f64>> = given
