@@ -809,3 +809,22 @@ fn bench_checks_the_simulation_initial_state() {
         "{out}"
     );
 }
+
+/// The simulation kernels run on models with mimic joints (by CRBA, which takes them).
+#[test]
+fn bench_simulates_mimic_models() {
+    for kernel in ["sim_rk4", "sim_semi_implicit_euler"] {
+        let (v, out) = bench_json(&[
+            "--builtin",
+            "mimic_gripper",
+            "--kernels",
+            kernel,
+            "--repeats",
+            "1",
+            "--sim-steps",
+            "10",
+        ]);
+        assert!(v["ns_per_call"][kernel].as_f64().unwrap() > 0.0, "{out}");
+        assert!(v["sim_end"][kernel]["q"].is_array(), "{out}");
+    }
+}

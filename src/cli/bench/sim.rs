@@ -1,6 +1,6 @@
 //! The simulation kernels of `spatial_dynamics bench`: nanoseconds per step of the library's
-//! [`Simulator`] (forward dynamics by ABA, no passive forces, no contact, zero commanded
-//! efforts, gravity on), one kernel per integrator, timed over whole runs of `--sim-steps`
+//! [`Simulator`] (forward dynamics by ABA, by CRBA on models with mimic joints, no passive
+//! forces, no contact, zero commanded efforts, gravity on), one kernel per integrator, timed over whole runs of `--sim-steps`
 //! steps of `--sim-dt` from one initial state, nothing written on the way. The median repeat is
 //! reported, with the state the run ends in (`q`, and `v` in the joints' velocity coordinates:
 //! a floating joint's `[v_B; ω_B]`, both in the base frame), so another simulator's run of the
@@ -9,7 +9,7 @@
 use clap::Args;
 use serde_json::{json, Value};
 use spatial_dynamics_core::sim::{Integrator, SimConfig, Simulator, State};
-use spatial_dynamics_core::Model;
+use spatial_dynamics_core::{ForwardDynamicsMethod, Model};
 use std::hint::black_box;
 use std::time::Instant;
 
@@ -22,7 +22,8 @@ pub const MAX_SIM_STEPS: usize = 1_000_000_000;
 /// The run each simulation kernel times.
 #[derive(Args, Clone, Debug)]
 pub struct SimSettings {
-    /// Simulation kernels: steps per timed run, 1 to 1000000000.
+    /// Simulation kernels (forward dynamics by ABA, by CRBA on models with mimic joints): steps
+    /// per timed run, 1 to 1000000000.
     #[arg(long, default_value_t = 1000)]
     pub sim_steps: usize,
     /// Simulation kernels: the step, seconds.
@@ -38,6 +39,16 @@ pub struct SimSettings {
 /// The integrator a simulation kernel name stands for.
 pub fn integrator_of(kernel: &str) -> Option<Integrator> {
     kernel.strip_prefix("sim_")?.parse().ok()
+}
+
+/// The forward-dynamics method the simulation kernels use on `model`: ABA, or CRBA on a model
+/// with mimic joints, which ABA cannot take (as `simulate` chooses by default).
+pub fn method_for(model: &Model) -> ForwardDynamicsMethod {
+    if model.has_mimic() {
+        ForwardDynamicsMethod::Crba
+    } else {
+        ForwardDynamicsMethod::Aba
+    }
 }
 
 impl SimSettings {
@@ -127,6 +138,7 @@ pub fn time_simulation(
     timing.check()?;
     let config = SimConfig {
         integrator,
+        method: method_for(model),
         dt: settings.sim_dt,
         ..SimConfig::default()
     };
