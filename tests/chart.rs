@@ -316,3 +316,68 @@ fn bad_options_are_errors_naming_them() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The files of a staged run that did not end, or any file but the outputs.
+fn leftovers(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|name| name.starts_with('.'))
+        .collect()
+}
+
+/// A run that fails replaces none of the outputs and leaves nothing behind (the outputs are
+/// staged and moved into place together); a `--robot` that cannot be loaded fails before
+/// anything is timed or written.
+#[test]
+fn a_failed_run_changes_no_output() {
+    let dir = temp_dir("atomic");
+    let chart = |out: &Path, extra: &[&str]| {
+        let output = Command::new(BIN)
+            .args(["chart", "--out"])
+            .arg(out)
+            .args(["--quick", "--only", "timing"])
+            .args(extra)
+            .output()
+            .unwrap();
+        (
+            output.status.success(),
+            String::from_utf8_lossy(&output.stderr).into_owned(),
+        )
+    };
+    let (ok, err) = chart(&dir, &[]);
+    assert!(ok, "{err}");
+    assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
+    let svg = std::fs::read(dir.join("timing.svg")).unwrap();
+    let urdf = std::fs::read(dir.join("urdf/pendulum8.urdf")).unwrap();
+    std::fs::remove_file(dir.join("timing.csv")).unwrap();
+    std::fs::create_dir(dir.join("timing.csv")).unwrap();
+    let (ok, err) = chart(&dir, &[]);
+    assert!(!ok && err.contains("timing.csv"), "{err}");
+    assert_eq!(std::fs::read(dir.join("timing.svg")).unwrap(), svg);
+    assert_eq!(
+        std::fs::read(dir.join("urdf/pendulum8.urdf")).unwrap(),
+        urdf
+    );
+    assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
+
+    let fresh = dir.join("fresh");
+    let start = std::time::Instant::now();
+    let (ok, err) = chart(&fresh, &["--robot", "x=/nonexistent/x.urdf"]);
+    assert!(
+        !ok && err.contains("--robot x=/nonexistent/x.urdf"),
+        "{err}"
+    );
+    assert!(
+        !err.contains("chart timing:"),
+        "timed before the robot was loaded: {err}"
+    );
+    assert!(start.elapsed().as_secs() < 10);
+    assert!(!fresh.exists(), "the failed run left {}", fresh.display());
+    std::fs::create_dir(&fresh).unwrap();
+    let (ok, err) = chart(&fresh, &["--robot", "x=/nonexistent/x.urdf"]);
+    assert!(!ok, "{err}");
+    let left: Vec<_> = std::fs::read_dir(&fresh).unwrap().collect();
+    assert!(left.is_empty(), "{left:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -757,3 +757,172 @@ fn simulate_checks_its_arguments_before_writing() {
     assert_eq!(names.len(), 2, "{names:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Runs the program, which must end within `seconds` (it is killed otherwise and the test
+/// fails); whether it succeeded, and its standard error.
+fn run_within(args: &[&str], seconds: u64) -> (bool, String) {
+    use std::io::Read;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_spatial_dynamics"))
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(seconds);
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if std::time::Instant::now() > deadline {
+            child.kill().unwrap();
+            child.wait().unwrap();
+            panic!("{args:?} still running after {seconds} s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let mut err = String::new();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
+    (status.success(), err)
+}
+
+/// `bench` refuses, at once and naming the flag, settings past its limits: states whose memory
+/// passes 1 GiB (on the reduced model and on the full one timed beside it), more than a million
+/// repeats, repeats longer than an hour, simulation runs of more than 10⁹ steps.
+#[test]
+fn bench_refuses_settings_past_their_limits() {
+    let huge = "18446744073709551615";
+    // pendulum:1 holds 1 + 2·1 numbers a state, 96 bytes with the bookkeeping.
+    let most = (1usize << 30) / 96;
+    let just_over = (most + 1).to_string();
+    let cases: [(&[&str], String); 9] = [
+        (&["--states", huge], format!("--states {huge}")),
+        (&["--states", "100000000"], format!("at most {most} states")),
+        (
+            &["--states", just_over.as_str()],
+            format!("--states {just_over}"),
+        ),
+        (&["--repeats", huge], format!("--repeats {huge}")),
+        (&["--repeats", "1000001"], "--repeats 1000001".into()),
+        (&["--min-time", "1e300"], "--min-time".into()),
+        (&["--min-time", "3601"], "--min-time".into()),
+        (
+            &["--kernels", "sim_rk4", "--sim-steps", huge],
+            format!("--sim-steps {huge}"),
+        ),
+        (&["--sim-steps", "1000000001"], "--sim-steps".into()),
+    ];
+    for (flags, needle) in cases {
+        let args = [&["bench", "--builtin", "pendulum:1"], flags].concat();
+        let (ok, err) = run_within(&args, 20);
+        assert!(!ok && err.contains(&needle), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+    // The default arm's first three joints fit 5 000 000 states; the full arm, timed beside
+    // them, does not.
+    let (ok, err) = run_within(&["bench", "--tip", "link3", "--states", "5000000"], 20);
+    assert!(!ok && err.contains("--states 5000000"), "{err}");
+    // Within the limits it runs.
+    let (v, out) = bench_json(&[
+        "--builtin",
+        "pendulum:1",
+        "--kernels",
+        "rnea,rnea_rows,sim_rk4",
+        "--states",
+        "70",
+        "--repeats",
+        "3",
+        "--sim-steps",
+        "10",
+    ]);
+    for kernel in ["rnea", "rnea_rows", "sim_rk4"] {
+        assert!(v["ns_per_call"][kernel].as_f64().unwrap() > 0.0, "{out}");
+    }
+}
+
+/// `--sim-initial` is always checked, whether a simulation kernel is timed or not: a JSON
+/// object with no keys but "q" and "v", each an array of the model's length; an error names the
+/// flag and the key.
+#[test]
+fn bench_checks_the_simulation_initial_state() {
+    for (kernels, initial, needle) in [
+        ("sim_rk4", r#"{"Q":[1.0]}"#, r#"unknown key "Q""#),
+        ("sim_rk4", "[1.0]", "expected a JSON object"),
+        ("rnea", "not json", "not JSON"),
+        ("rnea", r#"{"Q":[1.0]}"#, r#"unknown key "Q""#),
+        (
+            "rnea",
+            r#"{"q":[1.0,2.0]}"#,
+            r#""q" must be an array of 1 finite numbers"#,
+        ),
+        (
+            "sim_rk4",
+            r#"{"v":[null]}"#,
+            r#""v" must be an array of 1 finite numbers"#,
+        ),
+        ("sim_rk4", r#"{"q":1.0}"#, r#""q" must be an array"#),
+    ] {
+        let args = [
+            "bench",
+            "--builtin",
+            "pendulum:1",
+            "--kernels",
+            kernels,
+            "--states",
+            "4",
+            "--repeats",
+            "1",
+            "--min-time",
+            "0.001",
+            "--sim-steps",
+            "10",
+            "--sim-initial",
+            initial,
+        ];
+        let (ok, err) = run_within(&args, 20);
+        assert!(
+            !ok && err.contains("--sim-initial") && err.contains(needle),
+            "{initial}: {err}"
+        );
+    }
+    let (v, out) = bench_json(&[
+        "--builtin",
+        "pendulum:1",
+        "--kernels",
+        "sim_rk4",
+        "--repeats",
+        "1",
+        "--sim-steps",
+        "10",
+        "--sim-initial",
+        r#"{"v":[2.0]}"#,
+    ]);
+    assert!(
+        v["sim_end"]["sim_rk4"]["q"][0].as_f64().unwrap() > 0.01,
+        "{out}"
+    );
+}
+
+/// The simulation kernels run on models with mimic joints (by CRBA, which takes them).
+#[test]
+fn bench_simulates_mimic_models() {
+    for kernel in ["sim_rk4", "sim_semi_implicit_euler"] {
+        let (v, out) = bench_json(&[
+            "--builtin",
+            "mimic_gripper",
+            "--kernels",
+            kernel,
+            "--repeats",
+            "1",
+            "--sim-steps",
+            "10",
+        ]);
+        assert!(v["ns_per_call"][kernel].as_f64().unwrap() > 0.0, "{out}");
+        assert!(v["sim_end"][kernel]["q"].is_array(), "{out}");
+    }
+}

@@ -34,16 +34,26 @@ use spatial_dynamics_core::{
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
+/// The most memory the random states may take (1 GiB): see [`Settings::check_memory`].
+pub const MAX_STATES_BYTES: usize = 1 << 30;
+
+/// The most timed repeats.
+pub const MAX_REPEATS: usize = 1_000_000;
+
+/// The longest minimum repeat, seconds (an hour).
+pub const MAX_MIN_TIME: f64 = 3600.0;
+
 /// How many states, how many repeats, how long each repeat lasts at least.
 #[derive(Args, Clone, Copy, Debug)]
 pub struct Settings {
-    /// Number of random states, generated before timing and cycled through.
+    /// Number of random states, generated before timing and cycled through: at least 1, and
+    /// their memory, (nq + 2·nv) × 8 bytes plus 72 bytes a state, at most 1 GiB.
     #[arg(long, default_value_t = 1024)]
     pub states: usize,
-    /// Number of timed repeats; the median is reported.
+    /// Number of timed repeats, 1 to 1000000; the median is reported.
     #[arg(long, default_value_t = 7)]
     pub repeats: usize,
-    /// Minimum duration of one repeat, seconds.
+    /// Minimum duration of one repeat, seconds: above 0, at most 3600.
     #[arg(long, value_name = "SECONDS", default_value_t = 0.2)]
     pub min_time: f64,
     /// Run the library's dispatched passes in the baseline instruction set (SSE2 on x86-64)
@@ -62,16 +72,55 @@ impl Settings {
         }
     }
 
-    /// The error names the flag that is out of range.
+    /// The limits that do not depend on the model; the error names the flag that is out of
+    /// range.
     pub fn check(&self) -> Result<(), String> {
-        if self.states == 0 || self.repeats == 0 {
-            return Err("--states and --repeats must be at least 1".into());
+        if self.states == 0 {
+            return Err("--states must be at least 1".into());
         }
-        if !(self.min_time.is_finite() && self.min_time > 0.0) {
-            return Err("--min-time must be a positive number of seconds".into());
+        if !(1..=MAX_REPEATS).contains(&self.repeats) {
+            return Err(format!(
+                "--repeats {}: must be 1 to {MAX_REPEATS}",
+                self.repeats
+            ));
+        }
+        if !(self.min_time.is_finite() && self.min_time > 0.0 && self.min_time <= MAX_MIN_TIME) {
+            return Err(format!(
+                "--min-time {:?}: must be a number of seconds above 0 and at most {MAX_MIN_TIME}",
+                self.min_time
+            ));
         }
         Ok(())
     }
+
+    /// [`Settings::check`], and that `model`'s states fit in [`MAX_STATES_BYTES`]: each holds
+    /// nq + 2·nv numbers and its [`State`] (three vectors' pointers, lengths and capacities).
+    pub fn check_memory(&self, model: &Model) -> Result<(), String> {
+        self.check()?;
+        let per_state = (model.nq() + 2 * model.nv()) * std::mem::size_of::<f64>()
+            + std::mem::size_of::<State>();
+        let most = MAX_STATES_BYTES / per_state;
+        if self.states > most {
+            return Err(format!(
+                "--states {}: the states of '{}' (nq = {}, nv = {}) take {per_state} bytes each, \
+                 and may take 1 GiB in all: at most {most} states",
+                self.states,
+                model.name(),
+                model.nq(),
+                model.nv()
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// An empty vector with room for `n` elements, or an error naming `what` when the memory cannot
+/// be had.
+fn try_with_capacity<T>(n: usize, what: &str) -> Result<Vec<T>, String> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n)
+        .map_err(|e| format!("{what}: cannot allocate room for {n}: {e}"))?;
+    Ok(v)
 }
 
 /// One random state: inputs for every kernel.
@@ -129,20 +178,20 @@ pub fn run(
     sim_settings: &SimSettings,
 ) -> Result<(), String> {
     settings.check()?;
+    sim_settings.check()?;
     let model = args.load()?;
+    // Every flag is checked against the models before anything is timed.
+    let full = if args.reduces() {
+        Some(args.without_reductions().load()?)
+    } else {
+        None
+    };
+    for m in std::iter::once(&model).chain(&full) {
+        settings.check_memory(m)?;
+    }
+    let initial = sim_settings.initial(&model)?;
     let (sim_kernels, only): (Vec<&String>, Vec<&String>) =
         only.iter().partition(|k| SIM_KERNELS.contains(&k.as_str()));
-    let sim_runs = sim_kernels
-        .iter()
-        .map(|k| {
-            let integrator = sim::integrator_of(k).expect("a simulation kernel");
-            sim::time_simulation(&model, integrator, sim_settings, settings)
-                .map(|t| (k.as_str(), t))
-        })
-        .collect::<Result<Vec<_>, String>>()?;
-    if only.is_empty() && !sim_runs.is_empty() {
-        return print_sim_only(&model, as_json, &sim_runs, settings);
-    }
     let all: Vec<&str> = KERNELS
         .iter()
         .chain(&KINEMATICS_KERNELS)
@@ -154,13 +203,24 @@ pub fn run(
     if let Some(unknown) = only.iter().find(|o| !all.contains(&o.as_str())) {
         return Err(format!("bench: unknown kernel '{unknown}'"));
     }
+    let sim_runs = sim_kernels
+        .iter()
+        .map(|k| {
+            let integrator = sim::integrator_of(k).expect("a simulation kernel");
+            sim::time_simulation(&model, integrator, &initial, sim_settings, settings)
+                .map(|t| (k.as_str(), t))
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    if only.is_empty() && !sim_runs.is_empty() {
+        return print_sim_only(&model, as_json, &sim_runs, settings);
+    }
     let times = time_kernels(&model, &all, settings)?;
-    let full = if args.reduces() {
-        let full = args.without_reductions().load()?;
-        let full_times = time_kernels(&full, &all, settings)?;
-        Some((full, full_times))
-    } else {
-        None
+    let full = match full {
+        Some(full) => {
+            let full_times = time_kernels(&full, &all, settings)?;
+            Some((full, full_times))
+        }
+        None => None,
     };
     // Forward dynamics may have no answer on a model whose kinematics still do (a massless
     // floating root): the choice is then reported as none, with the reason, beside the timings.
@@ -319,15 +379,14 @@ pub fn time_kernels(
     kernels: &[&str],
     settings: &Settings,
 ) -> Result<Vec<Option<f64>>, String> {
-    settings.check()?;
+    settings.check_memory(model)?;
     let mut rng = Rng::new(0x5eed);
-    let states: Vec<State> = (0..settings.states)
-        .map(|_| State {
-            q: random_q(model, &mut rng),
-            v: rng.vector(model.nv(), 1.0),
-            a_or_tau: rng.vector(model.nv(), 1.0),
-        })
-        .collect();
+    let mut states: Vec<State> = try_with_capacity(settings.states, "--states")?;
+    states.extend((0..settings.states).map(|_| State {
+        q: random_q(model, &mut rng),
+        v: rng.vector(model.nv(), 1.0),
+        a_or_tau: rng.vector(model.nv(), 1.0),
+    }));
     kernels
         .iter()
         .map(|&name| {
@@ -355,7 +414,7 @@ fn time_kernel(
     states: &[State],
     name: &str,
     settings: &Settings,
-) -> Result<Option<f64>, DynamicsError> {
+) -> Result<Option<f64>, String> {
     use ForwardDynamicsMethod::{Aba, Crba, RneaColumns};
     let mut ws = Workspace::new(model);
     ws.set_instruction_set(settings.instruction_set());
@@ -382,7 +441,7 @@ fn time_kernel(
         "fd_rnea_columns" => measure(states, settings, |s| fd(ws, s, RneaColumns)),
         "gravity" => measure(states, settings, |s| gravity(model, ws, &s.q).map(sink)),
         "frame_jacobian" => {
-            let frame = find_frame(model, deepest_link(model))?;
+            let frame = find_frame(model, deepest_link(model)).map_err(|e| e.to_string())?;
             let world = ReferenceFrame::World;
             measure(states, settings, |s| {
                 frame_jacobian(model, ws, &s.q, &frame, world).map(sink)
@@ -399,17 +458,21 @@ fn time_kernel(
         }),
         "rnea_rows" => {
             // Each block's rows contiguous, as `rnea_rows` reads them; ns per state.
-            let blocks: Vec<State> = states
-                .chunks(BATCH_ROWS)
-                .map(|rows| State {
-                    q: rows.iter().flat_map(|s| s.q.iter().copied()).collect(),
-                    v: rows.iter().flat_map(|s| s.v.iter().copied()).collect(),
-                    a_or_tau: rows
-                        .iter()
-                        .flat_map(|s| s.a_or_tau.iter().copied())
-                        .collect(),
-                })
-                .collect();
+            let mut blocks: Vec<State> =
+                try_with_capacity(states.len().div_ceil(BATCH_ROWS), "--states")?;
+            for rows in states.chunks(BATCH_ROWS) {
+                let gather = |field: fn(&State) -> &[f64]| -> Result<Vec<f64>, String> {
+                    let mut out =
+                        try_with_capacity(rows.len() * field(&rows[0]).len(), "--states")?;
+                    out.extend(rows.iter().flat_map(|s| field(s).iter().copied()));
+                    Ok(out)
+                };
+                blocks.push(State {
+                    q: gather(|s| &s.q)?,
+                    v: gather(|s| &s.v)?,
+                    a_or_tau: gather(|s| &s.a_or_tau)?,
+                });
+            }
             let mut tau = vec![0.0; BATCH_ROWS * model.nv()];
             let per_block = measure(&blocks, settings, |b| {
                 let tau = &mut tau[..b.v.len()];
@@ -431,13 +494,13 @@ fn measure(
     states: &[State],
     settings: &Settings,
     mut call: impl FnMut(&State) -> Result<(), DynamicsError>,
-) -> Result<Option<f64>, DynamicsError> {
+) -> Result<Option<f64>, String> {
     // One checked pass: every state must be accepted (ABA refuses mimic joints).
     for s in states {
         match call(s) {
             Ok(()) => {}
             Err(DynamicsError::Unsupported { .. }) => return Ok(None),
-            Err(e) => return Err(e),
+            Err(e) => return Err(e.to_string()),
         }
     }
     let mut pass = || {
@@ -450,19 +513,19 @@ fn measure(
     };
     // Warm-up (half a repeat's time), which also measures how many passes fill a repeat.
     let mut warm = Duration::ZERO;
-    let mut warm_passes = 0u32;
+    // Counted in u64: an hour's repeat holds more passes of one state than a u32 counts.
+    let mut warm_passes = 0u64;
     while warm.as_secs_f64() < settings.min_time / 2.0 || warm_passes == 0 {
         warm += pass();
         warm_passes += 1;
     }
-    let per_pass = (warm / warm_passes).as_secs_f64().max(1e-9);
-    let passes = ((settings.min_time / per_pass).ceil() as u32).max(1);
-    let mut samples: Vec<f64> = (0..settings.repeats)
-        .map(|_| {
-            let total: Duration = (0..passes).map(|_| pass()).sum();
-            total.as_nanos() as f64 / (f64::from(passes) * states.len() as f64)
-        })
-        .collect();
+    let per_pass = (warm.as_secs_f64() / warm_passes as f64).max(1e-9);
+    let passes = ((settings.min_time / per_pass).ceil() as u64).max(1);
+    let mut samples: Vec<f64> = try_with_capacity(settings.repeats, "--repeats")?;
+    samples.extend((0..settings.repeats).map(|_| {
+        let total: Duration = (0..passes).map(|_| pass()).sum();
+        total.as_nanos() as f64 / (passes as f64 * states.len() as f64)
+    }));
     samples.sort_by(f64::total_cmp);
     Ok(Some(samples[samples.len() / 2]))
 }

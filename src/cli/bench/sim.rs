@@ -1,6 +1,6 @@
 //! The simulation kernels of `spatial_dynamics bench`: nanoseconds per step of the library's
-//! [`Simulator`] (forward dynamics by ABA, no passive forces, no contact, zero commanded
-//! efforts, gravity on), one kernel per integrator, timed over whole runs of `--sim-steps`
+//! [`Simulator`] (forward dynamics by ABA, by CRBA on models with mimic joints, no passive
+//! forces, no contact, zero commanded efforts, gravity on), one kernel per integrator, timed over whole runs of `--sim-steps`
 //! steps of `--sim-dt` from one initial state, nothing written on the way. The median repeat is
 //! reported, with the state the run ends in (`q`, and `v` in the joints' velocity coordinates:
 //! a floating joint's `[v_B; ω_B]`, both in the base frame), so another simulator's run of the
@@ -9,24 +9,29 @@
 use clap::Args;
 use serde_json::{json, Value};
 use spatial_dynamics_core::sim::{Integrator, SimConfig, Simulator, State};
-use spatial_dynamics_core::Model;
+use spatial_dynamics_core::{ForwardDynamicsMethod, Model};
 use std::hint::black_box;
 use std::time::Instant;
 
 /// The simulation kernels; timed only when named in `--kernels`.
 pub const SIM_KERNELS: [&str; 2] = ["sim_rk4", "sim_semi_implicit_euler"];
 
+/// The most steps in one timed run.
+pub const MAX_SIM_STEPS: usize = 1_000_000_000;
+
 /// The run each simulation kernel times.
 #[derive(Args, Clone, Debug)]
 pub struct SimSettings {
-    /// Simulation kernels: steps per timed run.
+    /// Simulation kernels (forward dynamics by ABA, by CRBA on models with mimic joints): steps
+    /// per timed run, 1 to 1000000000.
     #[arg(long, default_value_t = 1000)]
     pub sim_steps: usize,
     /// Simulation kernels: the step, seconds.
     #[arg(long, value_name = "SECONDS", default_value_t = 1e-3)]
     pub sim_dt: f64,
-    /// Simulation kernels: the initial state, {"q": [...], "v": [...]} in the model's coordinate
-    /// order (default: the neutral configuration at rest).
+    /// Simulation kernels: the initial state, a JSON object {"q": [...], "v": [...]} in the
+    /// model's coordinate order, nq and nv finite numbers; either key may be left out (default:
+    /// the neutral configuration at rest). Checked even when no simulation kernel is timed.
     #[arg(long, value_name = "JSON")]
     pub sim_initial: Option<String>,
 }
@@ -36,25 +41,60 @@ pub fn integrator_of(kernel: &str) -> Option<Integrator> {
     kernel.strip_prefix("sim_")?.parse().ok()
 }
 
+/// The forward-dynamics method the simulation kernels use on `model`: ABA, or CRBA on a model
+/// with mimic joints, which ABA cannot take (as `simulate` chooses by default).
+pub fn method_for(model: &Model) -> ForwardDynamicsMethod {
+    if model.has_mimic() {
+        ForwardDynamicsMethod::Crba
+    } else {
+        ForwardDynamicsMethod::Aba
+    }
+}
+
 impl SimSettings {
-    /// The initial state; the error names the flag and what is wrong with it.
-    fn initial(&self, model: &Model) -> Result<State, String> {
-        if self.sim_steps == 0 || !(self.sim_dt.is_finite() && self.sim_dt > 0.0) {
-            return Err("--sim-steps must be at least 1 and --sim-dt a positive number".into());
+    /// The limits that do not depend on the model; the error names the flag.
+    pub fn check(&self) -> Result<(), String> {
+        if !(1..=MAX_SIM_STEPS).contains(&self.sim_steps) {
+            return Err(format!(
+                "--sim-steps {}: must be 1 to {MAX_SIM_STEPS}",
+                self.sim_steps
+            ));
         }
+        if !(self.sim_dt.is_finite() && self.sim_dt > 0.0) {
+            return Err(format!(
+                "--sim-dt {}: must be a positive number of seconds",
+                self.sim_dt
+            ));
+        }
+        Ok(())
+    }
+
+    /// The initial state; the error names the flag, and the key that is wrong.
+    pub fn initial(&self, model: &Model) -> Result<State, String> {
+        self.check()?;
         let mut state = State::at_rest(model, model.neutral());
         let Some(text) = &self.sim_initial else {
             return Ok(state);
         };
-        let value: Value = serde_json::from_str(text).map_err(|e| format!("--sim-initial: {e}"))?;
+        let value: Value =
+            serde_json::from_str(text).map_err(|e| format!("--sim-initial: not JSON: {e}"))?;
+        let Value::Object(fields) = value else {
+            return Err(format!(
+                "--sim-initial: expected a JSON object {{\"q\": [...], \"v\": [...]}}, got {text}"
+            ));
+        };
+        if let Some(key) = fields.keys().find(|k| !["q", "v"].contains(&k.as_str())) {
+            return Err(format!(
+                "--sim-initial: unknown key \"{key}\" (the keys are \"q\" and \"v\")"
+            ));
+        }
         for (key, target) in [("q", &mut state.q), ("v", &mut state.v)] {
-            let Some(given) = value.get(key) else {
+            let Some(given) = fields.get(key) else {
                 continue;
             };
             let numbers: Option<Vec<f64>> = given
                 .as_array()
-                .map(|a| a.iter().map(Value::as_f64).collect())
-                .unwrap_or(None);
+                .and_then(|a| a.iter().map(Value::as_f64).collect());
             match numbers {
                 Some(n) if n.len() == target.len() && n.iter().all(|x| x.is_finite()) => {
                     target.copy_from_slice(&n)
@@ -84,18 +124,21 @@ impl SimTiming {
     }
 }
 
-/// Times `integrator` on `model`: one untimed run (the end state, and the warm-up), then
-/// `repeats` timed runs from the same initial state; the median per step.
+/// Times `integrator` on `model` from `initial` (see [`SimSettings::initial`]): one untimed run
+/// (the end state, and the warm-up), then `repeats` timed runs from the same initial state; the
+/// median per step.
 pub fn time_simulation(
     model: &Model,
     integrator: Integrator,
+    initial: &State,
     settings: &SimSettings,
     timing: &super::Settings,
 ) -> Result<SimTiming, String> {
-    let repeats = timing.repeats;
-    let initial = settings.initial(model)?;
+    settings.check()?;
+    timing.check()?;
     let config = SimConfig {
         integrator,
+        method: method_for(model),
         dt: settings.sim_dt,
         ..SimConfig::default()
     };
@@ -104,7 +147,7 @@ pub fn time_simulation(
     sim.set_instruction_set(timing.instruction_set());
     let mut state = initial.clone();
     let mut run = |state: &mut State| -> Result<f64, String> {
-        state.clone_from(&initial);
+        state.clone_from(initial);
         sim.restart_energy_budget();
         let start = Instant::now();
         for _ in 0..settings.sim_steps {
@@ -115,9 +158,10 @@ pub fn time_simulation(
     };
     run(&mut state)?;
     let end = state.clone();
-    let mut samples = (0..repeats.max(1))
-        .map(|_| run(&mut state))
-        .collect::<Result<Vec<f64>, String>>()?;
+    let mut samples: Vec<f64> = super::try_with_capacity(timing.repeats, "--repeats")?;
+    for _ in 0..timing.repeats {
+        samples.push(run(&mut state)?);
+    }
     samples.sort_by(f64::total_cmp);
     Ok(SimTiming {
         ns_per_step: (samples[samples.len() / 2] * 10.0).round() / 10.0,
@@ -161,7 +205,8 @@ mod tests {
             min_time: 1e-3,
             baseline_instructions: false,
         };
-        let t = time_simulation(&model, Integrator::Rk4, &settings, &timing).unwrap();
+        let initial = settings.initial(&model).unwrap();
+        let t = time_simulation(&model, Integrator::Rk4, &initial, &settings, &timing).unwrap();
         assert!(t.ns_per_step > 0.0);
         let expected = 0.3 - 0.5 * 1.5 * 9.81 * 0.3f64.sin() * 0.01;
         assert!((t.end.q[0] - expected).abs() < 2e-3, "{}", t.end.q[0]);
@@ -170,9 +215,7 @@ mod tests {
             sim_initial: Some(r#"{"q": [0.3, 1.0]}"#.into()),
             ..settings
         };
-        let err = time_simulation(&model, Integrator::Rk4, &bad, &timing)
-            .err()
-            .unwrap();
+        let err = bad.initial(&model).err().unwrap();
         assert!(err.contains("\"q\" must be an array of 1"), "{err}");
     }
 }

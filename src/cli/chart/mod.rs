@@ -77,35 +77,181 @@ pub fn run(args: &ChartArgs) -> Result<(), String> {
             return Err(format!("--pinocchio-bench {}: no such file", bin.display()));
         }
     }
-    std::fs::create_dir_all(out).map_err(|e| format!("--out {}: {e}", out.display()))?;
+    // Every --robot is loaded before anything is timed or written.
+    let robots = robots
+        .into_iter()
+        .map(|robot| robot.load().map(|model| (robot, model)))
+        .collect::<Result<Vec<_>, _>>()?;
     let wanted = |name: &str| args.only.is_empty() || args.only.iter().any(|o| o == name);
-    for name in CHARTS.into_iter().filter(|n| wanted(n)) {
-        let start = Instant::now();
-        let (figure, table) = match name {
-            "timing" => timing::chart(out, &robots, args.pinocchio_bench.as_deref(), args.quick)?,
-            "accuracy" => accuracy::chart(args.quick)?,
-            _ => work_precision::chart(args.quick)?,
-        };
-        let svg_path = out.join(format!("{name}.svg"));
-        write_file(&svg_path, &figure.to_svg())?;
-        let csv_path = out.join(format!("{name}.csv"));
-        write_file(&csv_path, &table.to_csv())?;
-        println!(
-            "{name}: wrote {} and {} ({} rows) in {:.1} s",
-            svg_path.display(),
-            csv_path.display(),
-            table.rows.len(),
-            start.elapsed().as_secs_f64()
-        );
-        for note in &figure.notes {
-            println!("  {note}");
+    let charts: Vec<&str> = CHARTS.into_iter().filter(|n| wanted(n)).collect();
+    let mut outputs: Vec<PathBuf> = Vec::new();
+    for name in &charts {
+        outputs.push(format!("{name}.svg").into());
+        outputs.push(format!("{name}.csv").into());
+        if *name == "timing" {
+            outputs.extend(timing::urdf_outputs(args.quick));
         }
+    }
+    for rel in &outputs {
+        check_destination(out, rel)?;
+    }
+    let made_out = !out.exists();
+    std::fs::create_dir_all(out).map_err(|e| format!("--out {}: {e}", out.display()))?;
+    let result = make_charts(out, &charts, &robots, args);
+    if result.is_err() && made_out {
+        // Only removes the directory when it is empty, as this run left it.
+        let _ = std::fs::remove_dir(out);
+    }
+    for line in result? {
+        println!("{line}");
     }
     Ok(())
 }
 
-fn write_file(path: &Path, text: &str) -> Result<(), String> {
-    std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
+/// Draws `charts` into a [`Staging`] directory in `out` and moves them into place once all
+/// succeeded; the lines to print.
+fn make_charts(
+    out: &Path,
+    charts: &[&str],
+    robots: &[(timing::Robot, spatial_dynamics_core::Model)],
+    args: &ChartArgs,
+) -> Result<Vec<String>, String> {
+    let mut staging = Staging::new(out)?;
+    let mut report = Vec::new();
+    for name in charts {
+        let start = Instant::now();
+        let (figure, table) = match *name {
+            "timing" => timing::chart(
+                &mut staging,
+                robots,
+                args.pinocchio_bench.as_deref(),
+                args.quick,
+            )?,
+            "accuracy" => accuracy::chart(args.quick)?,
+            _ => work_precision::chart(args.quick)?,
+        };
+        let svg = PathBuf::from(format!("{name}.svg"));
+        staging.write(&svg, &figure.to_svg())?;
+        let csv = PathBuf::from(format!("{name}.csv"));
+        staging.write(&csv, &table.to_csv())?;
+        report.push(format!(
+            "{name}: wrote {} and {} ({} rows) in {:.1} s",
+            out.join(svg).display(),
+            out.join(csv).display(),
+            table.rows.len(),
+            start.elapsed().as_secs_f64()
+        ));
+        report.extend(figure.notes.iter().map(|note| format!("  {note}")));
+    }
+    staging.commit()?;
+    Ok(report)
+}
+
+/// `out/rel` can be written by a rename: neither it nor a directory on the way to it is anything
+/// but what it must be (a file, or a directory, or missing).
+fn check_destination(out: &Path, rel: &Path) -> Result<(), String> {
+    let dest = out.join(rel);
+    if dest.is_dir() {
+        return Err(format!("{}: is a directory", dest.display()));
+    }
+    let mut dir = dest.parent();
+    while let Some(d) = dir.filter(|d| d.starts_with(out) && *d != out) {
+        if d.exists() && !d.is_dir() {
+            return Err(format!("{}: not a directory", d.display()));
+        }
+        dir = d.parent();
+    }
+    Ok(())
+}
+
+/// The outputs of one run, written into a hidden directory inside the output directory (the
+/// same file system, so a rename moves them) and moved into place together by
+/// [`Staging::commit`]; dropped uncommitted, it removes what it wrote.
+pub struct Staging {
+    out: PathBuf,
+    dir: PathBuf,
+    /// The files written, relative to `dir` and to `out` alike.
+    files: Vec<PathBuf>,
+}
+
+impl Staging {
+    fn new(out: &Path) -> Result<Staging, String> {
+        let dir = out.join(format!(".chart-{}.tmp", std::process::id()));
+        // A directory of this name is a leftover of a killed run with the same process id.
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        Ok(Staging {
+            out: out.to_path_buf(),
+            dir,
+            files: Vec::new(),
+        })
+    }
+
+    /// Writes `text` to the staged copy of `out/rel`; the path written.
+    pub fn write(&mut self, rel: &Path, text: &str) -> Result<PathBuf, String> {
+        let path = self.dir.join(rel);
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).map_err(|e| format!("{}: {e}", parent.display()))?;
+        }
+        std::fs::write(&path, text)
+            .map_err(|e| format!("{}: {e}", self.out.join(rel).display()))?;
+        if !self.files.iter().any(|f| f == rel) {
+            self.files.push(rel.to_path_buf());
+        }
+        Ok(path)
+    }
+
+    /// Renames every staged file over its destination. A file already there is first moved
+    /// aside, so that when one rename fails the earlier ones are undone and every destination
+    /// is as it was.
+    fn commit(self) -> Result<(), String> {
+        for rel in &self.files {
+            check_destination(&self.out, rel)?;
+        }
+        let old = self.dir.join(".old");
+        let mut done: Vec<(&PathBuf, bool)> = Vec::new();
+        let mut result = Ok(());
+        for rel in &self.files {
+            let (staged, dest, aside) = (self.dir.join(rel), self.out.join(rel), old.join(rel));
+            let had_old = dest.symlink_metadata().is_ok();
+            let step = || -> std::io::Result<()> {
+                if let Some(parent) = dest.parent() {
+                    std::fs::create_dir_all(parent)?;
+                }
+                if had_old {
+                    std::fs::create_dir_all(aside.parent().unwrap_or(&old))?;
+                    std::fs::rename(&dest, &aside)?;
+                }
+                std::fs::rename(&staged, &dest)
+            };
+            if let Err(e) = step() {
+                if had_old && aside.symlink_metadata().is_ok() {
+                    let _ = std::fs::rename(&aside, &dest);
+                }
+                result = Err(format!("{}: {e}", dest.display()));
+                break;
+            }
+            done.push((rel, had_old));
+        }
+        if result.is_err() {
+            for (rel, had_old) in done.into_iter().rev() {
+                let dest = self.out.join(rel);
+                let _ = if had_old {
+                    std::fs::rename(old.join(rel), &dest)
+                } else {
+                    std::fs::remove_file(&dest)
+                };
+            }
+        }
+        // `self` is dropped here, which removes the staging directory and the old files.
+        result
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
 }
 
 /// Rows of text cells under a header; written as CSV (cells with a comma or quote quoted).

@@ -11,7 +11,7 @@
 //! Reference slopes O(n), O(n²), O(n³) pass through our time at the longest chain.
 
 use super::svg::{Figure, Line, Marker, Panel, Series, Style, COLORS};
-use super::{log_slope, Table};
+use super::{log_slope, Staging, Table};
 use crate::cli::bench::{self, Settings, KERNELS};
 use serde_json::Value;
 use spatial_dynamics_core::model::examples;
@@ -48,6 +48,39 @@ impl FromStr for Robot {
     }
 }
 
+impl Robot {
+    /// The model the timing chart times (mimic joints independent); the error names the
+    /// `--robot`.
+    pub fn load(&self) -> Result<Model, String> {
+        let options = ModelOptions {
+            floating_base: self.floating,
+            ignore_mimic: true,
+            ..ModelOptions::default()
+        };
+        let model = urdf::model_from_file(&self.path, &options)
+            .map_err(|e| format!("--robot {}={}: {e}", self.name, self.path.display()))?;
+        settings(model.nv(), false)
+            .check_memory(&model)
+            .map_err(|e| format!("--robot {}: {e}", self.name))?;
+        Ok(model)
+    }
+}
+
+/// The chain lengths timed: 1, 2, 4, …, 256 links (…, 8 with `quick`).
+fn chain_lengths(quick: bool) -> impl Iterator<Item = usize> {
+    let max_exp = if quick { 3 } else { 8 };
+    (0..=max_exp).map(|e| 1usize << e)
+}
+
+/// The chain URDFs the chart writes, relative to the output directory.
+pub fn urdf_outputs(quick: bool) -> Vec<PathBuf> {
+    chain_lengths(quick).map(chain_urdf).collect()
+}
+
+fn chain_urdf(n: usize) -> PathBuf {
+    Path::new("urdf").join(format!("pendulum{n}.urdf"))
+}
+
 /// One model's times: ours and Pinocchio's, ns per call per kernel (in [`KERNELS`] order).
 struct Timed {
     name: String,
@@ -76,48 +109,43 @@ fn settings(nv: usize, quick: bool) -> Settings {
     }
 }
 
+/// The chart and its table; the chain URDFs are written through `staging` (Pinocchio's bench
+/// reads them from there), `robots` are the `--robot`s, already loaded by [`Robot::load`].
 pub fn chart(
-    out: &Path,
-    robots: &[Robot],
+    staging: &mut Staging,
+    robots: &[(Robot, Model)],
     pinocchio: Option<&Path>,
     quick: bool,
 ) -> Result<(Figure, Table), String> {
-    let urdf_dir = out.join("urdf");
-    std::fs::create_dir_all(&urdf_dir).map_err(|e| format!("{}: {e}", urdf_dir.display()))?;
-    let max_exp = if quick { 3 } else { 8 };
     let mut timed = Vec::new();
-    for n in (0..=max_exp).map(|e| 1usize << e) {
-        let path = urdf_dir.join(format!("pendulum{n}.urdf"));
-        std::fs::write(&path, examples::pendulum_urdf(n, 1.0, 1.0))
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+    for n in chain_lengths(quick) {
+        let text = examples::pendulum_urdf(n, 1.0, 1.0);
+        let path = staging.write(&chain_urdf(n), &text)?;
+        let name = format!("pendulum{n}");
+        let model = urdf::model_from_str(&text, &ModelOptions::default())
+            .map_err(|e| format!("{name}: {e}"))?;
         let spec = Robot {
-            name: format!("pendulum{n}"),
+            name,
             path,
             floating: false,
         };
-        timed.push(time_model(&spec, true, pinocchio, quick)?);
+        timed.push(time_model(&spec, &model, true, pinocchio, quick)?);
     }
-    for robot in robots {
-        timed.push(time_model(robot, false, pinocchio, quick)?);
+    for (robot, model) in robots {
+        timed.push(time_model(robot, model, false, pinocchio, quick)?);
     }
     Ok((figure(&timed, pinocchio.is_some()), table(&timed)))
 }
 
 fn time_model(
     spec: &Robot,
+    model: &Model,
     chain: bool,
     pinocchio: Option<&Path>,
     quick: bool,
 ) -> Result<Timed, String> {
-    let options = ModelOptions {
-        floating_base: spec.floating,
-        ignore_mimic: true,
-        ..ModelOptions::default()
-    };
-    let model: Model =
-        urdf::model_from_file(&spec.path, &options).map_err(|e| format!("{}: {e}", spec.name))?;
     let settings = settings(model.nv(), quick);
-    let ours = bench::time_kernels(&model, &KERNELS, &settings)
+    let ours = bench::time_kernels(model, &KERNELS, &settings)
         .map_err(|e| format!("{}: {e}", spec.name))?;
     let pinocchio = pinocchio
         .map(|bin| run_pinocchio(bin, spec, &settings, model.nv()))
