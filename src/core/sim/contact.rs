@@ -108,7 +108,10 @@ pub(crate) struct Contacts {
     /// `(body, point in the body frame)` per contact point.
     points: Vec<(usize, Vector3)>,
     wrenches: Vec<Force>,
-    /// Deepest penetration seen so far (m).
+    /// Deepest penetration at the latest evaluation (m), a state the step may not keep (an RK
+    /// stage, a Newton probe) until [`Contacts::keep_penetration`] says it is one it keeps.
+    latest_penetration: f64,
+    /// Deepest penetration of the states kept (m).
     pub max_penetration: f64,
 }
 
@@ -135,8 +138,14 @@ impl Contacts {
             ground: ground.clone(),
             points,
             wrenches: vec![Force::zero(); model.nbodies()],
+            latest_penetration: 0.0,
             max_penetration: 0.0,
         })
+    }
+
+    /// The latest evaluation was at a state of the trajectory: its penetration counts.
+    pub(crate) fn keep_penetration(&mut self) {
+        self.max_penetration = self.max_penetration.max(self.latest_penetration);
     }
 
     /// True when there is nothing to compute.
@@ -153,6 +162,7 @@ impl Contacts {
         v: &[f64],
     ) -> Result<&[Force], DynamicsError> {
         self.wrenches.iter_mut().for_each(|w| *w = Force::zero());
+        self.latest_penetration = 0.0;
         body_motion(model, ws, q, v)?;
         let g = &self.ground;
         for &(body, p) in &self.points {
@@ -162,7 +172,7 @@ impl Contacts {
             if depth <= 0.0 {
                 continue;
             }
-            self.max_penetration = self.max_penetration.max(depth);
+            self.latest_penetration = self.latest_penetration.max(depth);
             let twist = ws.body_velocity(body);
             let velocity = x.rot.tr_mul(&(twist.lin + twist.ang.cross(&p)));
             let normal = (g.stiffness * depth - g.damping * velocity.z).max(0.0);

@@ -235,6 +235,8 @@ fn implicit_euler(
         }
         let residual = norm.sqrt() / (1.0 + v_new.iter().map(|x| x * x).sum::<f64>().sqrt());
         if residual <= 1e-12 {
+            // Evaluated at the step's end, which the step keeps.
+            eval.at_trajectory_state();
             break;
         }
         if iteration == MAX_NEWTON_ITERATIONS {

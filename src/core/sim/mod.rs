@@ -171,6 +171,15 @@ impl Evaluator {
         out.copy_from_slice(a);
         Ok(())
     }
+
+    /// The latest [`acceleration`](Self::acceleration) was at a state of the trajectory (a
+    /// step's start, or implicit Euler's solved end), not a trial one: its contact penetration
+    /// counts towards [`Simulator::max_penetration`].
+    pub(crate) fn at_trajectory_state(&mut self) {
+        if let Some(c) = &mut self.contacts {
+            c.keep_penetration();
+        }
+    }
 }
 
 /// Per-step scratch vectors of the integrators.
@@ -251,7 +260,9 @@ impl Simulator {
         self.guard.restart();
     }
 
-    /// Deepest ground penetration of any contact point so far (m).
+    /// Deepest ground penetration of any contact point so far (m), over the states of the
+    /// trajectory the simulator evaluated: every step's start (implicit Euler: every step's
+    /// end), not the trial states within a step (Runge–Kutta stages, Newton iterates).
     pub fn max_penetration(&self) -> f64 {
         self.eval
             .contacts
@@ -311,6 +322,9 @@ impl Simulator {
                 state,
                 tau_cmd,
             );
+            if matches!(evaluated, Ok(true)) {
+                self.eval.at_trajectory_state();
+            }
             if self.guard.due() {
                 let evaluated = matches!(evaluated, Ok(true));
                 let (kinetic, potential) = self.energy_at_start(model, state, evaluated)?;
