@@ -8,8 +8,9 @@ use spatial_dynamics_core::requests::answer_line;
 use spatial_dynamics_core::Workspace;
 use std::io::{BufRead, Read, Write};
 
-/// The longest request line (16 MiB: four vectors of 20,000 coordinates in full precision
-/// take about 2 MiB). A longer one is answered with an error and skipped, never held whole.
+/// The longest request line: 16 MiB, far above what any model within the workspace budget
+/// needs (four vectors of 5,000 coordinates in full precision take about 0.5 MiB). A longer
+/// line is answered with an error and skipped, never held whole.
 const MAX_LINE: usize = 16 << 20;
 
 /// Runs the request loop until stdin closes. Blank lines are skipped, unanswered.
