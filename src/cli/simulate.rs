@@ -193,6 +193,12 @@ pub fn run(model_args: &ModelArgs, args: &SimulateArgs) -> Result<(), String> {
             sim.clamped()
         );
     }
+    if sim.halved_steps() > 0 {
+        eprintln!(
+            "spatial_dynamics: implicit Euler halved {} steps whose Newton iterations did not converge",
+            sim.halved_steps()
+        );
+    }
     Ok(())
 }
 

@@ -12,7 +12,9 @@
 //! ([`first_evaluation`]), the rest of the step follows ([`advance`]).
 //!
 //! The implicit scheme's Newton matrix `I − h ∂a/∂v − h² ∂a/∂q` is built by finite differences
-//! (2n extra forward-dynamics calls per iteration), at most 4 iterations.
+//! (n extra forward-dynamics calls per iteration); each Newton step is shortened until the
+//! residual falls, and a step whose iterations do not converge is taken as two half steps
+//! ([`implicit_euler`]).
 
 // The schemes index stage vectors the way the formulas do.
 #![allow(clippy::needless_range_loop)]
@@ -204,14 +206,20 @@ fn dexp_inv_in_place(configuration: &Configuration, dir: &[f64], c: f64, k: &mut
     }
 }
 
-/// Newton iterations implicit Euler takes at most before it gives up on a step.
+/// Newton iterations implicit Euler takes at most on one step before it halves it.
 pub(super) const MAX_NEWTON_ITERATIONS: usize = 20;
 
-/// Backward Euler with Newton iterations on `v'`:
-/// `r(v') = v' − v − h a(q ⊕ h v', v') = 0`, `J = I − h ∂a/∂v − h² ∂a/∂q` (by differencing `r`),
-/// until `|r| ≤ 10⁻¹² (1 + |v'|)`. A step whose iterations do not get there in
-/// [`MAX_NEWTON_ITERATIONS`] is not taken ([`StepError::NotConverged`]): it would not be a
-/// backward-Euler step.
+/// How many times implicit Euler halves a step whose Newton iterations do not converge: the
+/// shortest step it takes is `h / 2¹⁰`.
+pub(super) const MAX_HALVINGS: u32 = 10;
+
+/// Backward Euler, `v' = v + h a(q ⊕ h v', v')`, `q' = q ⊕ h v'`, over a step of `h`. A step
+/// whose Newton iterations ([`backward_euler_step`]) do not converge is taken as two backward
+/// Euler steps of `h/2` one after the other, each halved again in the same way, down to
+/// `h / 2^MAX_HALVINGS`: every state it leaves solves the backward-Euler equation of the
+/// (sub-)step that reached it. Past that the step is not taken ([`StepError::NotConverged`]).
+/// Penalty contacts switch on and off within a step, where Newton's method on the whole step
+/// can cycle; over shorter steps the contact force is smooth again.
 fn implicit_euler(
     eval: &mut Evaluator,
     s: &mut Scratch,
@@ -220,51 +228,137 @@ fn implicit_euler(
     tau: &[f64],
     h: f64,
 ) -> Result<(), StepError> {
-    let n = state.v.len();
-    let [v_new, ..] = &mut s.k_v;
-    let [a_new, ..] = &mut s.k_a;
-    v_new.copy_from_slice(&state.v);
-    for iteration in 0.. {
-        s.configuration
-            .integrate(&state.q, v_new, h, &mut s.q_stage)?;
-        eval.acceleration(model, &s.q_stage, v_new, tau, a_new)?;
-        let mut norm = 0.0;
-        for i in 0..n {
-            s.residual[i] = v_new[i] - state.v[i] - h * a_new[i];
-            norm += s.residual[i] * s.residual[i];
+    halving(eval, s, model, state, tau, h, 0)
+}
+
+fn halving(
+    eval: &mut Evaluator,
+    s: &mut Scratch,
+    model: &Model,
+    state: &mut State,
+    tau: &[f64],
+    h: f64,
+    depth: u32,
+) -> Result<(), StepError> {
+    match backward_euler_step(eval, s, model, state, tau, h) {
+        Err(StepError::NotConverged { .. }) if depth < MAX_HALVINGS => {
+            s.halved += 1;
+            halving(eval, s, model, state, tau, h / 2.0, depth + 1)?;
+            halving(eval, s, model, state, tau, h / 2.0, depth + 1)
         }
-        let residual = norm.sqrt() / (1.0 + v_new.iter().map(|x| x * x).sum::<f64>().sqrt());
-        if residual <= 1e-12 {
+        result => result,
+    }
+}
+
+/// One backward-Euler step by Newton's method on `v'`:
+/// `r(v') = v' − v − h a(q ⊕ h v', v') = 0`, `J = I − h ∂a/∂v − h² ∂a/∂q` (by differencing `r`),
+/// until `|r| ≤ 10⁻¹² (1 + |v'|)`. Each Newton step `Δ = J⁻¹ r` is shortened, `v' ← v' − λ Δ`
+/// with `λ = 1, ½, ¼, …, 2⁻⁸`, until `|r|` falls (Armijo's test, `|r_new| ≤ (1 − 10⁻⁴ λ) |r|`).
+/// A step whose iterations do not get there in [`MAX_NEWTON_ITERATIONS`], or whose residual no
+/// shortened step lowers, leaves `state` as it was ([`StepError::NotConverged`]).
+fn backward_euler_step(
+    eval: &mut Evaluator,
+    s: &mut Scratch,
+    model: &Model,
+    state: &mut State,
+    tau: &[f64],
+    h: f64,
+) -> Result<(), StepError> {
+    // v' in k_v[0], a trial v' in k_v[1], a(q ⊕ h v', v') in k_a[0], the Newton step in a_probe.
+    let n = state.v.len();
+    s.k_v[0].copy_from_slice(&state.v);
+    let mut norm = residual_at(eval, s, model, state, tau, h, 0)?;
+    for iteration in 0.. {
+        let scale = 1.0 + s.k_v[0].iter().map(|x| x * x).sum::<f64>().sqrt();
+        if norm <= 1e-12 * scale {
             // Evaluated at the step's end, which the step keeps.
             eval.at_trajectory_state();
             break;
         }
+        let not_converged = StepError::NotConverged {
+            residual: norm / scale,
+        };
         if iteration == MAX_NEWTON_ITERATIONS {
-            return Err(StepError::NotConverged { residual });
+            return Err(not_converged);
         }
-        for j in 0..n {
-            let eps = 1e-7 * (1.0 + v_new[j].abs());
-            v_new[j] += eps;
-            s.configuration
-                .integrate(&state.q, v_new, h, &mut s.q_probe)?;
-            let result = eval.acceleration(model, &s.q_probe, v_new, tau, &mut s.a_probe);
-            v_new[j] -= eps;
-            result?;
-            for i in 0..n {
-                s.jacobian[(i, j)] =
-                    if i == j { 1.0 } else { 0.0 } - h * (s.a_probe[i] - a_new[i]) / eps;
-            }
-        }
+        newton_matrix(eval, s, model, state, tau, h)?;
         solve_in_place(&mut s.jacobian, &mut s.residual);
-        for i in 0..n {
-            v_new[i] -= s.residual[i];
+        s.a_probe.copy_from_slice(s.residual.as_slice());
+        let mut lambda = 1.0;
+        loop {
+            for i in 0..n {
+                s.k_v[1][i] = s.k_v[0][i] - lambda * s.a_probe[i];
+            }
+            let trial = residual_at(eval, s, model, state, tau, h, 1)?;
+            if trial <= (1.0 - 1e-4 * lambda) * norm {
+                norm = trial;
+                break;
+            }
+            if lambda < 1.0 / 256.0 {
+                return Err(not_converged);
+            }
+            lambda *= 0.5;
         }
+        s.k_v.swap(0, 1);
     }
-    state.v.copy_from_slice(v_new);
+    state.v.copy_from_slice(&s.k_v[0]);
     s.configuration
         .integrate_in_place(&mut state.q, &state.v, h)?;
     Ok(())
 }
+
+/// `|r(v')|`, `r(v') = v' − v − h a(q ⊕ h v', v')`, at `v' = s.k_v[slot]`: `r` into
+/// `s.residual`, `a` into `s.k_a[0]`.
+fn residual_at(
+    eval: &mut Evaluator,
+    s: &mut Scratch,
+    model: &Model,
+    state: &State,
+    tau: &[f64],
+    h: f64,
+    slot: usize,
+) -> Result<f64, DynamicsError> {
+    let v_new = &s.k_v[slot];
+    s.configuration
+        .integrate(&state.q, v_new, h, &mut s.q_stage)?;
+    eval.acceleration(model, &s.q_stage, v_new, tau, &mut s.k_a[0])?;
+    let mut norm = 0.0;
+    for i in 0..v_new.len() {
+        s.residual[i] = v_new[i] - state.v[i] - h * s.k_a[0][i];
+        norm += s.residual[i] * s.residual[i];
+    }
+    Ok(norm.sqrt())
+}
+
+/// `J = ∂r/∂v' = I − h ∂a/∂v − h² ∂a/∂q` at `v' = s.k_v[0]` into `s.jacobian`, column by
+/// column by forward differences of `a` (`s.k_a[0]` holds `a` at `v'`).
+fn newton_matrix(
+    eval: &mut Evaluator,
+    s: &mut Scratch,
+    model: &Model,
+    state: &State,
+    tau: &[f64],
+    h: f64,
+) -> Result<(), DynamicsError> {
+    let n = state.v.len();
+    for j in 0..n {
+        let at = s.k_v[0][j];
+        s.k_v[0][j] = at + 1e-7 * (1.0 + at.abs());
+        let eps = s.k_v[0][j] - at;
+        let probed = s
+            .configuration
+            .integrate(&state.q, &s.k_v[0], h, &mut s.q_probe)
+            .and_then(|()| eval.acceleration(model, &s.q_probe, &s.k_v[0], tau, &mut s.a_probe));
+        s.k_v[0][j] = at;
+        probed?;
+        for i in 0..n {
+            s.jacobian[(i, j)] =
+                if i == j { 1.0 } else { 0.0 } - h * (s.a_probe[i] - s.k_a[0][i]) / eps;
+        }
+    }
+    Ok(())
+}
+
 /// Solves `A x = b` in place by Gaussian elimination with partial pivoting (`b` becomes `x`).
 fn solve_in_place(a: &mut nalgebra::DMatrix<f64>, b: &mut nalgebra::DVector<f64>) {
     let n = b.len();

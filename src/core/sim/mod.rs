@@ -91,8 +91,8 @@ pub enum SimError {
     NonFinite { t: f64, coordinate: String },
     /// The energy grew beyond what the initial energy and the work of the commands allow.
     EnergyBlowUp { t: f64, energy: f64, bound: f64 },
-    /// Implicit Euler's Newton iterations did not converge on the step from time `t`
-    /// (`residual`: relative, at the last iterate).
+    /// Implicit Euler's Newton iterations did not converge on the step from time `t`, even
+    /// halved `MAX_HALVINGS` times (`residual`: relative, at the last iterate of the last try).
     NotConverged { t: f64, residual: f64 },
 }
 
@@ -103,7 +103,8 @@ impl fmt::Display for SimError {
             SimError::NonFinite { t, coordinate } => write!(f, "at t = {t:.6} s: the state of '{coordinate}' is no longer finite"),
             SimError::NotConverged { t, residual } => write!(
                 f,
-                "at t = {t:.6} s: implicit Euler's Newton iterations did not converge (relative residual {residual:.1e} after {} iterations): take a smaller step",
+                "at t = {t:.6} s: implicit Euler's Newton iterations did not converge on this step even halved {} times (relative residual {residual:.1e} after at most {} iterations): take a smaller step",
+                integrator::MAX_HALVINGS,
                 integrator::MAX_NEWTON_ITERATIONS
             ),
             SimError::EnergyBlowUp { t, energy, bound } => write!(
@@ -196,6 +197,8 @@ pub(crate) struct Scratch {
     residual: DVector<f64>,
     q_probe: Vec<f64>,
     a_probe: Vec<f64>,
+    /// Implicit Euler: how many steps (or halves of steps) were halved so far.
+    halved: u64,
 }
 
 /// A simulator for one model and configuration; [`step`](Self::step) allocates nothing.
@@ -241,6 +244,7 @@ impl Simulator {
                 residual: DVector::zeros(nv),
                 q_probe: vec![0.0; nq],
                 a_probe: vec![0.0; nv],
+                halved: 0,
             },
             config,
             guard: EnergyGuard::default(),
@@ -273,6 +277,12 @@ impl Simulator {
     /// Runs the dispatched passes in `set` ([`Workspace::set_instruction_set`]).
     pub fn set_instruction_set(&mut self, set: InstructionSet) {
         self.eval.ws.set_instruction_set(set);
+    }
+
+    /// How many times implicit Euler halved a step (or a half step) whose Newton iterations
+    /// did not converge, so far ([`Integrator::ImplicitEuler`]).
+    pub fn halved_steps(&self) -> u64 {
+        self.scratch.halved
     }
 
     /// How many effort evaluations were clamped to their limits so far.

@@ -1,43 +1,11 @@
 //! Ground contact: the handout's lamp rests on the plane with the static penetration a spring
 //! model predicts, and jumps and lands without sinking deeper than a stated depth.
 
-use spatial_dynamics_core::model::examples::LAMP_URDF;
-use spatial_dynamics_core::sim::{ContactPoint, Ground, Integrator, SimConfig, Simulator, State};
-use spatial_dynamics_core::spatial::Vector3;
-use spatial_dynamics_core::{urdf, Model, ModelOptions};
+mod common;
 
-/// The lamp's foot is a 0.20 × 0.10 m box whose bottom face is at z = 0 of its frame.
-fn lamp(locked: &[(&str, f64)]) -> (Model, SimConfig) {
-    let locked = locked.iter().map(|(n, v)| (n.to_string(), *v)).collect();
-    let model = urdf::model_from_str(
-        LAMP_URDF,
-        &ModelOptions {
-            locked,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let points = [(0.1, 0.05), (0.1, -0.05), (-0.1, 0.05), (-0.1, -0.05)]
-        .iter()
-        .map(|&(x, y)| ContactPoint {
-            link: "foot".into(),
-            point: Vector3::new(x, y, 0.0),
-        })
-        .collect();
-    let ground = Ground {
-        points,
-        ..Ground::default()
-    };
-    (
-        model,
-        SimConfig {
-            integrator: Integrator::SemiImplicitEuler,
-            dt: 2e-4,
-            ground: Some(ground),
-            ..Default::default()
-        },
-    )
-}
+use common::lamp;
+use spatial_dynamics_core::sim::{ContactPoint, Ground, Integrator, Simulator, State};
+use spatial_dynamics_core::spatial::Vector3;
 
 const MASS: f64 = 1.2; // config/models/README.md
 
