@@ -38,8 +38,17 @@ impl Commands {
                         )
                     })
                 })
-                .collect::<Result<_, _>>()?
+                .collect::<Result<Vec<_>, _>>()?
         };
+        let mut entry_of = vec![None; map.names().len()];
+        for (k, &slot) in slots.iter().enumerate() {
+            if let Some(first) = entry_of[slot].replace(k) {
+                return Err(format!(
+                    "command_joints: joint '{}' is named twice (entries {first} and {k})",
+                    command_joints[k]
+                ));
+            }
+        }
         Ok(Commands {
             map: map.clone(),
             slots,
@@ -116,5 +125,29 @@ impl Commands {
             self.effort[self.map.slot(slot).1] = *value;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use spatial_dynamics_core::{urdf, ModelOptions};
+
+    #[test]
+    fn a_command_joint_named_twice_is_refused() {
+        let model = urdf::model_from_str(
+            spatial_dynamics_core::model::examples::MIMIC_GRIPPER_URDF,
+            &ModelOptions::default(),
+        )
+        .unwrap();
+        let map = JointMap::new(&model, &[]).unwrap();
+        let names = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert!(Commands::new(&map, model.nv(), &names(&["finger_left", "wrist"])).is_ok());
+        let e = Commands::new(&map, model.nv(), &names(&["wrist", "finger_left", "wrist"]))
+            .unwrap_err();
+        assert_eq!(
+            e,
+            "command_joints: joint 'wrist' is named twice (entries 0 and 2)"
+        );
     }
 }

@@ -21,6 +21,10 @@ pub const CLOCK_READER_DEPTH: usize = 100;
 /// `joint_states` messages the reader keeps until the node takes them: 100 ms at 10 kHz.
 const JOINT_STATES_READER_DEPTH: usize = 1000;
 
+/// Commands (`~/commands`, `~/joint_commands`, `~/effort_command`) the readers keep until the
+/// node takes them.
+const COMMAND_READER_DEPTH: usize = 1000;
+
 /// The DDS context: `ROS_DOMAIN_ID`, and discovery on loopback only when
 /// `ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST` or `ROS_LOCALHOST_ONLY=1`.
 pub fn context() -> Result<Context, String> {
@@ -196,11 +200,30 @@ impl Endpoints {
             &sensor,
             Some(qos(false, Durability::Volatile, JOINT_STATES_READER_DEPTH)),
         )?;
-        let effort_command =
-            subscription(node, &names.effort_command, JOINT_STATE, &reliable, None)?;
-        let commands = subscription(node, &names.commands, MULTI_ARRAY, &reliable, None)?;
-        let joint_commands =
-            subscription(node, &names.joint_commands, JOINT_STATE, &reliable, None)?;
+        // So do the command readers: in lockstep every command is a step, and a burst of them
+        // (a controller running faster than the node reads) must not lose any to the depth.
+        let commands_reader = Some(qos(true, Durability::Volatile, COMMAND_READER_DEPTH));
+        let effort_command = subscription(
+            node,
+            &names.effort_command,
+            JOINT_STATE,
+            &reliable,
+            commands_reader.clone(),
+        )?;
+        let commands = subscription(
+            node,
+            &names.commands,
+            MULTI_ARRAY,
+            &reliable,
+            commands_reader.clone(),
+        )?;
+        let joint_commands = subscription(
+            node,
+            &names.joint_commands,
+            JOINT_STATE,
+            &reliable,
+            commands_reader,
+        )?;
         let reference = subscription(
             node,
             &names.reference,

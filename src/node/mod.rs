@@ -263,7 +263,11 @@ async fn serve(
             }),
             Some(name) = changes_rx.recv() => {
                 state.parameter_changed(&name)?;
-                sim_timer = simulation_timer(&state.engine);
+                // A new timer only for a new period: a timer's first tick comes one period
+                // after it is made, and a change that keeps the period keeps the timer's pace.
+                if sim_timer.as_ref().map(|t| t.period()) != state.engine.simulation_period() {
+                    sim_timer = simulation_timer(&state.engine);
+                }
                 time.forget_ticks();
             }
             _ = diagnostics.tick() => {

@@ -71,6 +71,7 @@ def test_runs_in_real_time_with_clock(ros, sim):
     assert float(values["simulated time (s)"]) > 0
     assert 0.5 < float(values["real-time factor"]) < 1.5, values
     assert values["paused"] == "false" and values["efforts clamped"] == "0", values
+    assert values["steps halved (implicit Euler)"] == "0", values
 
 
 def test_commands_drive_the_arm_like_the_offline_simulator(ros, sim, tmp_path):
@@ -106,3 +107,20 @@ def test_bad_reset_and_step_while_running_are_refused(ros, sim):
     assert not bad.success and "elbow" in bad.message
     running = ros.call(Trigger, f"{NODE}/step", Trigger.Request())
     assert not running.success and "pause" in running.message
+
+
+def test_parameter_changes_do_not_add_publish_ticks(nodes, ros):
+    """A parameter set while simulating keeps the publish timer's pace: at 0.5 Hz (a tick every
+    2 s, each 2 s of simulated time) ten quick sets of `method` publish no extra joint state.
+    (In its own namespace: the module's simulating node publishes /joint_states.)"""
+    node = "/slow/spatial_dynamics"
+    nodes.start("-p", f"urdf_file:={sd.PARTICLE_URDF}", "-p", "mode:=simulate", "-p", "publish_rate:=0.5",
+                "-p", "gravity:=[0.0,0.0,0.0]", "-r", "__ns:=/slow", label="slow ticks")
+    ros.wait_for_service(DescribeModel, f"{node}/describe_model")
+    states = ros.collector(JointState, "/slow/joint_states")
+    states.wait_publisher()
+    for i in range(10):
+        assert ros.set_parameter("method", "aba" if i % 2 == 0 else "crba", node=node).successful
+    ros.spin_for(1.0)
+    # At most the one tick the timer may have had due within that second.
+    assert len(states.messages) <= 1, [sd.stamp_ns(m) * 1e-9 for m in states.messages]

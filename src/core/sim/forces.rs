@@ -60,6 +60,8 @@ pub const LIMIT_DAMPING: f64 = 50.0;
 pub struct PassiveForces {
     /// `(q index, v index, limits)` of every one-dof coordinate joint.
     joints: Vec<(usize, usize, crate::model::JointLimits)>,
+    /// Each velocity coordinate's effort limit (+∞ where it has none), as `clamp` takes them.
+    effort_limit: Vec<f64>,
 }
 
 impl PassiveForces {
@@ -75,11 +77,54 @@ impl PassiveForces {
                     b.joint.limits,
                 )
             })
-            .collect();
-        PassiveForces { joints }
+            .collect::<Vec<_>>();
+        let mut effort_limit = vec![f64::INFINITY; model.nv];
+        for &(_, vi, ref l) in &joints {
+            if l.effort > 0.0 && l.effort.is_finite() {
+                effort_limit[vi] = l.effort;
+            }
+        }
+        PassiveForces {
+            joints,
+            effort_limit,
+        }
     }
 
-    /// `out = clamp(τ_cmd) + τ_passive(q, v)`; returns how many efforts were clamped.
+    /// `Σ |τ_i q̇_i|` over the commanded efforts as the dynamics receive them (each clamped to
+    /// its limit when `effort_limits`): the most power the commands can deliver at velocities
+    /// `q̇` (W).
+    pub fn commanded_power(&self, effort_limits: bool, tau_cmd: &[f64], v: &[f64]) -> f64 {
+        let terms = tau_cmd.iter().zip(v);
+        if effort_limits {
+            (terms.zip(&self.effort_limit))
+                .map(|((t, v), limit)| t.abs().min(*limit) * v.abs())
+                .sum()
+        } else {
+            terms.map(|(t, v)| (t * v).abs()).sum()
+        }
+    }
+
+    /// `out = clamp(τ_cmd)`: the commanded efforts the dynamics receive, each one-dof joint's
+    /// within its URDF effort limit when `on.effort_limits` (an infinite command goes to the limit
+    /// of its sign, NaN stays for forward dynamics to refuse); returns how many were clamped.
+    pub fn clamp_efforts(&self, on: &Passive, tau_cmd: &[f64], out: &mut [f64]) -> usize {
+        out.copy_from_slice(tau_cmd);
+        if !on.effort_limits {
+            return 0;
+        }
+        let mut clamped = 0;
+        for &(_, vi, ref l) in &self.joints {
+            let tau = out[vi];
+            if l.effort > 0.0 && l.effort.is_finite() && tau.abs() > l.effort {
+                out[vi] = tau.clamp(-l.effort, l.effort);
+                clamped += 1;
+            }
+        }
+        clamped
+    }
+
+    /// `out = clamp(τ_cmd) + τ_passive(q, v)` ([`clamp_efforts`](Self::clamp_efforts));
+    /// returns how many efforts were clamped.
     pub fn total(
         &self,
         on: &Passive,
@@ -88,14 +133,9 @@ impl PassiveForces {
         tau_cmd: &[f64],
         out: &mut [f64],
     ) -> usize {
-        out.copy_from_slice(tau_cmd);
-        let mut clamped = 0;
+        let clamped = self.clamp_efforts(on, tau_cmd, out);
         for &(qi, vi, ref l) in &self.joints {
             let mut tau = out[vi];
-            if on.effort_limits && l.effort > 0.0 && l.effort.is_finite() && tau.abs() > l.effort {
-                tau = tau.clamp(-l.effort, l.effort);
-                clamped += 1;
-            }
             let rate = v[vi];
             if on.damping {
                 tau -= l.damping * rate;

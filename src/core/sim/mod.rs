@@ -117,11 +117,6 @@ impl fmt::Display for SimError {
 
 impl std::error::Error for SimError {}
 
-/// `Σ |τ_i q̇_i|`: the most power commands `τ` can deliver at velocities `q̇` (W).
-fn commanded_power(tau: &[f64], v: &[f64]) -> f64 {
-    tau.iter().zip(v).map(|(t, v)| (t * v).abs()).sum()
-}
-
 /// Forward dynamics with the passive forces added: `a(q, v) = FD(q, v, clamp(τ_cmd) + τ_passive)`.
 pub(crate) struct Evaluator {
     ws: Workspace,
@@ -285,6 +280,15 @@ impl Simulator {
         self.scratch.halved
     }
 
+    /// The commanded efforts `tau_cmd` as the dynamics receive them: clamped to their URDF limits
+    /// when the passive forces include effort limits ([`Passive::effort_limits`]), else as they
+    /// are; into `out` (`nv`).
+    pub fn applied_effort(&self, tau_cmd: &[f64], out: &mut [f64]) {
+        self.eval
+            .passive
+            .clamp_efforts(&self.config.passive, tau_cmd, out);
+    }
+
     /// How many effort evaluations were clamped to their limits so far.
     pub fn clamped(&self) -> u64 {
         self.eval.clamped
@@ -321,8 +325,12 @@ impl Simulator {
         self.eval.on = self.config.passive;
         let substeps = self.config.substeps.max(1);
         let h = self.config.dt / substeps as f64;
+        // The guard counts the work of the efforts the dynamics receive (clamped to the limits).
+        let limits = self.config.passive.effort_limits;
+        let power_at =
+            |passive: &PassiveForces, v: &[f64]| passive.commanded_power(limits, tau_cmd, v);
         for _ in 0..substeps {
-            let power = commanded_power(tau_cmd, &state.v);
+            let power = power_at(&self.eval.passive, &state.v);
             let integrator = self.config.integrator;
             let evaluated = integrator::first_evaluation(
                 integrator,
@@ -362,7 +370,7 @@ impl Simulator {
             // The larger of the powers at the sub-step's two ends: a command accelerating a
             // joint from rest does work the power at the start alone (zero) would not count.
             self.guard
-                .advance(power.max(commanded_power(tau_cmd, &state.v)), h);
+                .advance(power.max(power_at(&self.eval.passive, &state.v)), h);
             if !(all_finite(&state.q) && all_finite(&state.v)) {
                 return Err(non_finite(model, state));
             }

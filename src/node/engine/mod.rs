@@ -382,7 +382,11 @@ impl Engine {
         } else {
             let names = self.commands.names();
             let slots: Vec<usize> = (0..names.len()).collect();
-            check_command_field("commands", &cmd.data, &names)?;
+            let what = format!(
+                "one per command joint: {} targets",
+                self.command_interface().name()
+            );
+            check_command_field("data", &cmd.data, &names, &what)?;
             self.set_servo_targets(&slots, &cmd.data, &[]);
         }
         self.command_time = Some(Instant::now());
@@ -396,6 +400,9 @@ impl Engine {
     /// keep their command. A refused message changes nothing.
     pub fn set_joint_commands(&mut self, js: &JointState) -> Result<(), String> {
         let interface = self.command_interface();
+        if js.name.is_empty() {
+            return Err("the message names no joint: name the joints it commands".into());
+        }
         let names = self.commands.names();
         let mut slots = Vec::with_capacity(js.name.len());
         for name in &js.name {
@@ -415,7 +422,8 @@ impl Engine {
             CommandInterface::Position => &js.position,
             CommandInterface::Velocity => &js.velocity,
         };
-        check_command_field(interface.name(), values, &js.name)?;
+        let what = format!("one per name: command_interface is {}", interface.name());
+        check_command_field(interface.name(), values, &js.name, &what)?;
         if interface == CommandInterface::Effort {
             let mut data = self.commands.gather(self.commands.effort());
             for (&k, &x) in slots.iter().zip(values) {
@@ -424,7 +432,8 @@ impl Engine {
             self.commands.set_commands(&data).map_err(|(_, e)| e)?;
         } else {
             let rates = if interface == CommandInterface::Position && !js.velocity.is_empty() {
-                check_command_field("velocity", &js.velocity, &js.name)?;
+                let what = "one per name, or none: the position servos' rate targets";
+                check_command_field("velocity", &js.velocity, &js.name, what)?;
                 &js.velocity[..]
             } else {
                 &[]
@@ -797,11 +806,16 @@ fn write_pose(q: &mut [f64], at: usize, pose: &Pose, field: &str) -> Result<(), 
 }
 
 /// A command's `field`: one finite value per joint of `names` (the interface's field of
-/// `~/joint_commands`, or `~/commands` in command-joint order).
-fn check_command_field(field: &str, values: &[f64], names: &[String]) -> Result<(), String> {
+/// `~/joint_commands`, or `~/commands` in command-joint order); `what` says what it holds.
+fn check_command_field(
+    field: &str,
+    values: &[f64],
+    names: &[String],
+    what: &str,
+) -> Result<(), String> {
     if values.len() != names.len() {
         return Err(format!(
-            "{field} has {} values for {} joints (command interface: the {field} field)",
+            "{field} has {} values for {} joints ({what})",
             values.len(),
             names.len()
         ));

@@ -19,9 +19,15 @@ use spatial_dynamics_core::sim::{CommandInterface, Servo, ServoAxis, SimConfig, 
 use std::time::{Duration, Instant};
 
 /// How far behind its due time a publish tick may run and still step: a tick later than this
-/// many periods is dropped and its steps counted as missed. Ticks within it are run as soon as
-/// they can (the timer bursts), so a short stall of the process costs no simulated time.
+/// many periods, and later than [`MIN_LAG`], is dropped and its steps counted as missed. Ticks
+/// within it are run as soon as they can (the timer bursts), so a short stall of the process
+/// costs no simulated time.
 pub const MAX_LAG_TICKS: u32 = 10;
+
+/// The shortest lag that drops a tick, whatever the period: the timer wakes the node with a
+/// resolution of about a millisecond, so at periods of microseconds every tick runs a few
+/// periods late even when the node keeps up.
+pub const MIN_LAG: Duration = Duration::from_millis(20);
 
 /// The most `sim_dt` steps one publish tick may ask for (`real_time_factor / (publish_rate ·
 /// sim_dt)`), as `steps_per_command` is bounded: a tick runs its steps without yielding, so
@@ -56,6 +62,12 @@ pub struct Simulation {
     servo: Option<Servo>,
     /// The effort of the current step (`nv`): the effort command plus the servos'.
     tau: Vec<f64>,
+    /// That effort as the dynamics receive it (clamped to the URDF limits with
+    /// `passive: effort_limits`): what `joint_states.effort` carries.
+    applied: Vec<f64>,
+    /// `sim_dt` steps owed to the publish timer, below one: `real_time_factor / (publish_rate ·
+    /// sim_dt)` steps a tick, carried from tick to tick so the rate keeps to the factor.
+    owed_steps: f64,
     /// `step_mode: on_command`: the steps each accepted command advances; `None`: free running.
     lockstep: Option<usize>,
     publish_tf: bool,
@@ -115,6 +127,8 @@ impl Engine {
             zero: vec![0.0; self.model.nv()],
             servo,
             tau: vec![0.0; self.model.nv()],
+            applied: vec![0.0; self.model.nv()],
+            owed_steps: 0.0,
             lockstep: settings.lockstep.then_some(settings.steps_per_command),
             publish_tf: settings.publish_tf,
         });
@@ -192,9 +206,30 @@ impl Engine {
         }
     }
 
+    /// Whether a command may be taken now: with `step_mode: on_command` not while the
+    /// simulation is paused or stopped, where it would not step and its sender would wait for
+    /// a `joint_states` that does not come.
+    pub fn command_can_step(&self) -> Result<(), String> {
+        match &self.simulation {
+            Some(sim) if sim.lockstep.is_some() && sim.paused => Err(
+                "step_mode on_command: the simulation is paused, a command would not step it \
+                 (~/pause false resumes it)"
+                    .into(),
+            ),
+            Some(Simulation {
+                lockstep: Some(_),
+                diverged: Some(why),
+                ..
+            }) => Err(format!(
+                "step_mode on_command: the {why}; a command would not step it (~/reset restarts it)"
+            )),
+            _ => Ok(()),
+        }
+    }
+
     /// After an accepted command with `step_mode: on_command`: advance `steps_per_command`
-    /// steps (unless paused or stopped) and return the `joint_states` to publish; `None` when
-    /// free running.
+    /// steps and return the `joint_states` to publish; `None` when free running (or paused or
+    /// stopped, where [`command_can_step`](Self::command_can_step) refuses the command).
     pub fn command_step(&mut self, now: Instant) -> Option<Result<(JointState, Time), String>> {
         let sim = self.simulation.as_ref()?;
         let steps = sim.lockstep?;
@@ -213,8 +248,10 @@ impl Engine {
 
     /// One tick of the publish timer, due at `due` and run at `now`: advance by
     /// `real_time_factor / publish_rate` seconds (unless paused, diverged or stepping on commands)
-    /// and return the `joint_states` to publish with the simulated time. A tick more than
-    /// [`MAX_LAG_TICKS`] periods behind `due` does not step: its steps count as missed.
+    /// and return the `joint_states` to publish with the simulated time. The steps of `sim_dt`
+    /// that make up a tick are whole: the fraction left over is owed to the next tick, and a
+    /// tick owed less than one step publishes nothing. A tick more than [`MAX_LAG_TICKS`]
+    /// periods (and [`MIN_LAG`]) behind `due` does not step: its steps count as missed.
     pub fn simulation_tick(
         &mut self,
         due: Instant,
@@ -234,11 +271,17 @@ impl Engine {
             sim.late_ticks += 1;
         }
         sim.last_tick = Some(now);
-        let steps = ((sim.real_time_factor / sim.rate) / sim.sim.config.dt)
-            .round()
-            .max(1.0) as usize;
-        if now.saturating_duration_since(due) > MAX_LAG_TICKS * period {
+        let owed = sim.owed_steps + (sim.real_time_factor / sim.rate) / sim.sim.config.dt;
+        // Within a part in 10⁹ of a whole number of steps, that number: rounding in the
+        // quotient must not shift a step to the next tick.
+        let whole = (owed + 1e-9 * owed.max(1.0)).floor();
+        sim.owed_steps = (owed - whole).max(0.0);
+        let steps = whole as usize;
+        if now.saturating_duration_since(due) > (MAX_LAG_TICKS * period).max(MIN_LAG) {
             sim.missed_steps += steps as u64;
+            return None;
+        }
+        if steps == 0 {
             return None;
         }
         Some(self.advance(steps, now))
@@ -302,7 +345,8 @@ impl Engine {
             .gather_all(&sim.state.q, Target::Position, &mut position);
         self.map
             .gather_all(&sim.state.v, Target::Rate, &mut velocity);
-        self.map.gather_all(&sim.tau, Target::Rate, &mut effort);
+        sim.sim.applied_effort(&sim.tau, &mut sim.applied);
+        self.map.gather_all(&sim.applied, Target::Rate, &mut effort);
         let js = JointState {
             header: Header {
                 stamp: stamp.clone(),
@@ -433,19 +477,32 @@ impl Engine {
         self.simulation.as_ref().map(|s| s.missed_steps)
     }
 
-    /// Simulation figures for `/diagnostics`: simulated time, real-time factor, paused, why it
-    /// stopped (if it did), and how many effort evaluations were clamped to their URDF limits.
-    pub fn simulation_status(&self) -> Option<(f64, f64, bool, Option<String>, u64)> {
-        self.simulation.as_ref().map(|s| {
-            (
-                s.state.t,
-                s.measured_rtf,
-                s.paused,
-                s.diverged.clone(),
-                s.sim.clamped(),
-            )
+    /// Simulation figures for `/diagnostics`, in simulate mode.
+    pub fn simulation_status(&self) -> Option<SimulationStatus> {
+        self.simulation.as_ref().map(|s| SimulationStatus {
+            t: s.state.t,
+            real_time_factor: s.measured_rtf,
+            paused: s.paused,
+            stopped: s.diverged.clone(),
+            clamped: s.sim.clamped(),
+            halved: s.sim.halved_steps(),
         })
     }
+}
+
+/// What `/diagnostics` says of a simulation.
+pub struct SimulationStatus {
+    /// Simulated time (s).
+    pub t: f64,
+    /// Simulated seconds per wall-clock second, measured.
+    pub real_time_factor: f64,
+    pub paused: bool,
+    /// Why the simulation stopped, if it did.
+    pub stopped: Option<String>,
+    /// Effort evaluations clamped to their URDF limits.
+    pub clamped: u64,
+    /// Steps implicit Euler halved because Newton's method did not converge on them.
+    pub halved: u64,
 }
 
 /// Seconds as builtin_interfaces/Time.
@@ -530,5 +587,50 @@ mod tests {
         });
         assert!(reset.success, "{}", reset.message);
         assert_eq!(servo(&engine), fresh);
+    }
+
+    /// A tick owes `real_time_factor / (publish_rate · sim_dt)` steps: a fraction is carried to
+    /// the next tick, so simulated time keeps to the factor, and a tick owed less than one step
+    /// publishes nothing.
+    #[test]
+    fn ticks_carry_the_fraction_of_a_step_they_owe() {
+        for (rate, dt, steps) in [(400.0, 1e-3, [2, 3, 2, 3]), (2500.0, 1e-3, [0, 0, 1, 0])] {
+            let settings = Settings {
+                simulate: true,
+                publish_rate: rate,
+                sim_dt: dt,
+                ..Settings::default()
+            };
+            let mut engine = Engine::from_settings(&settings, None).unwrap();
+            let mut taken = 0;
+            for expected in steps {
+                let now = Instant::now();
+                let published = engine.simulation_tick(now, now).is_some();
+                assert_eq!(published, expected > 0, "{rate} Hz");
+                taken += expected;
+                let t = engine.simulated_time().unwrap();
+                assert!((t - taken as f64 * dt).abs() < 1e-12, "{rate} Hz: t = {t}");
+            }
+        }
+    }
+
+    /// A tick is dropped as missed only when it is both ten periods and `MIN_LAG` late: at
+    /// 100 kHz a tick 5 ms late (the timer's resolution is a millisecond) still steps.
+    #[test]
+    fn a_tick_within_the_timer_resolution_still_steps() {
+        let settings = Settings {
+            simulate: true,
+            publish_rate: 1e5,
+            sim_dt: 1e-5,
+            ..Settings::default()
+        };
+        let mut engine = Engine::from_settings(&settings, None).unwrap();
+        let now = Instant::now();
+        assert!(engine
+            .simulation_tick(now - Duration::from_millis(5), now)
+            .is_some());
+        assert_eq!(engine.simulation_missed_steps(), Some(0));
+        assert!(engine.simulation_tick(now - 2 * MIN_LAG, now).is_none());
+        assert_eq!(engine.simulation_missed_steps(), Some(1));
     }
 }

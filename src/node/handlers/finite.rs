@@ -4,66 +4,85 @@ use crate::ros::msgs::*;
 
 /// A message whose numbers can be checked.
 pub trait Finite {
-    /// Whether every number in the message is finite.
-    fn all_finite(&self) -> bool;
+    /// The first field holding a non-finite number (`"effort[2] (joint 'elbow')"`), if any.
+    fn non_finite(&self) -> Option<String>;
 }
 
-fn finite(x: &[f64]) -> bool {
-    x.iter().all(|v| v.is_finite())
+/// `name[i]` for the first non-finite `x[i]`.
+fn field(name: &str, x: &[f64]) -> Option<String> {
+    let i = x.iter().position(|v| !v.is_finite())?;
+    Some(format!("{name}[{i}]"))
 }
 
-fn finite_vectors(vectors: &[&Vector3]) -> bool {
-    vectors.iter().all(|v| finite(&[v.x, v.y, v.z]))
+fn vector(name: &str, v: &Vector3) -> Option<String> {
+    field(name, &[v.x, v.y, v.z])
 }
 
 impl Finite for JointState {
-    fn all_finite(&self) -> bool {
-        finite(&self.position) && finite(&self.velocity) && finite(&self.effort)
+    fn non_finite(&self) -> Option<String> {
+        [
+            ("position", &self.position),
+            ("velocity", &self.velocity),
+            ("effort", &self.effort),
+        ]
+        .into_iter()
+        .find_map(|(name, x)| {
+            let i = x.iter().position(|v| !v.is_finite())?;
+            Some(match self.name.get(i) {
+                Some(joint) => format!("{name}[{i}] (joint '{joint}')"),
+                None => format!("{name}[{i}]"),
+            })
+        })
     }
 }
 
 impl Finite for JointDynamics {
-    fn all_finite(&self) -> bool {
-        finite(&self.position)
-            && finite(&self.velocity)
-            && finite(&self.acceleration)
-            && finite(&self.effort)
+    fn non_finite(&self) -> Option<String> {
+        field("position", &self.position)
+            .or_else(|| field("velocity", &self.velocity))
+            .or_else(|| field("acceleration", &self.acceleration))
+            .or_else(|| field("effort", &self.effort))
     }
 }
 
 impl Finite for Odometry {
-    fn all_finite(&self) -> bool {
+    fn non_finite(&self) -> Option<String> {
         let (p, o, t) = (
             &self.pose.pose.position,
             &self.pose.pose.orientation,
             &self.twist.twist,
         );
-        finite(&[p.x, p.y, p.z, o.x, o.y, o.z, o.w]) && finite_vectors(&[&t.linear, &t.angular])
+        field("pose.position", &[p.x, p.y, p.z])
+            .or_else(|| field("pose.orientation", &[o.x, o.y, o.z, o.w]))
+            .or_else(|| vector("twist.linear", &t.linear))
+            .or_else(|| vector("twist.angular", &t.angular))
     }
 }
 
 impl Finite for Float64MultiArray {
-    fn all_finite(&self) -> bool {
-        finite(&self.data)
+    fn non_finite(&self) -> Option<String> {
+        field("data", &self.data)
     }
 }
 
 impl Finite for InverseDynamicsResponse {
-    fn all_finite(&self) -> bool {
+    fn non_finite(&self) -> Option<String> {
         let w = &self.base_wrench;
-        finite(&self.effort) && finite_vectors(&[&w.force, &w.torque])
+        field("effort", &self.effort)
+            .or_else(|| vector("base_wrench.force", &w.force))
+            .or_else(|| vector("base_wrench.torque", &w.torque))
     }
 }
 
 impl Finite for ForwardDynamicsResponse {
-    fn all_finite(&self) -> bool {
-        finite(&self.acceleration)
+    fn non_finite(&self) -> Option<String> {
+        field("acceleration", &self.acceleration)
     }
 }
 
 impl Finite for MassMatrixResponse {
-    fn all_finite(&self) -> bool {
-        finite(&self.matrix)
+    fn non_finite(&self) -> Option<String> {
+        field("matrix", &self.matrix)
     }
 }
 
@@ -79,20 +98,25 @@ mod tests {
             effort: vec![3.0],
             ..Default::default()
         };
-        assert!(js.all_finite());
+        assert!(js.non_finite().is_none());
         for field in 0..3 {
             let mut bad = js.clone();
             [&mut bad.position, &mut bad.velocity, &mut bad.effort][field][0] = f64::NAN;
-            assert!(!bad.all_finite(), "field {field}");
+            assert!(bad.non_finite().is_some(), "field {field}");
         }
         let mut odom = Odometry::default();
         odom.pose.pose.orientation.w = 1.0;
-        assert!(odom.all_finite());
+        assert!(odom.non_finite().is_none());
         odom.twist.twist.angular.z = f64::INFINITY;
-        assert!(!odom.all_finite());
+        assert!(odom.non_finite().is_some());
         let mut id = InverseDynamicsResponse::default();
-        assert!(id.all_finite());
+        assert!(id.non_finite().is_none());
         id.base_wrench.torque.y = f64::NEG_INFINITY;
-        assert!(!id.all_finite());
+        assert!(id.non_finite().is_some());
+        assert_eq!(id.non_finite().unwrap(), "base_wrench.torque[1]");
+        let mut named = js.clone();
+        named.name = vec!["a".into(), "b".into()];
+        named.position[1] = f64::INFINITY;
+        assert_eq!(named.non_finite().unwrap(), "position[1] (joint 'b')");
     }
 }

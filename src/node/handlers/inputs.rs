@@ -54,7 +54,10 @@ impl NodeState {
     /// `~/effort_command`: the effort to apply from now on, by joint name (with servos, their
     /// feed-forward).
     pub fn effort_command(&mut self, message: Result<JointState, String>) -> Outputs {
-        let accepted = message.and_then(|m| self.engine.set_effort_command(&m));
+        let accepted = message.and_then(|m| {
+            self.engine.command_can_step()?;
+            self.engine.set_effort_command(&m)
+        });
         let topic = self.names.effort_command.clone();
         self.command_received(&topic, accepted)
     }
@@ -62,7 +65,10 @@ impl NodeState {
     /// `~/commands`: the command from now on, in `command_joints` order, per
     /// `command_interface` (efforts, or the servos' position or velocity targets).
     pub fn commands(&mut self, message: Result<Float64MultiArray, String>) -> Outputs {
-        let accepted = message.and_then(|m| self.engine.set_commands(&m));
+        let accepted = message.and_then(|m| {
+            self.engine.command_can_step()?;
+            self.engine.set_commands(&m)
+        });
         let topic = self.names.commands.clone();
         self.command_received(&topic, accepted)
     }
@@ -70,7 +76,10 @@ impl NodeState {
     /// `~/joint_commands`: the command from now on by joint name, the field of
     /// `command_interface` ([`Engine::set_joint_commands`]).
     pub fn joint_commands(&mut self, message: Result<JointState, String>) -> Outputs {
-        let accepted = message.and_then(|m| self.engine.set_joint_commands(&m));
+        let accepted = message.and_then(|m| {
+            self.engine.command_can_step()?;
+            self.engine.set_joint_commands(&m)
+        });
         let topic = self.names.joint_commands.clone();
         self.command_received(&topic, accepted)
     }
@@ -592,5 +601,75 @@ mod command_interface_tests {
         };
         assert!(state.commands(Ok(wrong_length)).joint_states.is_none());
         assert_eq!(state.health.total_dropped(), 6);
+    }
+
+    #[test]
+    fn a_command_that_could_not_step_is_refused_while_paused_or_stopped() {
+        let mut state = lockstep(CommandInterface::Effort, 1);
+        let weight = || {
+            Ok(Float64MultiArray {
+                data: vec![0.0, G],
+                ..Default::default()
+            })
+        };
+        assert!(state.pause(&SetBoolRequest { data: true }).success);
+        assert!(state.commands(weight()).joint_states.is_none());
+        let paused = "step_mode on_command: the simulation is paused, a command would not step \
+                      it (~/pause false resumes it)";
+        let topic = state.names.commands.clone();
+        assert_eq!(state.health.dropped_on(&topic, paused), 1);
+        assert!(state.pause(&SetBoolRequest { data: false }).success);
+        assert!(state.commands(weight()).joint_states.is_some());
+        // Stopped: the largest effort drives the particle's state past the largest number
+        // (without effort limits on), and the simulation stops.
+        let huge = Ok(Float64MultiArray {
+            data: vec![f64::MAX, 0.0],
+            ..Default::default()
+        });
+        for _ in 0..10_000 {
+            if state.commands(huge.clone()).joint_states.is_none() {
+                break;
+            }
+        }
+        let stopped = state.engine.command_can_step().unwrap_err();
+        assert!(stopped.contains("simulation stopped"), "{stopped}");
+        let before = state.health.total_dropped();
+        assert!(state.commands(weight()).joint_states.is_none());
+        assert_eq!(state.health.total_dropped(), before + 1);
+    }
+
+    #[test]
+    fn a_joint_command_naming_no_joint_is_dropped() {
+        let mut state = lockstep(CommandInterface::Position, 1);
+        assert!(state
+            .joint_commands(Ok(by_name(&[], &[], &[])))
+            .joint_states
+            .is_none());
+        let reason = "the message names no joint: name the joints it commands";
+        let topic = state.names.joint_commands.clone();
+        assert_eq!(state.health.dropped_on(&topic, reason), 1);
+        assert_eq!(state.engine.simulated_time(), Some(0.0));
+    }
+
+    #[test]
+    fn the_published_effort_is_the_one_applied_after_the_limit() {
+        // The particle's joints are limited to 100 N.
+        let mut state = serving(Settings {
+            robot_description: PARTICLE_URDF.into(),
+            simulate: true,
+            lockstep: true,
+            passive: vec!["effort_limits".into()],
+            ..Settings::default()
+        });
+        let js = state
+            .commands(Ok(Float64MultiArray {
+                data: vec![5000.0, -20.0],
+                ..Default::default()
+            }))
+            .joint_states
+            .unwrap();
+        assert_eq!(js.effort, [100.0, -20.0]);
+        // 100 N on 1 kg for one 1 ms step.
+        assert_close(js.velocity[0], 0.1);
     }
 }

@@ -170,11 +170,12 @@ impl NodeState {
 
 /// `message` if every number in it is finite; otherwise `None`, counted as held back on `topic`.
 fn checked<M: Finite>(health: &mut Health, message: M, topic: &str) -> Option<M> {
-    if message.all_finite() {
-        Some(message)
-    } else {
-        health.dropped(topic, "output held back: it contained a non-finite number");
-        None
+    match message.non_finite() {
+        None => Some(message),
+        Some(field) => {
+            health.dropped(topic, &format!("output held back: {field} is not finite"));
+            None
+        }
     }
 }
 
@@ -276,7 +277,7 @@ mod tests {
         let mut bad = good;
         bad.effort = vec![f64::NAN];
         assert_eq!(checked(&mut health, bad, "/out"), None);
-        let reason = "output held back: it contained a non-finite number";
+        let reason = "output held back: effort[0] (joint 'joint1') is not finite";
         assert_eq!(health.dropped_on("/out", reason), 1);
         assert_eq!(health.total_dropped(), 1);
     }

@@ -10,10 +10,9 @@ use std::time::Instant;
 
 /// `response`, or a refusal when a number in it is not finite.
 fn finite_or_refused<R: Finite + Refused>(response: R) -> R {
-    if response.all_finite() {
-        response
-    } else {
-        R::refused("the result was not finite".into())
+    match response.non_finite() {
+        None => response,
+        Some(field) => R::refused(format!("the result was not finite ({field})")),
     }
 }
 
@@ -212,7 +211,7 @@ mod tests {
         };
         let answer = finite_or_refused(bad);
         assert!(!answer.success && answer.matrix.is_empty());
-        assert_eq!(answer.message, "the result was not finite");
+        assert_eq!(answer.message, "the result was not finite (matrix[0])");
     }
 
     #[test]

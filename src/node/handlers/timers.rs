@@ -2,19 +2,19 @@
 
 use super::{checked, NodeState, Outputs};
 use crate::node::engine::clock::{self, NodeClock};
-use crate::node::engine::Engine;
+use crate::node::engine::{simulation, Engine};
 use crate::node::logging::log;
 use crate::ros::msgs::*;
 use std::time::Instant;
 
-/// The publish timer of simulate mode, one tick per `1 / publish_rate` s (none in serve mode).
-/// Ticks the process was too busy or too stalled to run come at once when it can, so the
-/// simulation keeps to wall-clock time; those more than
+/// The publish timer of simulate mode, one tick per `1 / publish_rate` s (none in serve mode),
+/// the first one period from now. Ticks the process was too busy or too stalled to run come at
+/// once when it can, so the simulation keeps to wall-clock time; those more than
 /// [`MAX_LAG_TICKS`](crate::node::engine::simulation::MAX_LAG_TICKS) periods late are dropped
 /// ([`Engine::simulation_tick`]).
 pub fn simulation_timer(engine: &Engine) -> Option<tokio::time::Interval> {
     engine.simulation_period().map(|period| {
-        let mut timer = tokio::time::interval(period);
+        let mut timer = tokio::time::interval_at(tokio::time::Instant::now() + period, period);
         timer.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Burst);
         timer
     })
@@ -45,7 +45,17 @@ impl NodeState {
     /// simulation advances by `real_time_factor / publish_rate` s (unless paused, stopped or
     /// the tick is too late) and its state goes out.
     pub fn simulation_tick(&mut self, due: Instant, now: Instant) -> Outputs {
+        let missed = self.engine.simulation_missed_steps();
         let tick = self.engine.simulation_tick(due, now);
+        if self.engine.simulation_missed_steps() > missed {
+            let reason = format!(
+                "the simulation is behind real time: a publish tick ran more than {} periods \
+                 (and {} ms) late, its steps are counted as missed steps",
+                simulation::MAX_LAG_TICKS,
+                simulation::MIN_LAG.as_millis()
+            );
+            self.health.dropped(&self.names.joint_states, &reason);
+        }
         self.simulation_outputs(tick)
     }
 
@@ -106,11 +116,12 @@ impl NodeState {
             now.map_or_else(|| "none yet".into(), |n| format!("{:.9}", n as f64 * 1e-9)),
         );
         let mut diverged = None;
-        if let Some((t, rtf, paused, why, clamped)) = self.engine.simulation_status() {
-            value("simulated time (s)", format!("{t:.6}"));
-            value("real-time factor", format!("{rtf:.3}"));
-            value("paused", paused.to_string());
-            value("efforts clamped", clamped.to_string());
+        if let Some(sim) = self.engine.simulation_status() {
+            value("simulated time (s)", format!("{:.6}", sim.t));
+            value("real-time factor", format!("{:.3}", sim.real_time_factor));
+            value("paused", sim.paused.to_string());
+            value("efforts clamped", sim.clamped.to_string());
+            value("steps halved (implicit Euler)", sim.halved.to_string());
             if let Some(late) = self.engine.simulation_late_ticks() {
                 value("late publish ticks", late.to_string());
             }
@@ -120,7 +131,7 @@ impl NodeState {
             if let Some(depth) = self.engine.simulated_penetration() {
                 value("deepest ground penetration (m)", format!("{depth:.6}"));
             }
-            diverged = why;
+            diverged = sim.stopped;
         }
         if let Some(why) = diverged {
             status.level = 2;
