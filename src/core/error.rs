@@ -66,12 +66,13 @@ pub enum DynamicsError {
         coordinate: String,
     },
     /// A frame was asked of a link the model does not have: never in the description, or
-    /// `pruned` with a massless subtree (then nothing places it). `known` lists the links that
-    /// are frames.
+    /// `pruned` with a massless subtree (then nothing places it). `known` lists the first
+    /// [`NAMES_SHOWN`] links that are frames, of `links` in all.
     UnknownLink {
         link: String,
         pruned: bool,
         known: Vec<String>,
+        links: usize,
     },
     /// The workspace was made ([`Workspace::new`](crate::Workspace::new)) for another model
     /// than the one given: its buffers and plan belong to that model. Each model is named by
@@ -133,15 +134,17 @@ impl fmt::Display for DynamicsError {
             DynamicsError::NonFiniteResult { quantity, coordinate } => {
                 write!(f, "{quantity} at '{coordinate}' overflowed to a non-finite value")
             }
-            DynamicsError::UnknownLink { link, pruned: true, known } => write!(
+            DynamicsError::UnknownLink { link, pruned: true, known, links } => write!(
                 f,
-                "link '{link}' was pruned with a massless subtree, so no body carries its frame; the model's links are: {}",
-                known.join(", ")
+                "link {} was pruned with a massless subtree, so no body carries its frame; the model's links are: {}",
+                quoted(link),
+                name_list(known, *links)
             ),
-            DynamicsError::UnknownLink { link, pruned: false, known } => write!(
+            DynamicsError::UnknownLink { link, pruned: false, known, links } => write!(
                 f,
-                "the model has no link named '{link}'; its links are: {}",
-                known.join(", ")
+                "the model has no link named {}; its links are: {}",
+                quoted(link),
+                name_list(known, *links)
             ),
             DynamicsError::ForeignWorkspace { workspace_model, workspace_model_id, model, model_id } => write!(
                 f,
@@ -177,6 +180,51 @@ pub(crate) fn check_len(
     }
 }
 
+/// How many names a message lists before it says how many more there are ([`name_list`]).
+pub const NAMES_SHOWN: usize = 12;
+
+/// The longest name a message repeats whole ([`quoted`]), in bytes.
+pub const NAME_SHOWN_BYTES: usize = 64;
+
+/// `'name'`; a name longer than [`NAME_SHOWN_BYTES`] is cut (at a character boundary) and its
+/// length given: a message is a sentence, not a copy of the request that caused it.
+pub fn quoted(name: &str) -> String {
+    match cut(name) {
+        Some((start, bytes)) => format!("'{start}…' ({bytes} bytes)"),
+        None => format!("'{name}'"),
+    }
+}
+
+/// `a, b, c` for the first [`NAMES_SHOWN`] of `names` (of `total` in all), then `… (N more)`;
+/// long names cut as [`quoted`] cuts them.
+pub fn name_list<S: AsRef<str>>(names: &[S], total: usize) -> String {
+    let shown = names
+        .iter()
+        .take(NAMES_SHOWN)
+        .map(|n| match cut(n.as_ref()) {
+            Some((start, bytes)) => format!("{start}… ({bytes} bytes)"),
+            None => n.as_ref().to_string(),
+        });
+    let mut list = shown.collect::<Vec<_>>().join(", ");
+    let more = total.saturating_sub(names.len().min(NAMES_SHOWN));
+    if more > 0 {
+        list.push_str(&format!(", … ({more} more)"));
+    }
+    list
+}
+
+/// The start of a name longer than [`NAME_SHOWN_BYTES`], and its length; `None` if it is short.
+fn cut(name: &str) -> Option<(&str, usize)> {
+    if name.len() <= NAME_SHOWN_BYTES {
+        return None;
+    }
+    let mut end = NAME_SHOWN_BYTES - 16;
+    while !name.is_char_boundary(end) {
+        end -= 1;
+    }
+    Some((&name[..end], name.len()))
+}
+
 /// `x` as a reader would write it: plainly between 10⁻⁴ and 10⁶ (and 0), in exponent form
 /// otherwise (`1e200`, not two hundred digits).
 fn short(x: f64) -> String {
@@ -184,5 +232,28 @@ fn short(x: f64) -> String {
         format!("{x}")
     } else {
         format!("{x:e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn long_names_and_long_lists_are_cut() {
+        assert_eq!(quoted("elbow"), "'elbow'");
+        let long = "é".repeat(500_000);
+        let q = quoted(&long);
+        assert!(q.len() < 80 && q.ends_with("…' (1000000 bytes)"), "{q}");
+        let names: Vec<String> = (0..4000).map(|i| format!("link_{i:04}")).collect();
+        let list = name_list(&names, names.len());
+        assert!(
+            list.starts_with("link_0000, link_0001, ") && list.len() < 200,
+            "{list}"
+        );
+        assert!(list.ends_with("link_0011, … (3988 more)"), "{list}");
+        assert_eq!(name_list(&names[..3], 3), "link_0000, link_0001, link_0002");
+        // A list of the first names of many, as UnknownLink carries it.
+        assert!(name_list(&names[..NAMES_SHOWN], 4000).ends_with("(3988 more)"));
     }
 }

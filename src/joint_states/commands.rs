@@ -10,6 +10,7 @@
 
 use super::joint_map::{JointMap, Target};
 use super::Rejection;
+use spatial_dynamics_core::error::{name_list, quoted};
 
 /// The latest command, and the joint order of `~/commands`.
 #[derive(Clone, Debug)]
@@ -33,8 +34,9 @@ impl Commands {
                 .map(|n| {
                     map.index(n).ok_or_else(|| {
                         format!(
-                            "command_joints: unknown joint '{n}' (the model's joints: {})",
-                            map.names().join(", ")
+                            "command_joints: unknown joint {} (the model's joints: {})",
+                            quoted(n),
+                            name_list(map.names(), map.names().len())
                         )
                     })
                 })
@@ -106,7 +108,7 @@ impl Commands {
                     "commands has {} values, command_joints has {} joints ({})",
                     data.len(),
                     self.slots.len(),
-                    self.names().join(", ")
+                    name_list(&self.names(), self.slots.len())
                 ),
             ));
         }

@@ -12,6 +12,7 @@
 //! - a planar joint `J` is named by its components `J/x`, `J/y`, `J/theta`; a floating base is not
 //!   named here (it has fields of its own).
 
+use spatial_dynamics_core::error::{name_list, quoted};
 use spatial_dynamics_core::model::JointKind;
 use spatial_dynamics_core::Model;
 use std::collections::HashMap;
@@ -139,7 +140,7 @@ impl JointMap {
         for name in names {
             match self.lookup.get(name.as_str()) {
                 Some(&slot) if self.seen[slot] => {
-                    return Err(format!("joint '{name}' appears twice in {field}"))
+                    return Err(format!("joint {} appears twice in {field}", quoted(name)))
                 }
                 Some(&slot) => {
                     self.seen[slot] = true;
@@ -148,8 +149,9 @@ impl JointMap {
                 None if self.passive.contains_key(name.as_str()) => self.order.push(None),
                 None => {
                     return Err(format!(
-                        "unknown joint '{name}' in {field} (the model's joints: {})",
-                        self.names.join(", ")
+                        "unknown joint {} in {field} (the model's joints: {})",
+                        quoted(name),
+                        name_list(&self.names, self.names.len())
                     ))
                 }
             }
@@ -162,7 +164,10 @@ impl JointMap {
                 .filter(|(_, s)| !**s)
                 .map(|(n, _)| n.as_str())
                 .collect();
-            return Err(format!("{field} lacks joints {}", missing.join(", ")));
+            return Err(format!(
+                "{field} lacks joints {}",
+                name_list(&missing, missing.len())
+            ));
         }
         Ok(())
     }

@@ -39,6 +39,7 @@ use decode::Decoder;
 use pipeline::pipeline;
 use progress::Progress;
 use report::report;
+use spatial_dynamics_core::error::name_list;
 use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
 use spatial_dynamics_core::{urdf, ForwardDynamicsMethod, Model, ModelOptions};
 use std::io::IsTerminal;
@@ -168,7 +169,7 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
                 return Err(format!(
                     "{}: no topic {js_topic} (the bag has: {})",
                     args.bag.display(),
-                    names.join(", ")
+                    name_list(&names, names.len())
                 ));
             };
             t.count

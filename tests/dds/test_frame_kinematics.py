@@ -202,3 +202,37 @@ def test_floating_base_against_pinocchio(solo, ros):
         q = ref.q(names, pos, base)
         v, a = ref.v(names, vel, twist), ref.v(names, acc, accel)
         check_answer(resp, ref, names, q, v, a, links, reference)
+
+
+# ---- A pan-tilt head whose moving links have no mass ---------------------------------------------
+
+PAN_TILT = """<?xml version="1.0"?>
+<robot name="pan_tilt">
+  <link name="base"><inertial><mass value="3"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>
+  <joint name="pan" type="revolute"><parent link="base"/><child link="pan_link"/><origin xyz="0 0 0.1"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <link name="pan_link"/>
+  <joint name="tilt" type="revolute"><parent link="pan_link"/><child link="tilt_link"/><origin xyz="0 0 0.05"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <link name="tilt_link"/>
+  <joint name="cam" type="fixed"><parent link="tilt_link"/><child link="camera"/><origin xyz="0.1 0 0"/></joint>
+  <link name="camera"/>
+</robot>
+"""
+
+
+def test_massless_moving_links_still_have_frames(nodes, ros, tmp_path):
+    """No moving body has mass: the centre of mass is answered as mass 0 (at the origin, a zero
+    Jacobian) and the links are served; the camera sits at (0, 0, 0.15) + R_z(pan) R_y(tilt) (0.1, 0, 0)."""
+    urdf = tmp_path / "pan_tilt.urdf"
+    urdf.write_text(PAN_TILT)
+    nodes.start("-r", "__ns:=/head", "-p", f"urdf_file:={urdf}", label="pan-tilt")
+    ros.wait_for_service(DescribeModel, "/head/spatial_dynamics/describe_model")
+    pan, tilt = 0.4, -0.3
+    req = FrameKinematics.Request(name=["pan", "tilt"], position=[pan, tilt], links=["camera"], reference="world")
+    resp = ros.call(FrameKinematics, "/head/spatial_dynamics/frame_kinematics", req)
+    assert resp.success, resp.message
+    assert resp.mass == 0.0 and list(resp.center_of_mass_jacobian) == [0.0] * 6
+    expected = np.array([0, 0, 0.15]) + 0.1 * np.array(
+        [np.cos(pan) * np.cos(tilt), np.sin(pan) * np.cos(tilt), -np.sin(tilt)]
+    )
+    p = resp.poses[0].position
+    assert_close([p.x, p.y, p.z], expected, "camera position", tol=1e-15)

@@ -24,8 +24,7 @@ use super::kinematics::{
     read_joint, update_joints, update_placements, update_up, with_up_transform,
 };
 use super::validate::{all_finite, check_q_of};
-use crate::error::check_len;
-use crate::error::DynamicsError;
+use crate::error::{check_len, DynamicsError, NAMES_SHOWN};
 use crate::model::{
     floating_up, quaternion_is_usable, turn_up, turn_up_unrotated, Body, JointKind, Model,
     MotionSubspace, UpShape,
@@ -95,7 +94,10 @@ pub fn find_frame(model: &Model, name: &str) -> Result<Frame, DynamicsError> {
         None => Err(DynamicsError::UnknownLink {
             link: name.to_string(),
             pruned: model.reduction.pruned_links.iter().any(|l| l == name),
-            known: model.links.iter().map(|l| l.name.clone()).collect(),
+            known: (model.links.iter().take(NAMES_SHOWN))
+                .map(|l| l.name.clone())
+                .collect(),
+            links: model.links.len(),
         }),
     }
 }

@@ -17,8 +17,8 @@ use spatial_dynamics_core::algorithms::{
     center_of_mass_jacobian, find_frame, frame_classical_acceleration, joint_jacobians, Frame,
     ReferenceFrame,
 };
-use spatial_dynamics_core::spatial::Transform;
-use spatial_dynamics_core::Model;
+use spatial_dynamics_core::error::DynamicsError;
+use spatial_dynamics_core::spatial::{Transform, Vector3};
 
 impl Engine {
     /// `~/frame_kinematics`.
@@ -50,14 +50,22 @@ impl Engine {
             .links
             .iter()
             .enumerate()
-            .map(|(i, link)| frame_named(&self.model, link).map_err(|e| format!("links[{i}]: {e}")))
+            .map(|(i, link)| find_frame(&self.model, link).map_err(|e| format!("links[{i}]: {e}")))
             .collect::<Result<Vec<Frame>, String>>()?;
         // The velocity coordinates in answer order: the base's six, then the joints as named.
         let (index, columns) = self.velocity_columns();
 
-        let (com, jc) = center_of_mass_jacobian(&self.model, &mut self.ws, &self.q)
-            .map_err(|e| e.to_string())?;
-        let center_of_mass_jacobian = by_rows(jc, &index);
+        // A model whose moving links have no mass (a massless pan-tilt head) still has frames:
+        // its centre of mass is answered as mass 0 at the origin, Jacobian 0.
+        let (mass, com_position, center_of_mass_jacobian) =
+            match center_of_mass_jacobian(&self.model, &mut self.ws, &self.q) {
+                Ok((com, jc)) => (com.mass, com.position, by_rows(jc, &index)),
+                Err(DynamicsError::Unsupported {
+                    method: "center of mass",
+                    ..
+                }) => (0.0, Vector3::zeros(), vec![0.0; 3 * index.len()]),
+                Err(e) => return Err(e.to_string()),
+            };
         // The classical acceleration belongs to the link origin: world axes unless local.
         let acceleration_axes = match reference {
             ReferenceFrame::Local => ReferenceFrame::Local,
@@ -93,9 +101,9 @@ impl Engine {
                 .map_err(|e| format!("link '{link}': {e}"))?;
             jacobians.extend(by_rows(j, &index));
         }
-        let numbers = [com.mass]
+        let numbers = [mass]
             .into_iter()
-            .chain(com.position.iter().copied())
+            .chain(com_position.iter().copied())
             .chain(poses.iter().flat_map(|p: &Pose| {
                 let (x, o) = (&p.position, &p.orientation);
                 [x.x, x.y, x.z, o.x, o.y, o.z, o.w]
@@ -125,34 +133,15 @@ impl Engine {
             columns,
             jacobians,
             accelerations,
-            mass: com.mass,
+            mass,
             center_of_mass: Point {
-                x: com.position.x,
-                y: com.position.y,
-                z: com.position.z,
+                x: com_position.x,
+                y: com_position.y,
+                z: com_position.z,
             },
             center_of_mass_jacobian,
         })
     }
-}
-
-/// The frame of `link`; a name longer than any of the model's links is refused without being
-/// echoed whole (a reason is a sentence, not a copy of the request).
-fn frame_named(model: &Model, link: &str) -> Result<Frame, String> {
-    let longest = model
-        .links()
-        .iter()
-        .map(|l| l.name.len())
-        .max()
-        .unwrap_or(0);
-    if link.len() > longest {
-        let start: String = link.chars().take(40).collect();
-        return Err(format!(
-            "the model has no link named '{start}…' ({} bytes; its longest link name has {longest})",
-            link.len()
-        ));
-    }
-    find_frame(model, link).map_err(|e| e.to_string())
 }
 
 /// The rows of `m`, each with its columns `index` in that order, concatenated (row-major).

@@ -21,6 +21,7 @@ use spatial_dynamics_core::algorithms::method_choice::AUTO_TOLERANCE;
 use spatial_dynamics_core::algorithms::{
     choose_method, crba, forward_dynamics, rnea_with, JointStateInputs, Linearization,
 };
+use spatial_dynamics_core::error::{name_list, quoted};
 use spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF;
 use spatial_dynamics_core::model::quaternion_is_usable;
 use spatial_dynamics_core::sim::CommandInterface;
@@ -408,12 +409,13 @@ impl Engine {
         for name in &js.name {
             let k = names.iter().position(|c| c == name).ok_or_else(|| {
                 format!(
-                    "unknown joint '{name}' (the command joints: {})",
-                    names.join(", ")
+                    "unknown joint {} (the command joints: {})",
+                    quoted(name),
+                    name_list(&names, names.len())
                 )
             })?;
             if slots.contains(&k) {
-                return Err(format!("joint '{name}' is named twice"));
+                return Err(format!("joint {} is named twice", quoted(name)));
             }
             slots.push(k);
         }

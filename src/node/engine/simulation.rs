@@ -15,6 +15,7 @@ use super::Engine;
 use crate::joint_states::joint_map::Target;
 use crate::node::params::{parse_passive, Settings};
 use crate::ros::msgs::*;
+use spatial_dynamics_core::error::{name_list, quoted};
 use spatial_dynamics_core::sim::{CommandInterface, Servo, ServoAxis, SimConfig, Simulator, State};
 use std::time::{Duration, Instant};
 
@@ -104,8 +105,9 @@ impl Engine {
         for (name, value) in &settings.initial_positions {
             let index = self.map.index(name).ok_or_else(|| {
                 format!(
-                    "initial_positions: unknown joint '{name}' (the model's joints: {})",
-                    self.map.names().join(", ")
+                    "initial_positions: unknown joint {} (the model's joints: {})",
+                    quoted(name),
+                    name_list(self.map.names(), self.map.names().len())
                 )
             })?;
             q[self.map.slot(index).0] = *value;
