@@ -277,6 +277,39 @@ fn integrate_jacobians_are_the_derivatives_of_integrate() {
     }
 }
 
+/// Non-finite `v` or `dt` are refused naming them; a huge turn (`|φ| = 1e200`) is finite (the
+/// coefficients tend to zero) and a step whose angle overflows is refused naming the joint: no
+/// NaN is ever returned.
+#[test]
+fn integrate_jacobians_refuse_what_is_not_finite() {
+    let model = load(DEFAULT_ARM_URDF, true);
+    let nv = model.nv();
+    let (mut dq, mut dv) = (DMatrix::zeros(nv, nv), DMatrix::zeros(nv, nv));
+    let q = model.neutral();
+    let mut v = vec![0.0; nv];
+    v[4] = f64::NAN;
+    let e = integrate_jacobians(&model, &q, &v, 1.0, &mut dq, &mut dv).unwrap_err();
+    assert!(e.to_string().contains("v[4]"), "{e}");
+    v[4] = 1.0;
+    let e = integrate_jacobians(&model, &q, &v, f64::INFINITY, &mut dq, &mut dv).unwrap_err();
+    assert!(e.to_string().contains("dt is inf"), "{e}");
+    for (turn, dt) in [(1e200, 1.0), (1.0, 1e160), (1e77, 1.0)] {
+        v[5] = turn;
+        let answer = integrate_jacobians(&model, &q, &v, dt, &mut dq, &mut dv);
+        match answer {
+            Ok(()) => assert!(
+                dq.iter().chain(dv.iter()).all(|x| x.is_finite()),
+                "|φ| = {turn}·{dt}: {dv}"
+            ),
+            Err(e) => assert!(e.to_string().contains("overflowed"), "{e}"),
+        }
+    }
+    v[3] = 1e300;
+    v[5] = 1e300;
+    let e = integrate_jacobians(&model, &q, &v, 1.0, &mut dq, &mut dv).unwrap_err();
+    assert!(e.to_string().contains("the step v·dt"), "{e}");
+}
+
 /// A rod pendulum (length `l`, mass `m`, about `y`, hanging along `−z`):
 /// `q̈ = (τ − m g (l/2) sin q) / (m l²/3)`, so continuous `A = [0 1; −(3g/2l) cos q 0]`,
 /// `B = [0; 3/(m l²)]`, and one semi-implicit Euler step of `h` (`q⁺ = q + h q̇⁺`) has

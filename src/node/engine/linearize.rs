@@ -102,8 +102,11 @@ impl Engine {
             .chain(self.map.answer_order().map(|s| self.map.slot(s).1))
             .collect();
         let mut columns: Vec<String> = match self.map.base() {
-            Some(_) => {
-                let joint = &self.model.bodies()[0].joint.name;
+            Some((_, v)) => {
+                // The floating joint: a root body's, whichever body of the tree it is.
+                let joint = (self.model.bodies().iter())
+                    .find(|b| b.parent.is_none() && b.joint.coords.v_index == v)
+                    .map_or("base", |b| b.joint.name.as_str());
                 BASE_COLUMNS
                     .iter()
                     .map(|c| format!("{joint}/{c}"))
@@ -131,4 +134,46 @@ pub(super) fn permuted(m: &DMatrix<f64>, rows: &[usize], columns: &[usize]) -> V
     rows.iter()
         .flat_map(|&r| columns.iter().map(move |&c| m[(r, c)]))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::node::params::Settings;
+
+    /// The floating joint listed after a fixed-base arm in the URDF: the base's six columns
+    /// carry the floating joint's name, and a bad wrench names geometry_msgs/Wrench's fields.
+    #[test]
+    fn base_columns_name_the_floating_joint_and_a_bad_wrench_its_field() {
+        let inertial = r#"<inertial><mass value="1"/><inertia ixx="0.02" ixy="0" ixz="0" iyy="0.03" iyz="0" izz="0.015"/></inertial>"#;
+        let urdf = format!(
+            r#"<robot name="two_roots"><link name="world"/>
+            <link name="arm">{inertial}</link><link name="box">{inertial}</link><link name="lid">{inertial}</link>
+            <joint name="j_arm" type="revolute"><parent link="world"/><child link="arm"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="10" velocity="1"/></joint>
+            <joint name="free" type="floating"><parent link="world"/><child link="box"/><origin xyz="1 0 0"/></joint>
+            <joint name="hinge" type="revolute"><parent link="box"/><child link="lid"/><axis xyz="1 0 0"/><limit lower="-3" upper="3" effort="10" velocity="1"/></joint>
+            </robot>"#
+        );
+        let settings = Settings {
+            robot_description: urdf,
+            ..Settings::default()
+        };
+        let mut engine = Engine::from_settings(&settings, None).unwrap();
+        let names = vec!["j_arm".to_string(), "hinge".to_string()];
+        let mut req = LinearizeRequest {
+            name: names.clone(),
+            position: vec![0.1, 0.2],
+            velocity: vec![0.0, 0.0],
+            ..Default::default()
+        };
+        let answer = engine.linearize(&req);
+        assert!(answer.success, "{}", answer.message);
+        let base: Vec<String> = BASE_COLUMNS.iter().map(|c| format!("free/{c}")).collect();
+        assert_eq!(answer.columns[..6], base[..]);
+        assert_eq!(answer.columns[6..], names[..]);
+        req.effort = vec![0.0, 0.0];
+        req.base_wrench.torque.z = f64::INFINITY;
+        let answer = engine.linearize(&req);
+        assert_eq!(answer.message, "base_wrench.torque.z is inf");
+    }
 }

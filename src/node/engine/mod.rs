@@ -358,7 +358,10 @@ impl Engine {
         write_base(
             Some((0, 0)),
             &mut v,
-            [&odom.twist.twist.linear, &odom.twist.twist.angular],
+            [
+                ("linear", &odom.twist.twist.linear),
+                ("angular", &odom.twist.twist.angular),
+            ],
             "twist",
         )?;
         self.base_q = q;
@@ -616,7 +619,13 @@ impl Engine {
         scatter_rates(
             &self.map,
             ("acceleration", acceleration),
-            ("base_accel", [&base_accel.linear, &base_accel.angular]),
+            (
+                "base_accel",
+                [
+                    ("linear", &base_accel.linear),
+                    ("angular", &base_accel.angular),
+                ],
+            ),
             &mut self.a,
         )
     }
@@ -627,7 +636,13 @@ impl Engine {
         scatter_rates(
             &self.map,
             ("effort", effort),
-            ("base_wrench", [&base_wrench.force, &base_wrench.torque]),
+            (
+                "base_wrench",
+                [
+                    ("force", &base_wrench.force),
+                    ("torque", &base_wrench.torque),
+                ],
+            ),
             &mut self.tau,
         )
     }
@@ -655,7 +670,7 @@ impl Engine {
                 (_, Some(t)) => write_base(
                     Some((qi, vi)),
                     &mut self.v,
-                    [&t.linear, &t.angular],
+                    [("linear", &t.linear), ("angular", &t.angular)],
                     "base_twist",
                 )?,
                 (Some(_), None) => self.v[vi..vi + 6].iter_mut().for_each(|x| *x = 0.0),
@@ -744,36 +759,28 @@ fn base_wrench(base: Option<(usize, usize)>, tau: &[f64]) -> Wrench {
 fn scatter_rates(
     map: &JointMap,
     (field, values): (&str, &[f64]),
-    (base_field, base_parts): (&str, [&Vector3; 2]),
+    (base_field, base_parts): (&str, [(&str, &Vector3); 2]),
     out: &mut [f64],
 ) -> Result<(), String> {
     map.scatter(field, values, Target::Rate, true, out)?;
     write_base(map.base(), out, base_parts, base_field)
 }
 
+/// The base's six entries of a twist, acceleration or wrench: `parts` are its two vectors,
+/// each with its field's name (`linear`, `angular`; `force`, `torque`), linear first.
 fn write_base(
     base: Option<(usize, usize)>,
     out: &mut [f64],
-    parts: [&Vector3; 2],
+    parts: [(&str, &Vector3); 2],
     field: &str,
 ) -> Result<(), String> {
     let Some((_, v)) = base else { return Ok(()) };
-    let values = [
-        parts[0].x, parts[0].y, parts[0].z, parts[1].x, parts[1].y, parts[1].z,
-    ];
+    let [(first, a), (second, b)] = parts;
+    let values = [a.x, a.y, a.z, b.x, b.y, b.z];
     if let Some(i) = values.iter().position(|x| !x.is_finite()) {
-        return Err(format!(
-            "{field}.{} is {}",
-            [
-                "linear.x",
-                "linear.y",
-                "linear.z",
-                "angular.x",
-                "angular.y",
-                "angular.z"
-            ][i],
-            values[i]
-        ));
+        let part = if i < 3 { first } else { second };
+        let axis = ["x", "y", "z"][i % 3];
+        return Err(format!("{field}.{part}.{axis} is {}", values[i]));
     }
     out[v..v + 6].copy_from_slice(&values);
     Ok(())

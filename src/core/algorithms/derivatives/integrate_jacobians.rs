@@ -30,6 +30,7 @@
 //! the simulator steps with; below θ = 0.05 the coefficients come from their Taylor series to
 //! θ⁴ (error below 1e-16 relative), where the closed forms lose digits to cancellation.
 
+use crate::algorithms::validate::check_v;
 use crate::error::{check_len, DynamicsError};
 use crate::model::{JointKind, Model};
 use crate::spatial::{skew, Matrix3, Matrix6, Vector3};
@@ -38,10 +39,16 @@ use nalgebra::{DMatrix, Quaternion, UnitQuaternion};
 /// Below this rotation angle (rad) the Jacobians' coefficients come from their series.
 const SERIES_BELOW: f64 = 0.05;
 
+/// Above this rotation angle (rad) `θ⁵` may overflow: the coefficients are divided by `θ`
+/// term by term.
+const POWERS_OVERFLOW_ABOVE: f64 = 1e60;
+
 /// `D_q` and `D_v` of `q ⊕ v·dt` for the whole model into `dq` and `dv` (each `nv × nv`,
 /// block diagonal: identity blocks but for floating joints, whose 6 × 6 blocks the module
-/// doc gives; zero elsewhere). `q` must have `nq` values, `v` `nv`, the matrices `nv × nv`;
-/// else [`DynamicsError::Length`] names the argument.
+/// doc gives; zero elsewhere). `q` must have `nq` values, `v` `nv` finite ones, the matrices
+/// `nv × nv` (else [`DynamicsError::Length`] or [`DynamicsError::NonFinite`] names the
+/// argument), `dt` must be finite ([`DynamicsError::BadStep`]); a floating joint's step `v·dt`
+/// whose angle overflows is [`DynamicsError::NonFiniteResult`], naming the joint.
 pub fn integrate_jacobians(
     model: &Model,
     q: &[f64],
@@ -52,7 +59,10 @@ pub fn integrate_jacobians(
 ) -> Result<(), DynamicsError> {
     let nv = model.nv();
     check_len("q", model.nq(), q.len())?;
-    check_len("v", nv, v.len())?;
+    check_v(model, "v", v)?;
+    if !dt.is_finite() {
+        return Err(DynamicsError::BadStep { dt });
+    }
     check_len("dq (rows)", nv, dq.nrows())?;
     check_len("dq (columns)", nv, dq.ncols())?;
     check_len("dv (rows)", nv, dv.nrows())?;
@@ -63,7 +73,20 @@ pub fn integrate_jacobians(
         if let JointKind::Floating = j.kind {
             let s = j.v_index;
             let u: [f64; 6] = std::array::from_fn(|k| v[s + k] * dt);
+            let turn = Vector3::new(u[3], u[4], u[5]).norm();
+            if !(u.iter().all(|x| x.is_finite()) && turn.is_finite()) {
+                return Err(DynamicsError::NonFiniteResult {
+                    quantity: "the step v·dt",
+                    coordinate: j.name.to_string(),
+                });
+            }
             let (block_q, block_v) = floating_jacobians(&u);
+            if !block_q.iter().chain(block_v.iter()).all(|x| x.is_finite()) {
+                return Err(DynamicsError::NonFiniteResult {
+                    quantity: "the Jacobians of the step v·dt",
+                    coordinate: j.name.to_string(),
+                });
+            }
             dq.fixed_view_mut::<6, 6>(s, s).copy_from(&block_q);
             dv.fixed_view_mut::<6, 6>(s, s).copy_from(&block_v);
         }
@@ -108,7 +131,9 @@ pub(crate) fn floating_jacobians(u: &[f64; 6]) -> (Matrix6, Matrix6) {
     (ad_inv, jr)
 }
 
-/// `[(1 − cos θ)/θ², c₁, c₂, c₃]` of the module doc, by series below [`SERIES_BELOW`].
+/// `[(1 − cos θ)/θ², c₁, c₂, c₃]` of the module doc, by series below [`SERIES_BELOW`]; beyond
+/// [`POWERS_OVERFLOW_ABOVE`] divided term by term, so that no power of θ overflows for any
+/// finite θ (each coefficient tends to 0).
 fn coefficients(theta: f64) -> [f64; 4] {
     let t2 = theta * theta;
     if theta < SERIES_BELOW {
@@ -120,11 +145,20 @@ fn coefficients(theta: f64) -> [f64; 4] {
         ]
     } else {
         let (s, c) = theta.sin_cos();
-        [
-            (1.0 - c) / t2,
-            (theta - s) / (t2 * theta),
-            (t2 + 2.0 * c - 2.0) / (2.0 * t2 * t2),
-            (2.0 * theta - 3.0 * s + theta * c) / (2.0 * t2 * t2 * theta),
-        ]
+        if theta < POWERS_OVERFLOW_ABOVE {
+            [
+                (1.0 - c) / t2,
+                (theta - s) / (t2 * theta),
+                (t2 + 2.0 * c - 2.0) / (2.0 * t2 * t2),
+                (2.0 * theta - 3.0 * s + theta * c) / (2.0 * t2 * t2 * theta),
+            ]
+        } else {
+            [
+                (1.0 - c) / t2,
+                (1.0 - s / theta) / t2,
+                (1.0 + (2.0 * c - 2.0) / t2) / (2.0 * t2),
+                (2.0 + c - 3.0 * s / theta) / (2.0 * t2) / t2,
+            ]
+        }
     }
 }
