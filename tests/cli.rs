@@ -720,6 +720,15 @@ fn simulate_checks_its_arguments_before_writing() {
         "--effort-until must be",
     );
     refused(base(out, &["--effort-until=-1"]), "--effort-until must be");
+    refused(
+        base(out, &["--initial", r#"{"joint1": 0.1, "joint1": 0.2}"#]),
+        "--initial: joint 'joint1' is named twice",
+    );
+    // Checked with or without contact points.
+    refused(
+        base(out, &["--ground-stiffness=-1"]),
+        "--ground-stiffness: ground stiffness is -1",
+    );
     assert!(!csv.exists());
 
     std::fs::write(&csv, "earlier").unwrap();

@@ -8,13 +8,14 @@
 use super::ModelArgs;
 use crate::output_file::{same_file, PartialFile};
 use clap::Args;
+use spatial_dynamics_core::error::{name_list, quoted};
 use spatial_dynamics_core::model::{quaternion_is_usable, quaternion_norm, JointKind};
 use spatial_dynamics_core::sim::{
     ContactPoint, Ground, Integrator, Passive, SimConfig, Simulator, State,
 };
 use spatial_dynamics_core::spatial::Vector3;
 use spatial_dynamics_core::{ForwardDynamicsMethod, Model};
-use std::collections::BTreeMap;
+use std::collections::BTreeSet;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -220,8 +221,31 @@ fn whole_steps(duration: f64, dt: f64) -> Result<usize, String> {
     Ok(whole as usize)
 }
 
-/// The ground contact asked for, if any: `--contact` points, or the scene's own.
+/// The ground contact asked for, if any: `--contact` points, or the scene's own. Each
+/// `--ground-*` number is checked (naming its flag), contacts or not.
 fn ground(model_args: &ModelArgs, args: &SimulateArgs) -> Result<Option<Ground>, String> {
+    let numbers = Ground {
+        height: args.ground_height,
+        stiffness: args.ground_stiffness,
+        damping: args.ground_damping,
+        friction: args.ground_friction,
+        points: Vec::new(),
+    };
+    for (flag, value) in [
+        ("height", numbers.height),
+        ("stiffness", numbers.stiffness),
+        ("damping", numbers.damping),
+        ("friction", numbers.friction),
+    ] {
+        let mut one = Ground::default();
+        *match flag {
+            "height" => &mut one.height,
+            "stiffness" => &mut one.stiffness,
+            "damping" => &mut one.damping,
+            _ => &mut one.friction,
+        } = value;
+        one.check().map_err(|e| format!("--ground-{flag}: {e}"))?;
+    }
     let mut points = args
         .contacts
         .iter()
@@ -246,13 +270,7 @@ fn ground(model_args: &ModelArgs, args: &SimulateArgs) -> Result<Option<Ground>,
     if points.is_empty() {
         return Ok(None);
     }
-    Ok(Some(Ground {
-        height: args.ground_height,
-        stiffness: args.ground_stiffness,
-        damping: args.ground_damping,
-        friction: args.ground_friction,
-        points,
-    }))
+    Ok(Some(Ground { points, ..numbers }))
 }
 
 #[derive(Clone, Copy, PartialEq)]
@@ -270,20 +288,22 @@ fn apply_map(
     out: &mut [f64],
 ) -> Result<(), String> {
     let Some(json) = json else { return Ok(()) };
-    let map: BTreeMap<String, serde_json::Value> = serde_json::from_str(json)
+    let Entries(entries) = serde_json::from_str(json)
         .map_err(|e| format!("{flag}: expected {{\"joint\": value}}: {e}"))?;
-    for (name, value) in map {
+    let mut named = BTreeSet::new();
+    for (name, value) in entries {
+        if !named.insert(name.clone()) {
+            return Err(format!("{flag}: joint {} is named twice", quoted(&name)));
+        }
         let joint = model
             .coordinate_joints()
             .find(|j| j.name == name)
             .ok_or_else(|| {
+                let joints: Vec<&str> = model.coordinate_joints().map(|j| j.name).collect();
                 format!(
-                    "{flag}: unknown joint '{name}' (joints: {})",
-                    model
-                        .coordinate_joints()
-                        .map(|j| j.name)
-                        .collect::<Vec<_>>()
-                        .join(", ")
+                    "{flag}: unknown joint {} (joints: {})",
+                    quoted(&name),
+                    name_list(&joints, joints.len())
                 )
             })?;
         let (start, len) = match column {
@@ -320,6 +340,33 @@ fn apply_map(
         }
     }
     Ok(())
+}
+
+/// A JSON object's entries in their order, every one kept (a map would keep only the last of
+/// a name given twice).
+struct Entries(Vec<(String, serde_json::Value)>);
+
+impl<'de> serde::Deserialize<'de> for Entries {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = Entries;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a JSON object")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> Result<Entries, A::Error> {
+                let mut entries = Vec::new();
+                while let Some(entry) = map.next_entry()? {
+                    entries.push(entry);
+                }
+                Ok(Entries(entries))
+            }
+        }
+        deserializer.deserialize_map(Visitor)
+    }
 }
 
 fn header(model: &Model) -> String {
