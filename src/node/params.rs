@@ -45,6 +45,7 @@
 //! reads its value from the store before each use.
 
 use ros2_client::ParameterValue;
+use spatial_dynamics_core::error::quoted;
 use spatial_dynamics_core::model::joint_position;
 use spatial_dynamics_core::sim::{CommandInterface, ContactPoint, Ground, Integrator, Passive};
 use spatial_dynamics_core::spatial::Vector3;
@@ -384,10 +385,20 @@ impl Settings {
                 self.passive = items.clone();
             }
             ("initial_positions", P::StringArray(items)) => {
-                self.initial_positions = items
+                let positions: Vec<(String, f64)> = items
                     .iter()
                     .map(|s| parse_lock(s))
-                    .collect::<Result<_, _>>()?
+                    .collect::<Result<_, _>>()?;
+                let mut seen = std::collections::HashSet::new();
+                for (name, _) in &positions {
+                    if !seen.insert(name) {
+                        return Err(format!(
+                            "parameter 'initial_positions': joint {} is given twice",
+                            quoted(name)
+                        ));
+                    }
+                }
+                self.initial_positions = positions;
             }
             ("ground_contacts", P::StringArray(items)) => {
                 self.ground.points = items
@@ -651,5 +662,17 @@ mod tests {
             );
         }
         assert_eq!(s.max_stamp_age, 0.25, "a refused value leaves the old one");
+    }
+
+    #[test]
+    fn an_initial_position_given_twice_is_refused() {
+        let mut s = Settings::default();
+        s.apply_arg("initial_positions", "['joint1=0.5', 'joint2=1']")
+            .unwrap();
+        let err = s
+            .apply_arg("initial_positions", "['joint1=0.5', 'joint1=1']")
+            .unwrap_err();
+        assert!(err.contains("joint 'joint1' is given twice"), "{err}");
+        assert_eq!(s.initial_positions.len(), 2, "the earlier value stays");
     }
 }
