@@ -26,7 +26,7 @@
 //! | `steps_per_command` | integer | `1` | simulate, `on_command`: `sim_dt` steps per command |
 //! | `publish_tf` | bool | `true` | simulate: a floating base's pose on `/tf` (world → base link) with each joint state |
 //! | `passive` | string[] | `[]` | simulate: URDF forces applied: `damping`, `friction`, `effort_limits`, `position_limits` |
-//! | `initial_positions` | string[] | `[]` | simulate: `"NAME=POSITION"` at start and on reload (others zero) |
+//! | `initial_positions` | string[] | `[]` | simulate: `"NAME=POSITION"` at start and on reload (others zero; a joint given twice is refused) |
 //! | `ground_contacts` | string[] | `[]` | simulate: `"LINK:X,Y,Z"` points (link frame, m) that touch a ground plane; empty: no ground |
 //! | `ground_height` | double | `0` | simulate: the plane `z = height` (world, m) |
 //! | `ground_stiffness`, `ground_damping`, `ground_friction` | double | `2e4`, `200`, `0.8` | simulate: penalty contact per point: N/m, N·s/m, Coulomb μ (`spatial_dynamics_core::sim::contact`) |
