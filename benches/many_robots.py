@@ -70,13 +70,18 @@ def run(n, args, log_dir):
         env = dict(os.environ, ROS_DOMAIN_ID=str(FIRST_DOMAIN + k))
         log = open(log_dir / f"robot{k}.log", "w")
         procs.append(subprocess.Popen(
-            [args.bin, "node", *args.model, "--ros-args", "-r", f"__ns:=/robot{k}",
+            [args.bin, "node", "--ros-args", "-r", f"__ns:=/robot{k}",
              "-p", "mode:=simulate", "-p", f"sim_dt:={args.sim_dt}",
-             "-p", f"publish_rate:={args.rate}", "-p", f"integrator:={args.integrator}"],
+             "-p", f"publish_rate:={args.rate}", "-p", f"integrator:={args.integrator}",
+             *[arg for parameter in args.parameters for arg in ("-p", parameter)]],
             env=env, stdout=log, stderr=subprocess.STDOUT))
     monitors = [Monitor(FIRST_DOMAIN + k) for k in range(n)]
     try:
         time.sleep(args.warmup)
+        exited = [k for k, p in enumerate(procs) if p.poll() is not None]
+        if exited:
+            log = (log_dir / f"robot{exited[0]}.log").read_text(errors="replace").strip()
+            sys.exit(f"many_robots: node {exited[0]} exited with {procs[exited[0]].returncode}: {log}")
         start = [m.fresh(10.0) for m in monitors]
         if any(s is None for s in start) or any(p.poll() is not None for p in procs):
             sys.exit(f"many_robots: with {n} robots a node did not report (logs in {log_dir})")
@@ -113,7 +118,8 @@ def main():
     p.add_argument("--sim-dt", type=float, default=0.001)
     p.add_argument("--integrator", default="rk4")
     p.add_argument("--log-dir", default="target/bench-many-robots")
-    p.add_argument("model", nargs="*", help="model options for the node, e.g. --urdf FILE")
+    p.add_argument("parameters", nargs="*", metavar="NAME:=VALUE",
+                   help="node parameters for every robot, e.g. urdf_file:=FILE")
     args = p.parse_args()
     log_dir = Path(args.log_dir)
     log_dir.mkdir(parents=True, exist_ok=True)

@@ -5,7 +5,8 @@
 # only), and reports the largest N with no missed step on /diagnostics, with the CPU per
 # robot. Node logs go to target/bench-many-robots/.
 #
-# Usage: launch_scripts/bench_many_robots.sh [MODEL OPTIONS, e.g. --urdf FILE]
+# Usage: launch_scripts/bench_many_robots.sh [NAME:=VALUE ...]
+#   node parameters for every robot (docs/node.md), e.g. urdf_file:=FILE floating_base:=true
 #   (default: the embedded 7-DOF arm)
 #   Environment: DURATION (10 s per N), MAX_ROBOTS (64), INTEGRATOR (rk4),
 #   SKIP_BUILD=1 uses our binary as it is, PYTHON (the repository's .venv/bin/python: rclpy).

@@ -39,8 +39,9 @@ bench_venv "$venv" "$python" "${packages[@]}"
 site="$(echo "$venv"/lib/python3*/site-packages)"
 mujoco_dir="$site/mujoco"
 [[ -f "$mujoco_dir/include/mujoco/mujoco.h" ]] || die "no MuJoCo headers under $mujoco_dir"
-library="$(cd "$mujoco_dir" && ls libmujoco.so.* | head -1)"
-[[ -n "$library" ]] || die "no libmujoco.so.* under $mujoco_dir"
+libraries=("$mujoco_dir"/libmujoco.so.*)
+[[ -f "${libraries[0]}" ]] || die "no libmujoco.so.* under $mujoco_dir"
+library="$(basename "${libraries[0]}")"
 robots="$site/cmeel.prefix/share/example-robot-data/robots"
 [[ -d "$robots" ]] || die "no example-robot-data robots under $robots"
 

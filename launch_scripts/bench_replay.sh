@@ -54,21 +54,28 @@ fi
 
 # Best of $repeats runs: joint states per wall-clock second and per CPU second (user + system
 # time of every thread of the process: on a machine shared with other work, the per-core cost).
+# Into the variables named by $1 and $2; a failed run (replay or its JSON) fails the script.
 run() {
+    local -n rate="$1" rate_cpu="$2"
+    shift 2
     local best="0 0" out
+    rm -f "$work/out.mcap"
     for _ in $(seq "$repeats"); do
-        out="$("$@" --bag "$bag" --out "$work/out.mcap" --compression "$compression" "${level_flags[@]}" --json 2>>"$work/replay.log" \
-            | "$repo/.venv/bin/python" -c 'import json,sys; s=json.load(sys.stdin); print(round(s["joint_states_per_second"]), round(s["joint_states_per_cpu_second"]))')"
+        if ! out="$("$@" --bag "$bag" --out "$work/out.mcap" --compression "$compression" "${level_flags[@]}" --json 2>>"$work/replay.log" \
+            | "$repo/.venv/bin/python" -c 'import json,sys; s=json.load(sys.stdin); print(round(s["joint_states_per_second"]), round(s["joint_states_per_cpu_second"]))')"; then
+            echo "bench_replay.sh: the run failed: $* (its messages are in $work/replay.log)" >&2
+            exit 1
+        fi
         if (( ${out% *} > ${best% *} )); then best="$out"; fi
     done
-    echo "$best"
+    read -r rate rate_cpu <<<"$best"
 }
 
 cores="$(nproc)"
 log "1 core (taskset -c 0, --jobs 1), best of $repeats"
-read -r one one_cpu <<<"$(run taskset -c 0 "$bin" replay --jobs 1)"
+run one one_cpu taskset -c 0 "$bin" replay --jobs 1
 log "all $cores cores (--jobs $cores), best of $repeats"
-read -r all all_cpu <<<"$(run "$bin" replay --jobs "$cores")"
+run all all_cpu "$bin" replay --jobs "$cores"
 size_in="$(du -sh "$bag" | cut -f1)"
 size_out="$(du -sh "$work/out.mcap" | cut -f1)"
 

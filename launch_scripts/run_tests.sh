@@ -12,6 +12,12 @@ if ! command -v cargo >/dev/null 2>&1; then
     exit 1
 fi
 
+# What the tests need from Debian besides Python (the C++ tests need g++, the FLOP counts
+# valgrind): installed when missing and run as root, else named.
+"$repo/launch_scripts/setup_python_env.sh" --debian
+# Tools a test would otherwise skip itself without are required in this run.
+export SD_FULL_SUITE=1
+
 echo "== Rust: build and test (release) =="
 cargo build --release --locked
 cargo test --release --locked
@@ -74,7 +80,9 @@ jazzy_dds_tests=(
 # A Python started below another venv's Python would inherit its bootstrapper's guard and ROS
 # library path: this one must set up its own.
 jazzy_python=(env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE -u LD_LIBRARY_PATH "$repo/.venv-jazzy/bin/python")
-"$repo/launch_scripts/netns_exec.sh" "${jazzy_python[@]}" -m pytest -q "${jazzy_dds_tests[@]/#/$repo/tests/dds/}"
+jazzy_paths=()
+for test in "${jazzy_dds_tests[@]}"; do jazzy_paths+=("$repo/tests/dds/$test"); done
+"$repo/launch_scripts/netns_exec.sh" "${jazzy_python[@]}" -m pytest -q "${jazzy_paths[@]}"
 
 echo "== ROS package: colcon builds the repository in a fresh workspace; the installed node and launch file =="
 # colcon comes with .venv; colcon-ros-cargo runs `cargo ament-build` (crates.io), installed once.

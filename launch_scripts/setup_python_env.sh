@@ -12,7 +12,10 @@
 # tests need besides (pytest, numpy, pin, example-robot-data); run_tests.sh runs a subset of the
 # DDS tests with it.
 #
-# Usage: launch_scripts/setup_python_env.sh [--jazzy] [--force]
+# Usage: launch_scripts/setup_python_env.sh [--jazzy] [--force] [--debian]
+#   --debian only installs what the test suite needs from Debian besides Python (compilers,
+#   make, valgrind and objdump for the FLOP counts), as every run also does; run_tests.sh calls
+#   it before the Rust tests, whose C++ tests need g++.
 #   Idempotent: a second run only compares two stamp files and exits in well under a second.
 #   The Python packages are (re)installed when the package list below changes, and msg/ (or
 #   tests/dds/interfaces/tf2_msgs) is rebuilt when any file under it changes, src/python when src/core, src/python or Cargo.lock
@@ -25,11 +28,13 @@ repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 
 force="${SETUP_FORCE:-0}"
 jazzy=0
+debian_only=0
 for arg in "$@"; do
     case "$arg" in
         --force) force=1 ;;
         --jazzy) jazzy=1 ;;
-        *) printf 'setup_python_env.sh: unknown option %s (usage: [--jazzy] [--force])\n' "$arg" >&2; exit 2 ;;
+        --debian) debian_only=1 ;;
+        *) printf 'setup_python_env.sh: unknown option %s (usage: [--jazzy] [--force] [--debian])\n' "$arg" >&2; exit 2 ;;
     esac
 done
 
@@ -108,6 +113,17 @@ apt_install() {
     "${sudo[@]}" apt-get install -y -qq --no-install-recommends "$@" </dev/null
 }
 
+# --- 0. Debian tools the tests need besides Python: C and C++ compilers and make (the C/C++ tests
+#        and the interface builds), valgrind and objdump (tests/python/test_flop_counts.py) ------
+missing_tools=()
+command -v cc >/dev/null 2>&1 || missing_tools+=(gcc)
+command -v c++ >/dev/null 2>&1 || missing_tools+=(g++)
+command -v make >/dev/null 2>&1 || missing_tools+=(make)
+command -v valgrind >/dev/null 2>&1 || missing_tools+=(valgrind)
+command -v objdump >/dev/null 2>&1 || missing_tools+=(binutils)
+if [[ ${#missing_tools[@]} -gt 0 ]]; then apt_install "${missing_tools[@]}"; fi
+if [[ "$debian_only" == 1 ]]; then exit 0; fi
+
 # --- 1. A Python 3.11 interpreter (the ROS wheels are cp311) -------------------------------------
 find_python() {
     local c
@@ -179,11 +195,8 @@ prepare_interface_build() {
     [[ "$build_ready" == 0 ]] || return 0
     build_ready=1
 
-    # 4a. What the build needs from Debian: C and C++ compilers, make, Python's headers.
+    # 4a. What the build needs from Debian besides step 0's compilers: Python's headers.
     local missing=() py_include np_include
-    command -v cc >/dev/null 2>&1 || missing+=(gcc)
-    command -v c++ >/dev/null 2>&1 || missing+=(g++)
-    command -v make >/dev/null 2>&1 || missing+=(make)
     py_include="$("$vpy" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')"
     if [[ ! -f "$py_include/Python.h" ]]; then
         [[ "$py_include" == /usr/include/* ]] || die "Python.h not found in $py_include (install your Python's headers)"

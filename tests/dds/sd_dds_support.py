@@ -11,6 +11,7 @@ import glob
 import json
 import math
 import os
+import shutil
 import signal
 import site
 import subprocess
@@ -111,6 +112,10 @@ def anymal_urdf() -> Path:
 
 LIVE_NODES: list = []  # every NodeProcess started and not yet stopped (for failure reports)
 
+# A node gets SIGTERM when the test process that started it dies (killed, timed out), instead of
+# living on in its own session: util-linux's setpriv sets the parent-death signal and execs it.
+DIE_WITH_TESTS = ["setpriv", "--pdeathsig", "TERM"] if shutil.which("setpriv") else []
+
 
 class NodeProcess:
     """`spatial_dynamics node ARGS` (or `BINARY ARGS` with ``subcommand=()``, for the
@@ -124,7 +129,7 @@ class NodeProcess:
         self.expect_exit = expect_exit
         self._log = open(log_path, "wb")
         self.proc = subprocess.Popen(
-            self.args,
+            [*DIE_WITH_TESTS, *self.args],
             stdout=self._log,
             stderr=subprocess.STDOUT,
             stdin=subprocess.DEVNULL,

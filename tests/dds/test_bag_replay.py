@@ -217,9 +217,25 @@ def test_replayed_bag_is_answered_in_bag_time_like_pinocchio(ros, node, tmp_path
           f"commands in effect: {where}")
 
 
+PLAYERS = []  # every player started by the running test
+
+
 def play(bag, *options):
-    return subprocess.Popen([sys.executable, str(REPO / "launch_scripts" / "play_bag.py"), str(bag), *options],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    player = subprocess.Popen([sys.executable, str(REPO / "launch_scripts" / "play_bag.py"), str(bag), *options],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    PLAYERS.append(player)
+    return player
+
+
+@pytest.fixture(autouse=True)
+def no_player_outlives_its_test():
+    """A player a failing test left running (a --loop one never ends by itself) is killed."""
+    yield
+    while PLAYERS:
+        player = PLAYERS.pop()
+        if player.poll() is None:
+            player.kill()
+        player.communicate(timeout=10)
 
 
 def test_player_rate_offset_topics_clock_and_loop(ros, tmp_path):

@@ -185,10 +185,13 @@ def start(ws, ros, args, tmp_path, label, prefix="/spatial_dynamics"):
     env["ROS_DOMAIN_ID"] = str(DOMAIN_ID)
     before = ros.rosout_writers()
     node = sd.NodeProcess(exe, args, env, tmp_path / f"{label}.log", label, subcommand=())
-    if not ros.wait_new_node(before):
+    try:
+        if not ros.wait_new_node(before):
+            raise AssertionError(f"the installed node was not discovered within {sd.EVENT_S} s:\n{node.describe()}")
+        ros.wait_for_service(DescribeModel, f"{prefix}/describe_model")
+    except BaseException:
         node.stop()
-        raise AssertionError(f"the installed node was not discovered within 10 s:\n{node.describe()}")
-    ros.wait_for_service(DescribeModel, f"{prefix}/describe_model")
+        raise
     return node
 
 
