@@ -11,8 +11,12 @@
 //!
 //! ```text
 //! d_i = R_i h_i + Σ_children (d_j + m_j (p_j − p_i))
-//! c = Σ_roots (m_r p_r + d_r) / M
+//! c = Σ_roots (m_r / M) p_r + d_r / M
 //! ```
+//!
+//! `p_j − p_i` is body `j`'s origin in body `i`'s coordinates (its joint's placement) turned
+//! into world axes, not the difference of two world positions, which far from the world origin
+//! would lose the digits of their size.
 //!
 //! A joint column `s` of body `i` (world axes at `p_i`: `a = R_i s_ω`, `l = R_i s_v`) moves the
 //! subtree's centre of mass with `l + a × d_i / m_i`, so column `k` of `J_c` (`ċ = J_c q̇`) is
@@ -118,7 +122,10 @@ fn subtree_moments(model: &Model, ws: &mut Workspace) {
             (scratch.subtree_mass[i], scratch.subtree_moment[i]) = (m, d);
         }
         if let Some(p) = body.parent {
-            let shift = ws.x_world[i].trans - ws.x_world[p].trans;
+            // p_i − p_λ from the joint's own placement (body i's origin in its parent's
+            // coordinates, turned into world axes), not from the two world positions: far
+            // from the world origin their difference would lose the digits of their size.
+            let shift = ws.x_world[p].rot.tr_mul(&ws.x_up[i].trans);
             let added = (m, d + shift * m);
             if p + 1 == i {
                 carried = Some(added);
@@ -130,29 +137,32 @@ fn subtree_moments(model: &Model, ws: &mut Workspace) {
     }
 }
 
-/// `M` and `c` from the roots' subtrees; an error for a massless model or an overflow.
+/// `M` and `c = Σ_roots (m_r / M) p_r + d_r / M` from the roots' subtrees, each term scaled by
+/// `1 / M` before it is summed (a centre of mass that is a number is one, however far out); an
+/// error for a massless model, or naming the root joint whose subtree's sum overflowed.
 fn total(model: &Model, ws: &Workspace) -> Result<CenterOfMass, DynamicsError> {
     let scratch = &ws.frame_scratch;
-    let (mut mass, mut moment) = (0.0, Vector3::zeros());
-    let sums = scratch.subtree_mass.iter().zip(&scratch.subtree_moment);
-    for ((body, x), (&m, d)) in model.bodies.iter().zip(&ws.x_world).zip(sums) {
-        if body.parent.is_none() {
-            mass += m;
-            moment += x.trans * m + d;
-        }
-    }
+    let roots = || {
+        (model.bodies.iter().zip(&ws.x_world))
+            .zip(scratch.subtree_mass.iter().zip(&scratch.subtree_moment))
+            .filter(|((body, _), _)| body.parent.is_none())
+    };
+    let mass: f64 = roots().map(|(_, (&m, _))| m).sum();
     if mass <= 0.0 {
         return Err(DynamicsError::Unsupported {
             method: "center of mass",
             reason: "no moving body of the model has mass".into(),
         });
     }
-    let position = moment / mass;
-    if !position.iter().all(|x| x.is_finite()) {
-        return Err(DynamicsError::NonFiniteResult {
-            quantity: "centre of mass",
-            coordinate: model.name.clone(),
-        });
+    let mut position = Vector3::zeros();
+    for ((body, x), (&m, d)) in roots() {
+        position += x.trans * (m / mass) + d / mass;
+        if !position.iter().all(|x| x.is_finite()) {
+            return Err(DynamicsError::NonFiniteResult {
+                quantity: "centre of mass",
+                coordinate: body.joint.name.clone(),
+            });
+        }
     }
     Ok(CenterOfMass { mass, position })
 }

@@ -23,7 +23,7 @@
 use super::kinematics::{
     read_joint, update_joints, update_placements, update_up, with_up_transform,
 };
-use super::validate::{all_finite, check_q_of};
+use super::validate::{all_finite, check_q, check_q_of};
 use crate::error::{check_len, DynamicsError, NAMES_SHOWN};
 use crate::model::{
     floating_up, quaternion_is_usable, turn_up, turn_up_unrotated, Body, JointKind, Model,
@@ -194,8 +194,9 @@ pub(crate) enum Placing {
 }
 
 /// Places the bodies supporting `body` (none for a link fixed to the world) for `q`, as
-/// `placing` asks: the coordinates their joints read are validated (only those: the others do
-/// not move the frame), their joints are updated (`ws.s`, and `ws.x_up` with
+/// `placing` asks: `q` is validated (every coordinate finite, though only the support's move
+/// the frame: a NaN anywhere is the caller's mistake; the support's quaternions usable), their
+/// joints are updated (`ws.s`, and `ws.x_up` with
 /// [`Placing::WithJointTransforms`]; other bodies' entries are left as they were) and
 /// `ws.x_world` holds their `ⁱX_0 = ⁱX_λ ᵏX_0`. The bodies are those `ws.plan.supports`
 /// lists for `body`, root first.
@@ -207,8 +208,7 @@ pub(crate) fn place_support(
     placing: Placing,
 ) -> Result<(), DynamicsError> {
     let Some(last) = body else {
-        ws.check(model)?;
-        return check_q_of(model, q, &[]);
+        return check_q(model, ws, q);
     };
     let turns = support_turns(model, ws, q, last, placing)?;
     for k in 0..ws.plan.supports.of(last).len() {
@@ -224,7 +224,7 @@ pub(crate) fn place_support(
     Ok(())
 }
 
-/// The coordinates of the joints supporting body `last` read and validated (as
+/// The coordinates of the joints supporting body `last` read, `q` validated (as
 /// [`place_support`] says), and the sines and cosines of their turns, in support order in
 /// `scratch.sines` and `scratch.cosines`, for the first `n` of them (returned): all but, with
 /// [`Placing::UpToLastTurn`], a last turn. As `update_joints` does for the whole tree: the turn
@@ -238,6 +238,10 @@ pub(crate) fn support_turns(
 ) -> Result<usize, DynamicsError> {
     ws.check(model)?;
     check_len("q", model.nq, q.len())?;
+    if !all_finite(q) {
+        // A coordinate off the support does not move the frame, but is no number either.
+        check_q(model, ws, q)?;
+    }
     let Workspace {
         plan,
         q_joint,

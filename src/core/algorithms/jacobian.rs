@@ -67,8 +67,8 @@ impl FromStr for ReferenceFrame {
 
 /// The Jacobian of `frame` at `q` in `reference` (`6 × nv`, rows `[linear; angular]`, see the
 /// [module](self) documentation), in the workspace. Only the bodies supporting the frame are
-/// placed, and only the coordinates they read are validated; a link fixed to the world has a
-/// zero Jacobian.
+/// placed (every coordinate of `q` must be finite all the same); a link fixed to the world has
+/// a zero Jacobian.
 pub fn frame_jacobian<'w>(
     model: &Model,
     ws: &'w mut Workspace,

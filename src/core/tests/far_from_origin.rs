@@ -238,3 +238,32 @@ fn forward_dynamics_far_from_origin_inverts_rnea_with_a_moving_root() {
         }
     }
 }
+
+/// The centre-of-mass Jacobian, a sum of each subtree's first moment about its own joint, does
+/// not depend on where the robot stands: 1000 km out as at the origin (the offsets between
+/// joints come from the joints' own placements, not from differences of world positions), and
+/// the centre of mass moves by exactly that much.
+#[test]
+fn the_centre_of_mass_jacobian_does_not_depend_on_where_the_robot_stands() {
+    use spatial_dynamics_core::algorithms::center_of_mass_jacobian;
+    let tree_floating_joint = TREE.replace(r#"type="planar""#, r#"type="floating""#);
+    for text in [examples::DEFAULT_ARM_URDF, tree_floating_joint.as_str()] {
+        let model = load(text, true);
+        let mut ws = Workspace::new(&model);
+        let mut rng = Rng::new(41);
+        for _ in 0..5 {
+            let q = random_q(&model, &mut rng);
+            let mut far = q.clone();
+            for (x, d) in far.iter_mut().zip([1e6, -7e5, 3e5]) {
+                *x += d;
+            }
+            let (com_near, j) = center_of_mass_jacobian(&model, &mut ws, &q).unwrap();
+            let near: Vec<f64> = j.iter().copied().collect();
+            let (com_far, j) = center_of_mass_jacobian(&model, &mut ws, &far).unwrap();
+            let far_j: Vec<f64> = j.iter().copied().collect();
+            assert_same(model.name(), "J_c", &near, &far_j);
+            let moved = com_far.position - com_near.position - Vector3::new(1e6, -7e5, 3e5);
+            assert!(moved.norm() < 1e-9, "{}: {moved:?}", model.name());
+        }
+    }
+}

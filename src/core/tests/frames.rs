@@ -665,9 +665,33 @@ fn bad_requests_are_errors_naming_the_problem() {
         ),
         "{err}"
     );
-    // A frame reads only its support's coordinates: q[2] does not move link1.
-    let link1 = find_frame(&model, "link1").unwrap();
-    assert!(frame_jacobian(&model, &mut ws, &bad, &link1, ReferenceFrame::World).is_ok());
+    // q[2] does not move link1 (nor base_link, fixed to the world), but NaN is no coordinate:
+    // every frame function names it.
+    let zero = vec![0.0; model.nv()];
+    for link in ["link1", "base_link"] {
+        let frame = find_frame(&model, link).unwrap();
+        let errors = [
+            frame_placement(&model, &mut ws, &bad, &frame).map(|_| ()),
+            frame_jacobian(&model, &mut ws, &bad, &frame, ReferenceFrame::Local).map(|_| ()),
+            frame_classical_acceleration(
+                &model,
+                &mut ws,
+                &bad,
+                &zero,
+                &zero,
+                &frame,
+                ReferenceFrame::LocalWorldAligned,
+            )
+            .map(|_| ()),
+        ];
+        for err in errors {
+            let err = err.unwrap_err();
+            assert!(
+                matches!(err, DynamicsError::NonFinite { index: 2, .. }),
+                "{link}: {err}"
+            );
+        }
+    }
     // A floating base's quaternion of zero norm is named.
     let floating = load(
         DEFAULT_ARM_URDF,
@@ -747,7 +771,27 @@ fn bad_requests_are_errors_naming_the_problem() {
     let l2 = find_frame(&slides, "l2").unwrap();
     let err = frame_placement(&slides, &mut ws, &[1e308, 1e308], &l2).unwrap_err();
     assert!(err.to_string().contains("'l2'"), "{err}");
-    assert!(center_of_mass(&slides, &mut ws, &[1e308, 1e308]).is_err());
+    // Its centre of mass is a number: l1's (1 kg at 1e308); l2, out of range, has no mass.
+    let com = center_of_mass(&slides, &mut ws, &[1e308, 1e308]).unwrap();
+    assert_eq!(com.position.x, 1e308);
+    // Two 1 kg bodies at 1.5e308: the mean is a number, though the sum of moments is not.
+    let body = "<inertial><mass value=\"1\"/><inertia ixx=\"1\" ixy=\"0\" ixz=\"0\" iyy=\"1\" iyz=\"0\" izz=\"1\"/></inertial>";
+    let heavy = load(
+        &format!(
+            "<robot name=\"h\"><link name=\"w\"/>\
+             <joint name=\"a\" type=\"prismatic\"><parent link=\"w\"/><child link=\"l1\"/><axis xyz=\"1 0 0\"/><limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/></joint>\
+             <link name=\"l1\">{body}</link>\
+             <joint name=\"b\" type=\"prismatic\"><parent link=\"l1\"/><child link=\"l2\"/><axis xyz=\"1 0 0\"/><limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/></joint>\
+             <link name=\"l2\">{body}</link></robot>"
+        ),
+        ModelOptions::default(),
+    );
+    let mut ws_heavy = Workspace::new(&heavy);
+    let com = center_of_mass(&heavy, &mut ws_heavy, &[1.5e308, 0.0]).unwrap();
+    assert_eq!((com.mass, com.position.x), (2.0, 1.5e308));
+    // l2 pushed past the largest number: refused, naming the root joint of the subtree.
+    let err = center_of_mass(&heavy, &mut ws_heavy, &[1.5e308, 1.5e308]).unwrap_err();
+    assert!(err.to_string().contains("centre of mass at 'a'"), "{err}");
     // Nothing moving has mass.
     let massless = load(
         "<robot name=\"m\"><link name=\"w\"/><joint name=\"j\" type=\"revolute\"><parent link=\"w\"/><child link=\"c\"/>\
