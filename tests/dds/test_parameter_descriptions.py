@@ -37,6 +37,8 @@ READ_ONLY = {
 }
 # Numbers with a range of their own (from, to): the node's timers hold periods of 1000 s to 1 µs.
 BOUNDED = {"publish_rate": (1e-3, 1e6)}
+# Integer parameters' ranges (inclusive; step 0: any), as params.rs checks them.
+INTEGER_RANGES = {"steps_per_command": (1, 1_000_000, 0)}
 # Numbers that must be > 0, >= 0, or only finite: the lower bound of their range.
 POSITIVE = {"sim_dt", "real_time_factor", "ground_stiffness"}
 NON_NEGATIVE = {"max_stamp_age", "future_stamp_tolerance", "command_timeout", "ground_damping", "ground_friction"}
@@ -67,6 +69,10 @@ def test_every_parameter_is_described(arm, ros):
             else:
                 assert r.from_value < -1e300 and r.to_value > 1e300, (name, r)
             assert r.step == 0.0, (name, r)
+        elif TYPES[name] == T.INTEGER:
+            assert len(d.integer_range) == 1 and not d.floating_point_range, (name, d)
+            r = d.integer_range[0]
+            assert (r.from_value, r.to_value, r.step) == INTEGER_RANGES[name], (name, r)
         else:
             assert not d.floating_point_range and not d.integer_range, (name, d)
     assert "auto" in described["method"].description and "aba" in described["method"].additional_constraints
