@@ -12,6 +12,7 @@ Run by launch_scripts/bench_many_robots.sh inside launch_scripts/netns_exec.sh (
 """
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -65,38 +66,53 @@ class Monitor:
 def run(n, args, log_dir):
     """N nodes for the warm-up then the measured window:
     (passed, CPU per robot, worst RTF, late ticks, missed steps)."""
-    procs = []
-    for k in range(n):
-        env = dict(os.environ, ROS_DOMAIN_ID=str(FIRST_DOMAIN + k))
-        log = open(log_dir / f"robot{k}.log", "w")
-        procs.append(subprocess.Popen(
-            [args.bin, "node", "--ros-args", "-r", f"__ns:=/robot{k}",
-             "-p", "mode:=simulate", "-p", f"sim_dt:={args.sim_dt}",
-             "-p", f"publish_rate:={args.rate}", "-p", f"integrator:={args.integrator}",
-             *[arg for parameter in args.parameters for arg in ("-p", parameter)]],
-            env=env, stdout=log, stderr=subprocess.STDOUT))
-    monitors = [Monitor(FIRST_DOMAIN + k) for k in range(n)]
+    procs, logs, monitors = [], [], []
+
+    def exited():
+        """Stops the benchmark with the log of a node that has exited (a refused parameter, a
+        model it cannot load, a crash)."""
+        for k, p in enumerate(procs):
+            if p.poll() is not None:
+                logs[k].flush()
+                log = (log_dir / f"robot{k}.log").read_text(errors="replace").strip()
+                sys.exit(f"many_robots: node {k} exited with {p.returncode}: {' '.join(p.args)}\n{log}")
+
     try:
-        time.sleep(args.warmup)
-        exited = [k for k, p in enumerate(procs) if p.poll() is not None]
-        if exited:
-            log = (log_dir / f"robot{exited[0]}.log").read_text(errors="replace").strip()
-            sys.exit(f"many_robots: node {exited[0]} exited with {procs[exited[0]].returncode}: {log}")
+        for k in range(n):
+            env = dict(os.environ, ROS_DOMAIN_ID=str(FIRST_DOMAIN + k))
+            logs.append(open(log_dir / f"robot{k}.log", "w"))
+            procs.append(subprocess.Popen(
+                [args.bin, "node", "--ros-args", "-r", f"__ns:=/robot{k}",
+                 "-p", "mode:=simulate", "-p", f"sim_dt:={args.sim_dt}",
+                 "-p", f"publish_rate:={args.rate}", "-p", f"integrator:={args.integrator}",
+                 *[arg for parameter in args.parameters for arg in ("-p", parameter)]],
+                env=env, stdout=logs[k], stderr=subprocess.STDOUT))
+        # A node refuses its arguments, or a model it cannot load, within a moment of starting.
+        time.sleep(min(args.warmup, 1.0))
+        exited()
+        monitors = [Monitor(FIRST_DOMAIN + k) for k in range(n)]
+        time.sleep(max(0.0, args.warmup - 1.0))
+        exited()
         start = [m.fresh(10.0) for m in monitors]
-        if any(s is None for s in start) or any(p.poll() is not None for p in procs):
+        exited()
+        if any(s is None for s in start):
             sys.exit(f"many_robots: with {n} robots a node did not report (logs in {log_dir})")
         t0, cpu0 = time.monotonic(), [cpu_seconds(p.pid) for p in procs]
         time.sleep(args.duration)
         end = [m.fresh(10.0) for m in monitors]
         wall = time.monotonic() - t0
+        exited()
         cpu = [(cpu_seconds(p.pid) - c) / wall for p, c in zip(procs, cpu0)]
     finally:
         for m in monitors:
             m.close()
         for p in procs:
-            p.terminate()
+            if p.poll() is None:
+                p.terminate()
         for p in procs:
             p.wait(10)
+        for log in logs:
+            log.close()
     if any(e is None for e in end):
         return False, sum(cpu) / n, 0.0, -1, -1
 
@@ -106,6 +122,41 @@ def run(n, args, log_dir):
     late, missed = rise("late publish ticks"), rise("missed steps")
     rtf = min(float(e["real-time factor"]) for e in end)
     return missed == 0, sum(cpu) / n, rtf, late, missed
+
+
+def model_parameters(args, parser):
+    """The node parameters (NAME:=VALUE, values in YAML) for the model options given."""
+    out = []
+    if args.builtin is not None:
+        args.urdf = Path(__file__).resolve().parent.parent / "config" / "models" / f"{args.builtin}.urdf"
+        if "/" in args.builtin or not args.urdf.is_file():
+            parser.error(f"--builtin {args.builtin}: the node loads a URDF, and config/models/ has none of that name")
+    if args.urdf is not None:
+        urdf = Path(args.urdf).resolve()
+        if not urdf.is_file():
+            parser.error(f"--urdf {args.urdf}: no such file")
+        out.append(f"urdf_file:={json.dumps(str(urdf))}")
+    if args.floating_base:
+        out.append("floating_base:=true")
+    if args.ignore_mimic:
+        out.append("ignore_mimic:=true")
+    if args.lock:
+        out.append(f"locked_joints:={json.dumps(args.lock)}")
+    if args.root is not None:
+        out.append(f"root_link:={json.dumps(args.root)}")
+    if args.tip:
+        out.append(f"tip_links:={json.dumps(args.tip)}")
+    if args.prune_massless:
+        out.append("prune_massless:=true")
+    if args.gravity is not None:
+        try:
+            gravity = [float(x) for x in args.gravity.split(",")]
+        except ValueError:
+            gravity = []
+        if len(gravity) != 3:
+            parser.error(f"--gravity {args.gravity}: not X,Y,Z")
+        out.append(f"gravity:={json.dumps(gravity)}")
+    return out
 
 
 def main():
@@ -118,9 +169,25 @@ def main():
     p.add_argument("--sim-dt", type=float, default=0.001)
     p.add_argument("--integrator", default="rk4")
     p.add_argument("--log-dir", default="target/bench-many-robots")
+    model = p.add_argument_group("the model, as `spatial_dynamics model` takes it (given to the node as parameters)")
+    source = model.add_mutually_exclusive_group()
+    source.add_argument("--urdf", metavar="FILE", help="URDF file (urdf_file)")
+    source.add_argument("--builtin", metavar="NAME", help="a built-in model with a file in config/models/ "
+                        "(default_arm, particle, lamp, mimic_gripper; urdf_file)")
+    model.add_argument("--floating-base", action="store_true", help="floating_base: true")
+    model.add_argument("--ignore-mimic", action="store_true", help="ignore_mimic: true")
+    model.add_argument("--lock", action="append", default=[], metavar="NAME=VALUE", help="locked_joints (repeatable)")
+    model.add_argument("--root", metavar="LINK", help="root_link")
+    model.add_argument("--tip", action="append", default=[], metavar="LINK", help="tip_links (repeatable)")
+    model.add_argument("--prune-massless", action="store_true", help="prune_massless: true")
+    model.add_argument("--gravity", metavar="X,Y,Z", help="gravity")
     p.add_argument("parameters", nargs="*", metavar="NAME:=VALUE",
-                   help="node parameters for every robot, e.g. urdf_file:=FILE")
-    args = p.parse_args()
+                   help="more node parameters for every robot (docs/node.md), e.g. method:=crba")
+    args = p.parse_intermixed_args()
+    for parameter in args.parameters:
+        if ":=" not in parameter:
+            p.error(f"{parameter!r} is neither a model option nor a node parameter NAME:=VALUE")
+    args.parameters = model_parameters(args, p) + args.parameters
     log_dir = Path(args.log_dir)
     log_dir.mkdir(parents=True, exist_ok=True)
 

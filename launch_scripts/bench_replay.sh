@@ -62,7 +62,7 @@ run() {
     rm -f "$work/out.mcap"
     for _ in $(seq "$repeats"); do
         if ! out="$("$@" --bag "$bag" --out "$work/out.mcap" --compression "$compression" "${level_flags[@]}" --json 2>>"$work/replay.log" \
-            | "$repo/.venv/bin/python" -c 'import json,sys; s=json.load(sys.stdin); print(round(s["joint_states_per_second"]), round(s["joint_states_per_cpu_second"]))')"; then
+            | "$repo/.venv/bin/python" -c 'import json,sys; s=json.load(sys.stdin); print(round(s["joint_states_per_second"]), round(s["joint_states_per_cpu_second"]))' 2>>"$work/replay.log")"; then
             echo "bench_replay.sh: the run failed: $* (its messages are in $work/replay.log)" >&2
             exit 1
         fi

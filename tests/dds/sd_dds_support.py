@@ -114,6 +114,9 @@ LIVE_NODES: list = []  # every NodeProcess started and not yet stopped (for fail
 
 # A node gets SIGTERM when the test process that started it dies (killed, timed out), instead of
 # living on in its own session: util-linux's setpriv sets the parent-death signal and execs it.
+# The kernel sends it when the *thread* that started the process ends: start nodes (and any
+# other process given this prefix) from the main thread, as the fixtures do, never from a
+# short-lived worker thread.
 DIE_WITH_TESTS = ["setpriv", "--pdeathsig", "TERM"] if shutil.which("setpriv") else []
 
 

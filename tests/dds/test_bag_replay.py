@@ -143,11 +143,8 @@ def test_replayed_bag_is_answered_in_bag_time_like_pinocchio(ros, node, tmp_path
     recorder = Recorder(ros, tmp_path / "output", [(GRAVITY, JointState, "sensor_msgs/msg/JointState"),
                                                    (ACCEL, JointDynamics, "spatial_dynamics_msgs/msg/JointDynamics")])
     ros.spin_until(lambda: all(s.get_publisher_count() > 0 for s in recorder.subs), sd.EVENT_S)
-    player = subprocess.Popen(
-        [sys.executable, str(REPO / "launch_scripts" / "play_bag.py"), str(tmp_path / "input"),
-         "--clock-topics", "/joint_states", "--wait-for-subscribers", "10", "--delay", "0.5"],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-    )
+    player = play(tmp_path / "input", "--clock-topics", "/joint_states", "--wait-for-subscribers", "10",
+                  "--delay", "0.5")
     ros.spin_until(lambda: player.poll() is not None, 3 * sd.EVENT_S)
     report = player.communicate(timeout=10)[0]
     assert player.returncode == 0, report
@@ -221,7 +218,10 @@ PLAYERS = []  # every player started by the running test
 
 
 def play(bag, *options):
-    player = subprocess.Popen([sys.executable, str(REPO / "launch_scripts" / "play_bag.py"), str(bag), *options],
+    """play_bag.py BAG OPTIONS, stopped after the test by no_player_outlives_its_test and, should
+    pytest itself be killed, by the parent-death signal."""
+    player = subprocess.Popen([*sd.DIE_WITH_TESTS, sys.executable, str(REPO / "launch_scripts" / "play_bag.py"),
+                               str(bag), *options],
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     PLAYERS.append(player)
     return player
