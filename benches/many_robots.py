@@ -2,8 +2,8 @@
 (sim_dt 1 ms, publish_rate 1000 Hz), each in its own namespace /robotK and ROS_DOMAIN_ID, for
 --duration seconds; a run passes when no node reports a missed step on /diagnostics ("missed
 steps": steps of a publish tick that ran more than 10 periods and 20 ms after it was due, so
-simulated time the robot did not live in real time) over the measured window. N doubles from 1 until a run fails
-(or --max-robots), then bisects; prints the largest passing N and, per N run, the missed steps,
+simulated time the robot did not live in real time) over the measured window. N doubles from 1
+until a run fails (or --max-robots), then bisects; prints the largest passing N and, per N run, the missed steps,
 the late publish ticks (ticks more than two periods after the one before: the scheduling jitter
 the nodes saw, caught up within the 20 ms), the CPU per robot (utime + stime over wall time,
 from /proc/PID/stat) and the worst real-time factor.
