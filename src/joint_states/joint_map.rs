@@ -165,7 +165,7 @@ impl JointMap {
                 .map(|(n, _)| n.as_str())
                 .collect();
             return Err(format!(
-                "{field} lacks joints {}",
+                "{field} lacks joints ({})",
                 name_list(&missing, missing.len())
             ));
         }
@@ -331,7 +331,7 @@ mod tests {
         assert!(map
             .match_names(&strings(&["wrist"]), "name")
             .unwrap_err()
-            .contains("lacks joints finger_left"));
+            .contains("lacks joints (finger_left)"));
         assert!(map
             .match_names(&strings(&["wrist", "finger_left", "elbow"]), "name")
             .unwrap_err()

@@ -212,6 +212,18 @@ mod tests {
             "joint_states",
             "Deserialization { reason: \"12 bytes short\" }",
         );
+        // Which joints a message lacks is detail: one counter, whatever the subset.
+        let model = spatial_dynamics_core::urdf::model_from_str(
+            spatial_dynamics_core::model::examples::DEFAULT_ARM_URDF,
+            &Default::default(),
+        )
+        .unwrap();
+        let mut map = crate::joint_states::joint_map::JointMap::new(&model, &[]).unwrap();
+        for first in 2..6 {
+            let names: Vec<String> = (first..=7).map(|j| format!("joint{j}")).collect();
+            let reason = map.match_names(&names, "name").unwrap_err();
+            h.dropped("joint_states", &reason);
+        }
         h.published("~/gravity_effort");
         let status = h.report("spatial_dynamics", "sd_arm7", true);
         assert_eq!(status.level, 1);
@@ -233,6 +245,10 @@ mod tests {
         assert_eq!(
             get("joint_states dropped: Deserialization").as_deref(),
             Some("1")
+        );
+        assert_eq!(
+            get("joint_states dropped: name lacks joints").as_deref(),
+            Some("4")
         );
         assert_eq!(get("~/gravity_effort published").as_deref(), Some("1"));
     }

@@ -31,8 +31,8 @@
 //! | `ground_height` | double | `0` | simulate: the plane `z = height` (world, m) |
 //! | `ground_stiffness`, `ground_damping`, `ground_friction` | double | `2e4`, `200`, `0.8` | simulate: penalty contact per point: N/m, N·s/m, Coulomb μ (`spatial_dynamics_core::sim::contact`) |
 //! | `use_sim_time` | bool | `false` | the node's clock is ROS simulated time: the latest `/clock` (simulate mode: its own simulated time); outputs are stamped with it |
-//! | `max_stamp_age` | double | `0` | drop a `joint_states` stamped more than this (s) before the node's clock; 0: off |
-//! | `future_stamp_tolerance` | double | `0` | drop a `joint_states` stamped more than this (s) after the node's clock; 0: off |
+//! | `max_stamp_age` | double | `0` | drop a `joint_states` stamped more than this (s) before the node's clock; 0: off, else ≥ 1e-9 |
+//! | `future_stamp_tolerance` | double | `0` | drop a `joint_states` stamped more than this (s) after the node's clock; 0: off, else ≥ 1e-9 |
 //!
 //! Every parameter is declared, with its description, type and range
 //! ([`super::parameter_descriptors`]). The simulate-mode parameters other than `publish_clock`
@@ -311,7 +311,12 @@ impl Settings {
             }
             ("gravity", _) => return wrong("three finite numbers [x, y, z] (m/s², world frame)"),
             ("method", P::String(s)) if s == "auto" => self.method = None,
-            ("method", P::String(s)) => self.method = Some(s.parse()?),
+            ("method", P::String(s)) => {
+                let method = s
+                    .parse()
+                    .map_err(|e| format!("parameter 'method': {e}, or auto"))?;
+                self.method = Some(method)
+            }
             ("command_joints", P::StringArray(names)) => self.command_joints = names.clone(),
             ("mode", P::String(m)) if m == "serve" || m == "simulate" => {
                 self.simulate = m == "simulate"
@@ -343,6 +348,11 @@ impl Settings {
                 };
                 if !(x >= 0.0 && x.is_finite()) {
                     return wrong("a number of seconds ≥ 0");
+                }
+                // Stamps are whole nanoseconds: a positive tolerance below one would round to
+                // 0, which switches the check off.
+                if name != "command_timeout" && x > 0.0 && x < 1e-9 {
+                    return wrong("0 (off) or a number of seconds ≥ 1e-9");
                 }
                 *match name {
                     "command_timeout" => &mut self.command_timeout,
@@ -654,6 +664,11 @@ mod tests {
                 "must be a number of seconds ≥ 0",
             ),
             ("max_stamp_age", "soon", "must be a number of seconds ≥ 0"),
+            (
+                "max_stamp_age",
+                "1e-12",
+                "must be 0 (off) or a number of seconds ≥ 1e-9",
+            ),
         ] {
             let err = s.apply_arg(name, value).unwrap_err();
             assert!(

@@ -6,7 +6,7 @@ use super::{checked, NodeState, Outputs};
 use crate::node::engine::{Engine, ModelSource};
 use crate::node::logging::log;
 use crate::ros::msgs::*;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 impl NodeState {
     /// `joint_states` → `~/gravity_effort`, `~/acceleration` and the previous joint state's
@@ -199,11 +199,23 @@ impl NodeState {
     }
 
     /// A `/clock` message taking effect (`use_sim_time`, serve mode): its time becomes the
-    /// node's; time going back (a bag looped) is logged.
+    /// node's; time going back (a bag looped) is logged, at most once a second.
     pub fn clock_received(&mut self, t: &Time) {
-        if let Some(note) = self.clock.clock_received(t) {
-            log!(self.logger, Info, "{note}");
+        let Some(note) = self.clock.clock_received(t) else {
+            return;
+        };
+        let (last, since) = &mut self.clock_went_back;
+        let now = Instant::now();
+        if last.is_some_and(|at| now.duration_since(at) < Duration::from_secs(1)) {
+            *since += 1;
+            return;
         }
+        let more = match std::mem::take(since) {
+            0 => String::new(),
+            n => format!(" ({n} more times since the last note)"),
+        };
+        *last = Some(now);
+        log!(self.logger, Info, "{note}{more}");
     }
 }
 

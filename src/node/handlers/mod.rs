@@ -134,6 +134,8 @@ pub struct NodeState {
     topic_description: Arc<Mutex<Option<String>>>,
     /// Why the latest robot description from the topic was ignored, once logged.
     ignored_description: Option<String>,
+    /// When `/clock` going back was last logged, and how often it went back since.
+    clock_went_back: (Option<std::time::Instant>, u64),
     logger: Logger,
 }
 
@@ -148,6 +150,7 @@ impl NodeState {
             settings: Arc::new(Mutex::new(settings)),
             topic_description: Arc::new(Mutex::new(None)),
             ignored_description: None,
+            clock_went_back: (None, 0),
             logger,
         }
     }

@@ -229,5 +229,13 @@ mod tests {
         assert_eq!(now, Some(5_000_000_000));
         let out = state.joint_states(Ok(pendulum_state(THETA, 0.0, at(1))), now);
         assert_eq!(out.gravity.unwrap().header.stamp, at(5));
+        // Two /clock sources interleaved: time goes back every other message, noted once a
+        // second.
+        for k in 0..20 {
+            state.clock_received(&at(if k % 2 == 0 { 3 } else { 9 }));
+        }
+        let notes = logged(&state, Level::Info);
+        let back: Vec<_> = notes.iter().filter(|l| l.contains("went back")).collect();
+        assert_eq!(back.len(), 1, "{back:?}");
     }
 }
