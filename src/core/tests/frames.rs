@@ -56,6 +56,13 @@ fn models() -> Vec<(&'static str, Model)> {
             ),
         ),
         (
+            "tree (floating joint under a floating base)",
+            load(
+                &TREE.replace(r#"type="planar""#, r#"type="floating""#),
+                floating.clone(),
+            ),
+        ),
+        (
             "quarter turns",
             load(QUARTER_TURNS, ModelOptions::default()),
         ),
