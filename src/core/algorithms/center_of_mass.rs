@@ -7,21 +7,24 @@
 //!
 //! Inward over the tree, each body's subtree mass `m_i` and first moment about the body's own
 //! origin `d_i = Σ_j m_j (c_j − p_i)` (world axes; `c_j` body `j`'s centre of mass, `p_i` body
-//! `i`'s origin), which keeps the digits a sum about the world origin would lose far from it:
+//! `i`'s origin), which keeps the digits a sum about the world origin would lose far from it,
+//! divided by the total mass `M` (`h_i` the body's first moment in its own coordinates):
 //!
 //! ```text
-//! d_i = R_i h_i + Σ_children (d_j + m_j (p_j − p_i))
+//! d_i / M = R_i h_i / M + Σ_children (d_j / M + (m_j / M) (p_j − p_i))
 //! c = Σ_roots (m_r / M) p_r + d_r / M
 //! ```
 //!
 //! `p_j − p_i` is body `j`'s origin in body `i`'s coordinates (its joint's placement) turned
 //! into world axes, not the difference of two world positions, which far from the world origin
-//! would lose the digits of their size.
+//! would lose the digits of their size. Every term is a mass fraction (at most 1) times an
+//! offset, so no sum overflows when the offsets and `c` are numbers (`m_j (p_j − p_i)` could:
+//! 10 kg at 1e308 m).
 //!
 //! A joint column `s` of body `i` (world axes at `p_i`: `a = R_i s_ω`, `l = R_i s_v`) moves the
 //! subtree's centre of mass with `l + a × d_i / m_i`, so column `k` of `J_c` (`ċ = J_c q̇`) is
-//! `Σ (m_i l + a × d_i) / M` over the joints with that coordinate (a mimic follower's scaled by
-//! its multiplier).
+//! `Σ (m_i / M) l + a × d_i / M` over the joints with that coordinate (a mimic follower's
+//! scaled by its multiplier).
 
 use super::frames::place_all;
 use super::jacobian::world_axes;
@@ -69,14 +72,15 @@ pub fn center_of_mass_jacobian<'w>(
     if !own_columns {
         values.fill(0.0);
     }
-    let inv_mass = 1.0 / com.mass;
+    let inverse_mass = scratch.inverse_mass;
     let placed = model.bodies.iter().zip(&ws.x_world).zip(&ws.s);
     let subtrees = scratch.subtree_mass.iter().zip(&scratch.subtree_moment);
     for (((body, x), s), ((&m, d), axes)) in placed.zip(subtrees.zip(&ws.plan.s_axes)) {
         let c = body.joint.coords;
+        let fraction = m * inverse_mass;
         for (k, (col, &axis)) in s.cols[..s.nv].iter().zip(axes).enumerate() {
             let (a, l) = world_axes(&x.rot, col, axis);
-            let col = (l * m + a.cross(d)) * inv_mass;
+            let col = l * fraction + a.cross(d);
             let out = &mut values[3 * (c.v_index + k)..3 * (c.v_index + k) + 3];
             if own_columns {
                 out.copy_from_slice(col.as_slice());
@@ -99,17 +103,18 @@ pub fn center_of_mass_jacobian<'w>(
     Ok((com, &ws.frame_scratch.com_jacobian))
 }
 
-/// `subtree_mass` and `subtree_moment` (`d_i`, see the module documentation) from the placed
-/// bodies, children before parents.
+/// `subtree_mass` (`m_i`) and `subtree_moment` (`d_i / M`, see the module documentation) from
+/// the placed bodies, children before parents.
 fn subtree_moments(model: &Model, ws: &mut Workspace) {
     let scratch = &mut ws.frame_scratch;
+    let inverse_mass = scratch.inverse_mass;
     let sums = scratch
         .subtree_mass
         .iter_mut()
         .zip(&mut scratch.subtree_moment);
     for ((body, x), (m, d)) in model.bodies.iter().zip(&ws.x_world).zip(sums) {
         *m = body.inertia.mass;
-        *d = x.rot.tr_mul(&body.inertia.h);
+        *d = x.rot.tr_mul(&body.inertia.h) * inverse_mass;
     }
     // What body `i + 1` adds to its parent `i`, carried in registers: stored and read back at
     // once, it would put a store-to-load round trip on the chain at each level.
@@ -126,7 +131,7 @@ fn subtree_moments(model: &Model, ws: &mut Workspace) {
             // coordinates, turned into world axes), not from the two world positions: far
             // from the world origin their difference would lose the digits of their size.
             let shift = ws.x_world[p].rot.tr_mul(&ws.x_up[i].trans);
-            let added = (m, d + shift * m);
+            let added = (m, d + shift * (m * inverse_mass));
             if p + 1 == i {
                 carried = Some(added);
             } else {
@@ -137,9 +142,10 @@ fn subtree_moments(model: &Model, ws: &mut Workspace) {
     }
 }
 
-/// `M` and `c = Σ_roots (m_r / M) p_r + d_r / M` from the roots' subtrees, each term scaled by
-/// `1 / M` before it is summed (a centre of mass that is a number is one, however far out); an
-/// error for a massless model, or naming the root joint whose subtree's sum overflowed.
+/// `M` and `c = Σ_roots (m_r / M) p_r + d_r / M` from the roots' subtrees (`d_r / M` as the
+/// inward pass left it), a sum of mass fractions times positions and offsets (a centre of mass
+/// that is a number is one, however far out); an error for a massless model, or naming the
+/// root joint whose subtree's sum overflowed.
 fn total(model: &Model, ws: &Workspace) -> Result<CenterOfMass, DynamicsError> {
     let scratch = &ws.frame_scratch;
     let roots = || {
@@ -156,7 +162,7 @@ fn total(model: &Model, ws: &Workspace) -> Result<CenterOfMass, DynamicsError> {
     }
     let mut position = Vector3::zeros();
     for ((body, x), (&m, d)) in roots() {
-        position += x.trans * (m / mass) + d / mass;
+        position += x.trans * (m / mass) + d;
         if !position.iter().all(|x| x.is_finite()) {
             return Err(DynamicsError::NonFiniteResult {
                 quantity: "centre of mass",

@@ -143,11 +143,13 @@ pub struct FrameScratch {
     pub(crate) v: Vec<Motion>,
     pub(crate) a: Vec<Motion>,
     /// Mass `m_i` and first moment `d_i = Σ_j m_j (c_j − p_i)` of each body `i`'s subtree
-    /// (bodies `j`, centres of mass `c_j`): about body `i`'s own origin `p_i`, in world axes, so
-    /// that a robot far from the world origin keeps its digits
-    /// ([`center_of_mass`](super::center_of_mass)).
+    /// (bodies `j`, centres of mass `c_j`), the moment divided by the total mass `M`: about
+    /// body `i`'s own origin `p_i`, in world axes, so that a robot far from the world origin
+    /// keeps its digits ([`center_of_mass`](super::center_of_mass)).
     pub(crate) subtree_mass: Vec<f64>,
     pub(crate) subtree_moment: Vec<Vector3>,
+    /// `1 / M`, `M` the model's total mass (infinite for a massless model).
+    pub(crate) inverse_mass: f64,
     /// A frame Jacobian, `6 × nv`, rows `[linear; angular]`.
     pub(crate) jacobian: DMatrix<f64>,
     /// The body whose support's columns are the only ones of `jacobian` that may be non-zero
@@ -170,6 +172,7 @@ impl FrameScratch {
             a: vec![Motion::zero(); n],
             subtree_mass: vec![0.0; n],
             subtree_moment: vec![Vector3::zeros(); n],
+            inverse_mass: 1.0 / model.bodies.iter().map(|b| b.inertia.mass).sum::<f64>(),
             jacobian: DMatrix::zeros(6, nv),
             jacobian_support: None,
             com_jacobian: DMatrix::zeros(3, nv),

@@ -20,6 +20,20 @@
 //! then turned into link axes by `R_Lᵀ` for `Local`. A floating base's columns follow its
 //! `v = [linear; angular]` in the base frame; a mimic follower adds `μ` times its column to its
 //! leader's (`q̇_follower = μ q̇_leader`).
+//!
+//! For `Local` and `LocalWorldAligned` the offset `δ_i = p_L − p_i` (world axes) is composed
+//! from the placements along the support, from the frame's body `B` back to the root, as
+//! Pinocchio's `LOCAL` Jacobian composes them, never as a difference of world positions:
+//!
+//! ```text
+//! δ_B = R_B r_BL                 r_BL: the link's origin in B's coordinates (ᴸX_B.trans)
+//! δ_λ = δ_i + R_λ r_i            r_i: body i's origin in its parent λ's coordinates (ⁱX_λ.trans)
+//! ```
+//!
+//! so that these Jacobians depend on the robot's own lengths only: a robot 1000 km from the world
+//! origin gets the digits it gets at the origin (a difference of world positions would lose
+//! about `ε |p|`, 1e-10 there). `World` columns are about the world origin: their linear rows
+//! hold `p_i × a`, as large as the robot is far.
 
 use super::frames::{
     check_finite, floating_coordinates, place_all, place_support, placement_of, support_turns,
@@ -27,7 +41,7 @@ use super::frames::{
 };
 use super::validate::check_q;
 use crate::error::DynamicsError;
-use crate::model::{floating_up, turned, JointKind, Model, UpShape};
+use crate::model::{floating_up, turned, Body, JointKind, Model, UpShape};
 use crate::spatial::{Matrix3, Motion, Transform, Vector3};
 use crate::Workspace;
 use nalgebra::DMatrix;
@@ -88,24 +102,31 @@ pub fn frame_jacobian<'w>(
         }
         (ReferenceFrame::World, None) => {
             place_support(model, ws, q, frame.body, Placing::UpToLastTurn)?;
-            support_columns(model, ws, frame, |a, l, p| (l - a.cross(p), *a))
+            support_columns::<false>(model, ws, q, frame, |a, l, o| (l + a.cross(o), *a))
         }
-        _ => {
+        (ReferenceFrame::LocalWorldAligned, _) => {
             place_support(model, ws, q, frame.body, Placing::Placements)?;
-            let to_frame = ColumnMap::new(reference, &placement_of(&ws.x_world, frame));
-            support_columns(model, ws, frame, |a, l, p| to_frame.column(a, l, p))
+            support_columns::<true>(model, ws, q, frame, |a, l, o| (l + a.cross(o), *a))
+        }
+        (ReferenceFrame::Local, _) => {
+            place_support(model, ws, q, frame.body, Placing::Placements)?;
+            let e = placement_of(&ws.x_world, frame).rot;
+            support_columns::<true>(model, ws, q, frame, |a, l, o| (e * (l + a.cross(o)), e * a))
         }
     }?;
     Ok(&ws.frame_scratch.jacobian)
 }
 
-/// The columns of the joints supporting `frame` (placed), each the twist `[a; l]` of a joint
-/// column (world axes, at its body's origin `p_i`) mapped by `map(a, l, p_i)` to the
-/// reference's `(linear, angular)`.
+/// The columns of the joints supporting `frame` (placed), from the frame's body back to the
+/// root, each the twist `[a; l]` of a joint column (world axes, at its body's origin `p_i`)
+/// mapped by `map(a, l, o − p_i)` to the reference's `(linear, angular)`: about the link's
+/// origin, `o − p_i = δ_i` composed from the placements (see the [module](self) documentation),
+/// when `AT_LINK`; about the world origin, `−p_i`, otherwise.
 #[inline(always)]
-fn support_columns(
+fn support_columns<const AT_LINK: bool>(
     model: &Model,
     ws: &mut Workspace,
+    q: &[f64],
     frame: &Frame,
     map: impl Fn(&Vector3, &Vector3, &Vector3) -> (Vector3, Vector3),
 ) -> Result<(), DynamicsError> {
@@ -115,26 +136,60 @@ fn support_columns(
         ..
     } = &mut ws.frame_scratch;
     let mut out = Columns::new(jacobian, jacobian_support, ws.plan.own_columns, frame.body);
-    let support = frame.body.map_or(&[][..], |b| ws.plan.supports.of(b));
-    for &i in support {
-        let (x, s, c) = (&ws.x_world[i], &ws.s[i], model.bodies[i].joint.coords);
-        if model.bodies[i].joint.kind == JointKind::Floating {
+    let Some(last) = frame.body else {
+        return out.finish(model, frame);
+    };
+    let mut delta = if AT_LINK {
+        ws.x_world[last].rot.tr_mul(&frame.x_body_link.trans)
+    } else {
+        Vector3::zeros()
+    };
+    for &i in ws.plan.supports.of(last).iter().rev() {
+        let (x, s, body) = (&ws.x_world[i], &ws.s[i], &model.bodies[i]);
+        let offset = if AT_LINK { delta } else { -x.trans };
+        let c = body.joint.coords;
+        if body.joint.kind == JointKind::Floating {
             // `S = 1` (`v` linear then angular, base axes): the columns are the rows of `E`,
             // as linear and then as angular axes, written without a lookup per column.
             let zero = Vector3::zeros();
             for j in 0..3 {
                 let row = x.rot.row(j).transpose();
-                out.put(c.v_index + j, 1.0, map(&zero, &row, &x.trans));
-                out.put(c.v_index + 3 + j, 1.0, map(&row, &zero, &x.trans));
+                out.put(c.v_index + j, 1.0, map(&zero, &row, &offset));
+                out.put(c.v_index + 3 + j, 1.0, map(&row, &zero, &offset));
             }
-            continue;
+        } else {
+            for k in 0..s.nv {
+                let (a, l) = world_axes(&x.rot, &s.cols[k], ws.plan.s_axes[i][k]);
+                out.put(c.v_index + k, c.scale, map(&a, &l, &offset));
+            }
         }
-        for k in 0..s.nv {
-            let (a, l) = world_axes(&x.rot, &s.cols[k], ws.plan.s_axes[i][k]);
-            out.put(c.v_index + k, c.scale, map(&a, &l, &x.trans));
+        if let (true, Some(p)) = (AT_LINK, body.parent) {
+            let r_i = origin_in_parent(body, ws.plan.turn_axes[i], &ws.x_up[i], q);
+            delta += ws.x_world[p].rot.tr_mul(&r_i);
         }
     }
     out.finish(model, frame)
+}
+
+/// `r_i`, a body's origin in its parent's coordinates (`ⁱX_λ.trans`), after [`place_support`]
+/// (its `turn_axis` from `ws.plan.turn_axes`): `ⁱX_λ` is in `ws.x_up` (`x_up`) but for a turn,
+/// which moves no origin (`r_i` is its placement's), and a floating joint, made again from `q`.
+#[inline(always)]
+fn origin_in_parent(
+    body: &Body,
+    turn_axis: Option<(usize, f64)>,
+    x_up: &Transform,
+    q: &[f64],
+) -> Vector3 {
+    match turn_axis {
+        Some(_) => body.x_tree.trans,
+        None if body.joint.kind == JointKind::Floating => {
+            let mut up = body.x_tree;
+            floating_up(floating_coordinates(body, q), &body.x_tree, &mut up);
+            up.trans
+        }
+        None => x_up.trans,
+    }
 }
 
 /// The `world` columns of the joints supporting body `last` when each of them turns about a
@@ -265,6 +320,7 @@ pub fn joint_jacobians<'w>(
     Ok(JointJacobians {
         model,
         placements: &ws.x_world,
+        joint_placements: &ws.x_up,
         scratch,
         own_columns: ws.plan.own_columns,
     })
@@ -276,6 +332,8 @@ pub struct JointJacobians<'w> {
     model: &'w Model,
     /// `ⁱX_0` of every body.
     placements: &'w [Transform],
+    /// `ⁱX_λ` of every body.
+    joint_placements: &'w [Transform],
     scratch: &'w mut FrameScratch,
     own_columns: bool,
 }
@@ -295,7 +353,7 @@ impl JointJacobians<'_> {
         reference: ReferenceFrame,
     ) -> Result<&DMatrix<f64>, DynamicsError> {
         frame.check(self.model)?;
-        let to_frame = ColumnMap::new(reference, &placement_of(self.placements, frame));
+        let map = ColumnMap::new(reference, &placement_of(self.placements, frame).rot);
         let FrameScratch {
             axes,
             jacobian,
@@ -303,16 +361,26 @@ impl JointJacobians<'_> {
             ..
         } = &mut *self.scratch;
         let mut out = Columns::new(jacobian, jacobian_support, self.own_columns, frame.body);
+        // `δ_i = p_L − p_i` composed from the placements (see the module documentation).
+        let mut delta = match (map.at_link, frame.body) {
+            (true, Some(b)) => self.placements[b].rot.tr_mul(&frame.x_body_link.trans),
+            _ => Vector3::zeros(),
+        };
         let mut next = frame.body;
         while let Some(i) = next {
             let body = &self.model.bodies[i];
-            let (p_i, c) = (&self.placements[i].trans, body.joint.coords);
+            let (x, c) = (&self.placements[i], body.joint.coords);
+            let offset = if map.at_link { delta } else { -x.trans };
             for (k, col) in axes[i].cols[..axes[i].nv].iter().enumerate() {
                 out.put(
                     c.v_index + k,
                     c.scale,
-                    to_frame.column(&col.ang, &col.lin, p_i),
+                    map.column(&col.ang, &col.lin, &offset),
                 );
+            }
+            if let (true, Some(p)) = (map.at_link, body.parent) {
+                let r_i = &self.joint_placements[i].trans;
+                delta += self.placements[p].rot.tr_mul(r_i);
             }
             next = body.parent;
         }
@@ -339,37 +407,30 @@ pub(crate) fn world_axes(
     }
 }
 
-/// Where a Jacobian's columns are expressed: about the point `origin` (world coordinates),
-/// in world axes or, with `rot` (world → link), in link axes.
+/// Where a Jacobian's columns are expressed: about the link's origin (`at_link`) or the world
+/// origin, in world axes or, with `rot` (world → link), in link axes.
 struct ColumnMap {
-    origin: Vector3,
+    at_link: bool,
     rot: Option<Matrix3>,
 }
 
 impl ColumnMap {
-    /// For `reference`, given the frame's placement `ᴸX_0`.
-    fn new(reference: ReferenceFrame, x_link: &Transform) -> Self {
-        match reference {
-            ReferenceFrame::World => ColumnMap {
-                origin: Vector3::zeros(),
-                rot: None,
-            },
-            ReferenceFrame::LocalWorldAligned => ColumnMap {
-                origin: x_link.trans,
-                rot: None,
-            },
-            ReferenceFrame::Local => ColumnMap {
-                origin: x_link.trans,
-                rot: Some(x_link.rot),
-            },
-        }
+    /// For `reference`, given the rotation `E_L` (world → link) of the frame's placement.
+    fn new(reference: ReferenceFrame, e_link: &Matrix3) -> Self {
+        let (at_link, rot) = match reference {
+            ReferenceFrame::World => (false, None),
+            ReferenceFrame::LocalWorldAligned => (true, None),
+            ReferenceFrame::Local => (true, Some(*e_link)),
+        };
+        ColumnMap { at_link, rot }
     }
 
     /// The twist `[a; l]` (world axes, at the body origin `p_i`) as a column `(linear,
-    /// angular)` in this map's point and axes: `l + a × (o − p_i)`, `a`, turned if local.
+    /// angular)` in this map's point and axes, given `offset = o − p_i` (world axes) from
+    /// `p_i` to the map's point `o`: `l + a × (o − p_i)`, `a`, turned if local.
     #[inline(always)]
-    fn column(&self, a: &Vector3, l: &Vector3, p_i: &Vector3) -> (Vector3, Vector3) {
-        let lin = l + a.cross(&(self.origin - p_i));
+    fn column(&self, a: &Vector3, l: &Vector3, offset: &Vector3) -> (Vector3, Vector3) {
+        let lin = l + a.cross(offset);
         match &self.rot {
             Some(e) => (e * lin, e * a),
             None => (lin, *a),

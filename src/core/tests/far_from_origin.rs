@@ -6,6 +6,10 @@
 //! Spatial inertias about the world origin carry `m r²` terms that cancel in these quantities,
 //! so a pass that works about the world origin loses about `log₁₀(r² / ℓ²)` digits (ℓ the
 //! robot's size): 1e-7 relative error at 1 km.
+//!
+//! The centre-of-mass Jacobian and the frame Jacobians about a link's origin (`local`,
+//! `local_world_aligned`) hold offsets between the robot's own points: taken as differences of
+//! world positions they would lose `ε |p|` (1e-10 at 1000 km), so they are checked 1000 km out.
 
 mod common;
 
@@ -264,6 +268,156 @@ fn the_centre_of_mass_jacobian_does_not_depend_on_where_the_robot_stands() {
             assert_same(model.name(), "J_c", &near, &far_j);
             let moved = com_far.position - com_near.position - Vector3::new(1e6, -7e5, 3e5);
             assert!(moved.norm() < 1e-9, "{}: {moved:?}", model.name());
+        }
+    }
+}
+
+/// Fails unless `far` equals `near` to ~50 ulps of `near`'s size: what a result computed from
+/// the robot's own lengths alone keeps wherever the robot stands.
+fn assert_same_digits(case: &str, quantity: &str, near: &[f64], far: &[f64]) {
+    let err = max_diff(near, far);
+    assert!(
+        err <= 1e-14 * (1.0 + norm(near)),
+        "{case}: {quantity} 1000 km out differs from the origin's by {err:e} (|{quantity}| = {:e})",
+        norm(near)
+    );
+}
+
+/// The `local` and `local_world_aligned` Jacobians of every link (by `frame_jacobian` and by
+/// `joint_jacobians`) are about the link's own origin, so they do not depend on where a
+/// floating robot stands: moved 1000 km they keep the digits they have at the origin. The
+/// offsets of the joints from the link are composed from their placements along the support,
+/// as Pinocchio's `LOCAL` Jacobian composes them; differences of world positions lost about
+/// `ε · 10⁶ m ≈ 1e-10`. The models: the arm, the tree with its planar joint (a joint kept whole
+/// in the workspace) and with a floating joint below the floating base.
+#[test]
+fn local_frame_jacobians_do_not_depend_on_where_a_floating_robot_stands() {
+    use spatial_dynamics_core::algorithms::{
+        find_frame, frame_jacobian, joint_jacobians, ReferenceFrame,
+    };
+    let tree_floating_joint = TREE.replace(r#"type="planar""#, r#"type="floating""#);
+    for text in [
+        examples::DEFAULT_ARM_URDF,
+        TREE,
+        tree_floating_joint.as_str(),
+    ] {
+        let model = load(text, true);
+        let mut ws = Workspace::new(&model);
+        let mut rng = Rng::new(43);
+        for _ in 0..5 {
+            let q = random_q(&model, &mut rng);
+            let mut far = q.clone();
+            for (x, d) in far.iter_mut().zip([1e6, -7e5, 3e5]) {
+                *x += d;
+            }
+            for link in model.links() {
+                let frame = find_frame(&model, &link.name).unwrap();
+                for reference in [ReferenceFrame::Local, ReferenceFrame::LocalWorldAligned] {
+                    let what = format!("{reference:?} J of {}", link.name);
+                    let mut jacobian = |q: &[f64]| {
+                        let single = frame_jacobian(&model, &mut ws, q, &frame, reference)
+                            .unwrap()
+                            .as_slice()
+                            .to_vec();
+                        let mut joints = joint_jacobians(&model, &mut ws, q).unwrap();
+                        let many = joints.frame_jacobian(&frame, reference).unwrap();
+                        (single, many.as_slice().to_vec())
+                    };
+                    let (near_single, near_many) = jacobian(&q);
+                    let (far_single, far_many) = jacobian(&far);
+                    assert_same_digits(model.name(), &what, &near_single, &far_single);
+                    assert_same_digits(model.name(), &what, &near_many, &far_many);
+                }
+            }
+        }
+    }
+}
+
+/// A fixed base whose first joint stands 1000 km from the world origin (turned by `rpy`), two
+/// turns about z and a slide along x below it, and a tool fused 0.2 m past the slide: the
+/// `local` and `local_world_aligned` Jacobians of its links against their closed forms, to
+/// ~10 ulps (a difference of world positions was 1e-10 off).
+///
+/// With `θ₁`, `θ₂` the turns, `d` the slide and `L` the link's distance from the second joint
+/// along the slide, in link axes (turned by `θ₁ + θ₂` about the first joint's z):
+/// the first joint's column is `[ẑ × (l₁ u(−θ₂) + L x̂); ẑ] = [(l₁ sin θ₂, l₁ cos θ₂ + L, 0); ẑ]`,
+/// the second's `[(0, L, 0); ẑ]`, the slide's `[x̂; 0]` (zero for the second body's link, which
+/// it does not move); `local_world_aligned` turns each by `R₀ R_z(θ₁ + θ₂)` (`R₀` the first
+/// joint's `rpy`).
+#[test]
+fn local_frame_jacobians_of_a_joint_far_from_the_origin_match_closed_forms() {
+    use nalgebra::{Rotation3, Vector3 as V3};
+    use spatial_dynamics_core::algorithms::{
+        find_frame, frame_jacobian, joint_jacobians, ReferenceFrame,
+    };
+    let (l1, l2, tool) = (0.4, 0.3, 0.2);
+    let (roll, pitch, yaw) = (0.3, -0.2, 0.5);
+    let inertial = r#"<inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>"#;
+    let limit = r#"<limit lower="-3" upper="3" effort="1" velocity="1"/>"#;
+    let text = format!(
+        r#"<robot name="far_joint"><link name="base"/>
+        <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
+          <origin xyz="1e6 -2e6 3e5" rpy="{roll} {pitch} {yaw}"/><axis xyz="0 0 1"/>{limit}</joint>
+        <link name="l1">{inertial}</link>
+        <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
+          <origin xyz="{l1} 0 0"/><axis xyz="0 0 1"/>{limit}</joint>
+        <link name="l2">{inertial}</link>
+        <joint name="j3" type="prismatic"><parent link="l2"/><child link="l3"/>
+          <origin xyz="{l2} 0 0"/><axis xyz="1 0 0"/>{limit}</joint>
+        <link name="l3">{inertial}</link>
+        <joint name="mount" type="fixed"><parent link="l3"/><child link="tool"/>
+          <origin xyz="{tool} 0 0"/></joint>
+        <link name="tool"/></robot>"#
+    );
+    let model = load(&text, false);
+    assert_eq!(model.nv(), 3);
+    let mut ws = Workspace::new(&model);
+    let r0 = Rotation3::from_axis_angle(&V3::z_axis(), yaw)
+        * Rotation3::from_axis_angle(&V3::y_axis(), pitch)
+        * Rotation3::from_axis_angle(&V3::x_axis(), roll);
+    let mut rng = Rng::new(44);
+    for _ in 0..10 {
+        let q = rng.vector(3, 1.5);
+        let (t2, d) = (q[1], q[2]);
+        // Each link: its distance from the second joint along the slide, and whether the slide
+        // moves it.
+        for (link, length, slides) in [
+            ("l2", 0.0, false),
+            ("l3", l2 + d, true),
+            ("tool", l2 + d + tool, true),
+        ] {
+            let z = V3::z();
+            let local = [
+                (V3::new(l1 * t2.sin(), l1 * t2.cos() + length, 0.0), z),
+                (V3::new(0.0, length, 0.0), z),
+                if slides {
+                    (V3::x(), V3::zeros())
+                } else {
+                    (V3::zeros(), V3::zeros())
+                },
+            ];
+            let to_world = r0 * Rotation3::from_axis_angle(&V3::z_axis(), q[0] + t2);
+            let frame = find_frame(&model, link).unwrap();
+            for reference in [ReferenceFrame::Local, ReferenceFrame::LocalWorldAligned] {
+                let want: Vec<f64> = local
+                    .iter()
+                    .flat_map(|(lin, ang)| match reference {
+                        ReferenceFrame::Local => [lin.as_slice(), ang.as_slice()].concat(),
+                        _ => [(to_world * lin).as_slice(), (to_world * ang).as_slice()].concat(),
+                    })
+                    .collect();
+                let what = format!("{reference:?} J of {link} at q = {q:?}");
+                let single = frame_jacobian(&model, &mut ws, &q, &frame, reference)
+                    .unwrap()
+                    .as_slice()
+                    .to_vec();
+                let err = max_diff(&single, &want);
+                assert!(err < 2e-15, "{what}: {single:?} against {want:?}: {err:e}");
+                let mut joints = joint_jacobians(&model, &mut ws, &q).unwrap();
+                let many = joints.frame_jacobian(&frame, reference).unwrap().as_slice();
+                let err = max_diff(many, &want);
+                assert!(err < 2e-15, "{what} (joint_jacobians): {err:e}");
+            }
         }
     }
 }

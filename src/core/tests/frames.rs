@@ -56,6 +56,13 @@ fn models() -> Vec<(&'static str, Model)> {
             ),
         ),
         (
+            "tree (floating joint under a floating base)",
+            load(
+                &TREE.replace(r#"type="planar""#, r#"type="floating""#),
+                floating.clone(),
+            ),
+        ),
+        (
             "quarter turns",
             load(QUARTER_TURNS, ModelOptions::default()),
         ),
@@ -776,22 +783,40 @@ fn bad_requests_are_errors_naming_the_problem() {
     assert_eq!(com.position.x, 1e308);
     // Two 1 kg bodies at 1.5e308: the mean is a number, though the sum of moments is not.
     let body = "<inertial><mass value=\"1\"/><inertia ixx=\"1\" ixy=\"0\" ixz=\"0\" iyy=\"1\" iyz=\"0\" izz=\"1\"/></inertial>";
-    let heavy = load(
-        &format!(
-            "<robot name=\"h\"><link name=\"w\"/>\
-             <joint name=\"a\" type=\"prismatic\"><parent link=\"w\"/><child link=\"l1\"/><axis xyz=\"1 0 0\"/><limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/></joint>\
-             <link name=\"l1\">{body}</link>\
-             <joint name=\"b\" type=\"prismatic\"><parent link=\"l1\"/><child link=\"l2\"/><axis xyz=\"1 0 0\"/><limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/></joint>\
-             <link name=\"l2\">{body}</link></robot>"
-        ),
-        ModelOptions::default(),
+    let heavy_text = format!(
+        "<robot name=\"h\"><link name=\"w\"/>\
+         <joint name=\"a\" type=\"prismatic\"><parent link=\"w\"/><child link=\"l1\"/><axis xyz=\"1 0 0\"/><limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/></joint>\
+         <link name=\"l1\">{body}</link>\
+         <joint name=\"b\" type=\"prismatic\"><parent link=\"l1\"/><child link=\"l2\"/><axis xyz=\"1 0 0\"/><limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/></joint>\
+         <link name=\"l2\">{body}</link></robot>"
     );
+    let heavy = load(&heavy_text, ModelOptions::default());
     let mut ws_heavy = Workspace::new(&heavy);
     let com = center_of_mass(&heavy, &mut ws_heavy, &[1.5e308, 0.0]).unwrap();
     assert_eq!((com.mass, com.position.x), (2.0, 1.5e308));
     // l2 pushed past the largest number: refused, naming the root joint of the subtree.
     let err = center_of_mass(&heavy, &mut ws_heavy, &[1.5e308, 1.5e308]).unwrap_err();
     assert!(err.to_string().contains("centre of mass at 'a'"), "{err}");
+    // 1 kg at the origin and 3 kg at 1e308: the centre of mass is at 3/4 · 1e308, though the
+    // outer body's first moment, 3 kg · 1e308 m, is no number; its Jacobian, `(1, 0, 0)` for
+    // the first slide and `3/4 (1, 0, 0)` for the second, the same.
+    let lopsided = heavy_text.replace(
+        r#"<link name="l2"><inertial><mass value="1"/>"#,
+        r#"<link name="l2"><inertial><mass value="3"/>"#,
+    );
+    let lopsided = load(&lopsided, ModelOptions::default());
+    let mut ws_lopsided = Workspace::new(&lopsided);
+    let (com, j) = center_of_mass_jacobian(&lopsided, &mut ws_lopsided, &[0.0, 1e308]).unwrap();
+    assert_eq!(com.mass, 4.0);
+    let x = com.position.x;
+    assert!((x - 0.75e308).abs() <= 1e-15 * 0.75e308, "{x:e}");
+    let want = [1.0, 0.0, 0.0, 0.75, 0.0, 0.0];
+    let err = j
+        .iter()
+        .zip(want)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
+    assert!(err <= 1e-15, "{j}");
     // Nothing moving has mass.
     let massless = load(
         "<robot name=\"m\"><link name=\"w\"/><joint name=\"j\" type=\"revolute\"><parent link=\"w\"/><child link=\"c\"/>\
