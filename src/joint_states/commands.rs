@@ -69,6 +69,23 @@ impl Commands {
         self.effort.fill(0.0);
     }
 
+    /// The efforts of `old` (commands for another model) on the coordinates of the same name;
+    /// coordinates `old` does not know get zero. Returns the names of the coordinates whose
+    /// non-zero effort this model has no place for.
+    pub fn carry_from(&mut self, old: &Commands) -> Vec<String> {
+        self.effort.fill(0.0);
+        let mut lost = Vec::new();
+        for (index, name) in old.map.names().iter().enumerate() {
+            let value = old.effort[old.map.slot(index).1];
+            match self.map.index(name) {
+                Some(here) => self.effort[self.map.slot(here).1] = value,
+                None if value != 0.0 => lost.push(name.clone()),
+                None => {}
+            }
+        }
+        lost
+    }
+
     /// Names of `command_joints`, in command order.
     pub fn names(&self) -> Vec<String> {
         self.slots

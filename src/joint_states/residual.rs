@@ -121,6 +121,15 @@ impl<T> Lagged<T> {
         }
     }
 
+    /// What the newest joint state was pushed with, if it carried effort: its residual waits
+    /// for the next joint state (and is lost if none comes).
+    pub fn pending(&self) -> Option<&T> {
+        self.window[2]
+            .as_ref()
+            .filter(|s| s.has_effort)
+            .map(|s| &s.tag)
+    }
+
     /// Takes joint state `i + 1` (time `t` in ns, `q` and `q̇` in model order, `has_velocity`:
     /// whether the message carried velocities, `effort`: its measured effort in model order,
     /// if any) and returns joint state `i`'s residual when joint state `i` carried effort:

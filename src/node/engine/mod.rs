@@ -157,6 +157,40 @@ impl Engine {
         Ok(engine)
     }
 
+    /// Takes over, by joint name, what `old` (the engine this one replaces) held from the
+    /// topics in serve mode: the latest effort command, with its arrival time, and the floating
+    /// base's pose and twist from `~/base_state`. Returns, described, what this model has no
+    /// place for: commanded joints it lacks, a base state when it has no floating base. In
+    /// simulate mode nothing is taken: the simulation starts again, with no command in force.
+    /// The residual `old` still owes ([`Engine::pending_residual`]) is not carried.
+    pub fn take_over(&mut self, old: &Engine) -> Vec<String> {
+        if self.simulation.is_some() {
+            return Vec::new();
+        }
+        let mut lost = Vec::new();
+        let joints = self.commands.carry_from(&old.commands);
+        if !joints.is_empty() {
+            lost.push(format!(
+                "the effort command of {} (not in the new model)",
+                name_list(&joints, joints.len())
+            ));
+        }
+        self.command_time = old.command_time;
+        let base_set = old.base_q != [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0] || old.base_v != [0.0; 6];
+        if self.map.base().is_some() {
+            (self.base_q, self.base_v) = (old.base_q, old.base_v);
+        } else if old.map.base().is_some() && base_set {
+            lost.push("the base pose and twist from ~/base_state (no floating base now)".into());
+        }
+        lost
+    }
+
+    /// The stamp of the latest joint state whose effort residual waits for the next joint state
+    /// (`~/effort_residual` is one sample late), if any.
+    pub fn pending_residual(&self) -> Option<&Time> {
+        self.residual.pending().map(|tag| &tag.header.stamp)
+    }
+
     /// Uses `method`, or with `None` (`auto`) the method with the fewest FLOPs per call among
     /// those that agree with `aba` to [`AUTO_TOLERANCE`] on this model (checked now, timed for
     /// the summary within about 10 ms per method). If no method can

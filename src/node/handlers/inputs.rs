@@ -183,7 +183,7 @@ impl NodeState {
                 "loaded robot '{}' from {topic}",
                 new.model.name()
             );
-            self.engine = new;
+            self.replace_engine(new);
             return Ok(());
         }
         let why = match &new.source {

@@ -23,7 +23,7 @@ pub use timers::simulation_timer;
 use super::engine::clock::NodeClock;
 use super::engine::Engine;
 use super::health::Health;
-use super::logging::Logger;
+use super::logging::{log, Logger};
 use super::params::Settings;
 use crate::ros::msgs::*;
 use crate::ros::names::NameResolver;
@@ -163,6 +163,39 @@ impl NodeState {
     /// The robot description last received on the topic (shared with the parameter validator).
     pub fn topic_description(&self) -> Arc<Mutex<Option<String>>> {
         self.topic_description.clone()
+    }
+
+    /// Serves `new` from now on. It takes over what the old engine held from the topics
+    /// ([`Engine::take_over`]); what it cannot take is logged as a warning, and the effort
+    /// residual the old engine still owed is counted dropped on `~/effort_residual`.
+    fn replace_engine(&mut self, mut new: Engine) {
+        let lost = new.take_over(&self.engine);
+        if let Some(stamp) = self.engine.pending_residual() {
+            let why = format!(
+                "the model changed before the next joint state: no residual for the joint \
+                 state stamped {}.{:09}",
+                stamp.sec, stamp.nanosec
+            );
+            self.health.dropped(&self.names.residual, &why);
+        }
+        if !lost.is_empty() {
+            log!(
+                self.logger,
+                Warn,
+                "robot '{}' replaces robot '{}' without {}",
+                new.model.name(),
+                self.engine.model.name(),
+                lost.join(", ")
+            );
+        }
+        if new.simulated_time().is_some() {
+            log!(
+                self.logger,
+                Info,
+                "the simulation starts again at t = 0 from initial_positions, with no command in force"
+            );
+        }
+        self.engine = new;
     }
 
     /// A copy of the parameter values in force.

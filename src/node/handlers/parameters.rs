@@ -73,7 +73,7 @@ impl NodeState {
                 .map_err(|e| e.to_string())?
                 .clone();
             match Engine::from_settings(&settings, description.as_deref()) {
-                Ok(new) => self.engine = new,
+                Ok(new) => self.replace_engine(new),
                 Err(e) => log!(
                     self.logger,
                     Error,
@@ -111,6 +111,7 @@ mod tests {
     use super::super::test_support::*;
     use super::*;
     use crate::node::logging::Level;
+    use crate::ros::msgs::{Header, JointState, Odometry, Quaternion};
     use spatial_dynamics_core::model::examples::PARTICLE_URDF;
 
     const THETA: f64 = 0.6;
@@ -194,6 +195,98 @@ mod tests {
         assert_eq!(state.engine.model.name(), "particle");
         let infos = logged(&state, Level::Info);
         assert!(infos.contains(&"parameter 'robot_description' now in effect".to_string()));
+    }
+
+    /// A rebuilt model takes over, by joint name, the latest effort command and the base state
+    /// from `~/base_state`; what it has no place for is logged, and the residual the old model
+    /// still owed is counted dropped on `~/effort_residual`.
+    #[test]
+    fn a_rebuilt_model_takes_over_the_command_and_the_base_state() {
+        let arm = |gravity: f64, floating_base: bool| Settings {
+            gravity: [0.0, 0.0, -gravity],
+            floating_base,
+            ..Settings::default()
+        };
+        let mut state = serving(arm(G, true));
+        let names: Vec<String> = (1..=7).map(|k| format!("joint{k}")).collect();
+        let joint_state = |sec: i32, effort: Vec<f64>| JointState {
+            header: Header {
+                stamp: at(sec),
+                frame_id: String::new(),
+            },
+            name: names.clone(),
+            position: vec![0.3, -0.5, 0.2, 1.1, -0.4, 0.6, 0.1],
+            velocity: vec![0.0; 7],
+            effort,
+        };
+        let gravity = |state: &mut NodeState, sec: i32| {
+            let out = state.joint_states(Ok(joint_state(sec, Vec::new())), Some(0));
+            (out.gravity.unwrap().effort, out.acceleration.unwrap())
+        };
+        // The base turned 0.4 rad about x turns the arm against gravity.
+        let (s, c) = (0.2f64.sin(), 0.2f64.cos());
+        let mut odometry = Odometry::default();
+        odometry.pose.pose.orientation = Quaternion {
+            x: s,
+            y: 0.0,
+            z: 0.0,
+            w: c,
+        };
+        state.base_state(Ok(odometry));
+        let command = JointState {
+            name: names.clone(),
+            effort: vec![0.0, 1.5, 0.0, 0.0, 0.0, 0.0, 0.0],
+            ..Default::default()
+        };
+        state.effort_command(Ok(command));
+        let (turned, _) = gravity(&mut state, 1);
+        let (upright, _) = gravity(&mut serving(arm(G, true)), 1);
+        assert!(
+            (turned[1] - upright[1]).abs() > 0.1,
+            "{turned:?} {upright:?}"
+        );
+        state.joint_states(Ok(joint_state(2, vec![0.3; 7])), Some(0));
+        assert_eq!(state.health.total_dropped(), 0);
+
+        let doubled = ParameterValue::DoubleArray(vec![0.0, 0.0, -2.0 * G]);
+        apply_parameter(&state.settings(), "gravity", &doubled).unwrap();
+        state.parameter_changed("gravity").unwrap();
+        let reason = "the model changed before the next joint state: no residual for the joint \
+                      state stamped 2.000000000";
+        assert_eq!(state.health.dropped_on(&state.names.residual, reason), 1);
+        let (effort, acceleration) = gravity(&mut state, 3);
+        for (e, t) in effort.iter().zip(&turned) {
+            assert_close(*e, 2.0 * t);
+        }
+        let joint2 = acceleration
+            .name
+            .iter()
+            .position(|n| n == "joint2")
+            .unwrap();
+        assert_eq!(acceleration.effort[joint2], 1.5);
+        let replaced = |state: &NodeState| {
+            let warnings = logged(state, Level::Warn).into_iter();
+            warnings
+                .filter(|l| l.starts_with("robot "))
+                .collect::<Vec<_>>()
+        };
+        assert!(replaced(&state).is_empty());
+
+        // Without a floating base the base state has no place: said so.
+        let fixed = ParameterValue::Boolean(false);
+        apply_parameter(&state.settings(), "floating_base", &fixed).unwrap();
+        state.parameter_changed("floating_base").unwrap();
+        assert_eq!(
+            replaced(&state),
+            [
+                "robot 'sd_arm7' replaces robot 'sd_arm7' without the base pose and twist \
+              from ~/base_state (no floating base now)"
+            ]
+        );
+        let (effort, acceleration) = gravity(&mut state, 4);
+        let (want, _) = gravity(&mut serving(arm(2.0 * G, false)), 4);
+        assert_eq!(effort, want);
+        assert_eq!(acceleration.effort[joint2], 1.5);
     }
 
     #[test]
