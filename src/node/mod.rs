@@ -122,10 +122,15 @@ async fn serve(
             .declare_parameter(name, value);
     }
     let description = state.topic_description();
-    let validated = shared.clone();
+    let (validated, batch_validated) = (shared.clone(), shared.clone());
+    let batch_description = description.clone();
     options = options
         .parameter_validator(Box::new(move |name, value| {
             handlers::validate_parameter(&validated, &description, name, value)
+        }))
+        .parameter_batch_validator(Box::new(move |parameters| {
+            let values = parameters.iter().map(|p| (p.name.as_str(), &p.value));
+            handlers::validate_parameters(&batch_validated, &batch_description, values)
         }))
         .parameter_set_action(Box::new(move |name, value| {
             if handlers::apply_parameter(&shared, name, value)? {

@@ -167,6 +167,39 @@ def test_one_invalid_value_in_a_batch_does_not_block_the_valid_ones(arm, ros, re
     wait_model(ros, lambda r: r.method == "crba")
 
 
+def set_atomically(ros, params, node=sd.NODE):
+    """Sets params (rclpy Parameters) through set_parameters_atomically; returns its result."""
+    from rcl_interfaces.srv import SetParametersAtomically
+
+    request = SetParametersAtomically.Request(parameters=[p.to_parameter_msg() for p in params])
+    return ros.call(SetParametersAtomically, f"{node}/set_parameters_atomically", request).result
+
+
+def test_an_atomic_set_is_validated_as_a_whole(arm, ros):
+    particle = sd.PARTICLE_URDF.read_text()
+    # Valid together only: the particle's joint as the command joint (unknown to the arm).
+    result = set_atomically(ros, [Parameter("robot_description", T.STRING, particle),
+                                  Parameter("command_joints", T.STRING_ARRAY, ["z"])])
+    assert result.successful, result.reason
+    wait_model(ros, lambda r: "particle" in r.message)
+    assert ros.get_parameters(["command_joints"])["command_joints"] == ["z"]
+    # A urdf_file the robot_description shadows is the source once that is emptied: checked.
+    result = ros.set_parameter("urdf_file", "/nonexistent/robot.urdf", T.STRING)
+    assert not result.successful and "urdf_file" in result.reason, result
+    # Back to the arm: valid together only (the arm has no joint 'z').
+    assert not ros.set_parameter("robot_description", "", T.STRING).successful
+    result = set_atomically(ros, [Parameter("robot_description", T.STRING, ""),
+                                  Parameter("command_joints", T.STRING_ARRAY, [])])
+    assert result.successful, result.reason
+    wait_model(ros, lambda r: "sd_arm7" in r.message and list(r.joint_names) == ARM_JOINTS)
+    # Valid one by one, not together: the particle has no link4. Nothing changes.
+    result = set_atomically(ros, [Parameter("tip_links", T.STRING_ARRAY, ["link4"]),
+                                  Parameter("robot_description", T.STRING, particle)])
+    assert not result.successful and "link4" in result.reason, result
+    assert {k: normalise(v) for k, v in ros.get_parameters(NAMES).items()} == DEFAULTS
+    assert "sd_arm7" in describe(ros).message
+
+
 # ---- valid values take effect -----------------------------------------------------------------
 
 

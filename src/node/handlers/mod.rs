@@ -17,7 +17,7 @@ mod parameters;
 mod services;
 mod timers;
 
-pub use parameters::{apply_parameter, validate_parameter};
+pub use parameters::{apply_parameter, validate_parameter, validate_parameters};
 pub use timers::simulation_timer;
 
 use super::engine::clock::NodeClock;

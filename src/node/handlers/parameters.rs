@@ -10,26 +10,53 @@ use spatial_dynamics_core::ForwardDynamicsMethod;
 use std::sync::Mutex;
 
 /// Whether parameter `name` may take `value` (parameters the node does not have are left to
-/// the parameter store): the value must be of the right type and range, and a value of a model
-/// parameter or `command_joints` must give a usable model from the current source (the
-/// `robot_description` parameter, `urdf_file`, the topic's `description`, or the default).
+/// the parameter store): [`validate_parameters`] of that one.
 pub fn validate_parameter(
     settings: &Mutex<Settings>,
     description: &Mutex<Option<String>>,
     name: &str,
     value: &ParameterValue,
 ) -> Result<(), String> {
-    if !params::NAMES.contains(&name) {
+    validate_parameters(settings, description, [(name, value)])
+}
+
+/// Whether the parameters may take these values together (`set_parameters_atomically`; the
+/// node's parameters only, others are left to the parameter store): each value must be of the
+/// right type and range, and if a model parameter or `command_joints` is among them, all the
+/// values together must give a usable model from the source they leave in force (the
+/// `robot_description` parameter, `urdf_file`, the topic's `description`, or the default). A
+/// `urdf_file` set while a `robot_description` shadows it must give a usable model too: it is
+/// the source once `robot_description` is emptied.
+pub fn validate_parameters<'a>(
+    settings: &Mutex<Settings>,
+    description: &Mutex<Option<String>>,
+    values: impl IntoIterator<Item = (&'a str, &'a ParameterValue)>,
+) -> Result<(), String> {
+    let mut candidate = settings.lock().map_err(|e| e.to_string())?.clone();
+    let (mut rebuilds, mut sets_file) = (false, false);
+    for (name, value) in values {
+        if !params::NAMES.contains(&name) {
+            continue;
+        }
+        candidate.set(name, value)?;
+        rebuilds |= params::MODEL_PARAMETERS.contains(&name) || name == "command_joints";
+        sets_file |= name == "urdf_file";
+    }
+    if !rebuilds {
         return Ok(());
     }
-    let mut candidate = settings.lock().map_err(|e| e.to_string())?.clone();
-    candidate.set(name, value)?;
-    if params::MODEL_PARAMETERS.contains(&name) || name == "command_joints" {
-        let description = description.lock().map_err(|e| e.to_string())?.clone();
-        // Choosing a method never fails (auto falls back to aba), so the candidate skips
-        // auto's measurements: the change that follows measures once, for real.
-        candidate.method = Some(ForwardDynamicsMethod::Aba);
-        Engine::from_settings(&candidate, description.as_deref())?;
+    let description = description.lock().map_err(|e| e.to_string())?.clone();
+    // Choosing a method never fails (auto falls back to aba), so the candidate skips auto's
+    // measurements: the change that follows measures once, for real.
+    candidate.method = Some(ForwardDynamicsMethod::Aba);
+    Engine::from_settings(&candidate, description.as_deref())?;
+    if sets_file && !candidate.robot_description.is_empty() && !candidate.urdf_file.is_empty() {
+        let file = Settings {
+            robot_description: String::new(),
+            ..candidate
+        };
+        Engine::from_settings(&file, description.as_deref())
+            .map_err(|e| format!("urdf_file (the source once robot_description is empty): {e}"))?;
     }
     Ok(())
 }

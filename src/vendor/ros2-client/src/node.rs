@@ -574,7 +574,8 @@ impl Node {
       options.parameter_set_action.take(),
     )
     .map_err(NodeCreateError::BadParameter)?
-    .with_descriptors(options.parameter_descriptors.clone());
+    .with_descriptors(options.parameter_descriptors.clone())
+    .with_batch_validator(options.parameter_batch_validator.take());
 
     let mut node = Node {
       node_name,

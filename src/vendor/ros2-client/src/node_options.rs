@@ -23,6 +23,10 @@ use crate::parameters::{Parameter, ParameterDescriptor, ParameterValue, SetParam
 /// `debug` level if set).
 pub(crate) type ParameterFunc = dyn Fn(&str, &ParameterValue) -> SetParametersResult + Send + Sync;
 
+/// A validator of several parameters set together (`set_parameters_atomically`), called with
+/// the whole set (see [`NodeOptions::parameter_batch_validator`]). DDS backend only.
+pub(crate) type BatchParameterFunc = dyn Fn(&[Parameter]) -> SetParametersResult + Send + Sync;
+
 /// Configuration of a [`Node`](crate::Node). This is a builder-like struct.
 ///
 /// The NodeOptions struct does not contain
@@ -37,6 +41,7 @@ pub struct NodeOptions {
   pub(crate) allow_undeclared_parameters: bool,
   pub(crate) parameter_validator: Option<Box<ParameterFunc>>,
   pub(crate) parameter_set_action: Option<Box<ParameterFunc>>,
+  pub(crate) parameter_batch_validator: Option<Box<BatchParameterFunc>>,
   pub(crate) parameter_descriptors: Vec<ParameterDescriptor>,
 }
 
@@ -53,6 +58,7 @@ impl NodeOptions {
       allow_undeclared_parameters: false,
       parameter_validator: None,
       parameter_set_action: None,
+      parameter_batch_validator: None,
       parameter_descriptors: Vec::new(),
     }
   }
@@ -115,6 +121,17 @@ impl NodeOptions {
 
   pub fn parameter_set_action(mut self, action: Box<ParameterFunc>) -> NodeOptions {
     self.parameter_set_action = Some(action);
+    self
+  }
+
+  /// Validates the parameters of one `set_parameters_atomically` request together, as
+  /// rclcpp's set-parameters callback receives them: the values are checked as a whole
+  /// (a pair that is valid only together is accepted, one that is invalid only together is
+  /// refused) instead of one by one by the [`parameter_validator`](Self::parameter_validator).
+  /// The store's own rules (declared, type, read-only, `use_sim_time`) still apply to each.
+  /// DDS backend only.
+  pub fn parameter_batch_validator(mut self, validator: Box<BatchParameterFunc>) -> NodeOptions {
+    self.parameter_batch_validator = Some(validator);
     self
   }
 

@@ -16,7 +16,10 @@ use std::{
   },
 };
 
-use crate::{node_options::ParameterFunc, rcl_interfaces::ListParametersResult};
+use crate::{
+  node_options::{BatchParameterFunc, ParameterFunc},
+  rcl_interfaces::ListParametersResult,
+};
 
 /// Named parameter
 #[derive(Debug, Clone)]
@@ -352,6 +355,8 @@ pub(crate) struct ParameterStore {
   // Not held at the same time as `values`, as the callbacks may be slow.
   validator: Option<Mutex<Box<ParameterFunc>>>,
   set_action: Option<Mutex<Box<ParameterFunc>>>,
+  // Validates an atomic set as a whole, instead of `validator` one by one.
+  batch_validator: Option<Mutex<Box<BatchParameterFunc>>>,
   use_sim_time: AtomicBool,
   // Descriptors given by the node's author (NodeOptions::describe_parameter).
   descriptors: BTreeMap<String, ParameterDescriptor>,
@@ -387,6 +392,7 @@ impl ParameterStore {
       allow_undeclared,
       validator: validator.map(Mutex::new),
       set_action: set_action.map(Mutex::new),
+      batch_validator: None,
       use_sim_time: AtomicBool::new(false),
       descriptors: BTreeMap::new(),
     };
@@ -402,6 +408,13 @@ impl ParameterStore {
   /// `read_only` keeps its initial value (setting it fails, as in rclcpp).
   pub fn with_descriptors(mut self, descriptors: impl IntoIterator<Item = ParameterDescriptor>) -> Self {
     self.descriptors = descriptors.into_iter().map(|d| (d.name.clone(), d)).collect();
+    self
+  }
+
+  /// The store with a validator of atomic sets as a whole
+  /// ([`NodeOptions::parameter_batch_validator`](crate::NodeOptions::parameter_batch_validator)).
+  pub fn with_batch_validator(mut self, validator: Option<Box<BatchParameterFunc>>) -> Self {
+    self.batch_validator = validator.map(Mutex::new);
     self
   }
 
@@ -508,8 +521,21 @@ impl ParameterStore {
   /// fails while applying cannot be rolled back, so set actions should not
   /// fail for values the validator has accepted.
   pub fn set_atomically(&self, params: Vec<Parameter>) -> Result<ParameterChanges, String> {
-    for Parameter { name, value } in &params {
-      self.validate(name, value)?;
+    match &self.batch_validator {
+      Some(batch) => {
+        for Parameter { name, value } in &params {
+          self.check_rules(name, value)?;
+          if name == Self::USE_SIM_TIME {
+            self.check_value(name, value)?;
+          }
+        }
+        batch.lock().unwrap()(&params)?;
+      }
+      None => {
+        for Parameter { name, value } in &params {
+          self.validate(name, value)?;
+        }
+      }
     }
     let mut changes = ParameterChanges::default();
     for Parameter { name, value } in params {
@@ -531,6 +557,12 @@ impl ParameterStore {
   }
 
   fn validate(&self, name: &str, value: &ParameterValue) -> SetParametersResult {
+    self.check_rules(name, value)?;
+    self.check_value(name, value)
+  }
+
+  /// The store's own rules: read-only, declared, same type.
+  fn check_rules(&self, name: &str, value: &ParameterValue) -> SetParametersResult {
     if self.descriptors.get(name).is_some_and(|d| d.read_only) {
       return Err(format!("Trying to set a read-only parameter: {name}."));
     }
@@ -552,7 +584,7 @@ impl ParameterStore {
         value.to_parameter_type()
       ));
     }
-    self.check_value(name, value)
+    Ok(())
   }
 
   /// The built-in `use_sim_time` check, or else the user validator.
