@@ -52,20 +52,26 @@ use time_source::TimeSource;
 /// process exits non-zero); after that, bad input is answered or dropped, never fatal.
 pub fn run(args: &[String]) -> Result<(), String> {
     let ros_args = RosArgs::parse(args)?;
-    let node_name = ros_args
-        .node_name
-        .clone()
-        .unwrap_or_else(|| "spatial_dynamics".to_string());
+    let remaps = ros_args.for_node("spatial_dynamics");
+    let node_name = remaps.node_name.clone();
     let resolver = NameResolver::new(
-        ros_args.namespace.as_deref().unwrap_or("/"),
+        remaps.namespace.as_deref().unwrap_or("/"),
         &node_name,
-        &ros_args.remaps,
+        &remaps.remaps,
     );
     let logger_name = logging::logger_name(resolver.namespace(), &node_name);
     let logger = Logger::new(
         &logger_name,
         logging::level_for(&logger_name, &ros_args.log_levels),
     );
+    if !remaps.other_nodes.is_empty() {
+        log!(
+            logger,
+            Warn,
+            "ignoring remapping rules for other nodes (this node is '{node_name}'): {}",
+            remaps.other_nodes.join(", ")
+        );
+    }
     let mut settings = Settings::default();
     for file in &ros_args.params_files {
         let ignored = settings.apply_file(file, resolver.namespace(), &node_name)?;

@@ -1,7 +1,8 @@
 //! ROS-style command-line arguments (`--ros-args …`); names resolve by
 //! [`NameResolver`](crate::ros::names::NameResolver).
 //!
-//! Understood: `-r/--remap FROM:=TO` (including `__node:=NAME` and `__ns:=/NS`),
+//! Understood: `-r/--remap [NODE:]FROM:=TO` (including `__node:=NAME` and `__ns:=/NS`; a rule
+//! prefixed `NODE:` applies only to the node of that name, as in rcl),
 //! `-p/--param NAME:=VALUE` (VALUE in YAML, as `ros2 run` reads it), `--params-file FILE`,
 //! `--log-level LEVEL` and `--log-level LOGGER:=LEVEL` (see [`super::logging`]), and `--` or
 //! `--ros-args` boundaries.
@@ -12,12 +13,8 @@ use std::path::PathBuf;
 /// What the ROS arguments asked for.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RosArgs {
-    /// `-r __node:=NAME`.
-    pub node_name: Option<String>,
-    /// `-r __ns:=/NS`.
-    pub namespace: Option<String>,
-    /// `-r FROM:=TO` topic and service remappings, in order.
-    pub remaps: Vec<(String, String)>,
+    /// `-r [NODE:]FROM:=TO` rules, in order (`__node`, `__ns` and name remappings).
+    pub rules: Vec<RemapRule>,
     /// `-p NAME:=VALUE` (VALUE as written, YAML).
     pub params: Vec<(String, String)>,
     /// `--params-file FILE`, in order (later files and `-p` override earlier ones).
@@ -26,7 +23,58 @@ pub struct RosArgs {
     pub log_levels: Vec<(Option<String>, Level)>,
 }
 
+/// One `-r [NODE:]FROM:=TO` rule.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RemapRule {
+    /// The node the rule is for (`None`: every node).
+    pub node: Option<String>,
+    pub from: String,
+    pub to: String,
+}
+
+/// The remapping rules that apply to one node, as rcl applies them: the first matching rule
+/// wins; `__node` and `__ns` rules are matched on the node's own name, name rules on its name
+/// after `__node`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeRemaps {
+    pub node_name: String,
+    pub namespace: Option<String>,
+    /// Topic and service remappings `(FROM, TO)`, in order.
+    pub remaps: Vec<(String, String)>,
+    /// The rules written for other nodes (`NODE:FROM:=TO`), which apply to none here.
+    pub other_nodes: Vec<String>,
+}
+
 impl RosArgs {
+    /// The rules for the node named `name` in the code (before `__node`).
+    pub fn for_node(&self, name: &str) -> NodeRemaps {
+        let applies = |rule: &RemapRule, to: &str| rule.node.as_deref().is_none_or(|n| n == to);
+        let first = |keys: &[&str]| {
+            self.rules
+                .iter()
+                .find(|r| keys.contains(&r.from.as_str()) && applies(r, name))
+                .map(|r| r.to.clone())
+        };
+        let node_name = first(&["__node", "__name"]).unwrap_or_else(|| name.to_string());
+        let namespace = first(&["__ns"]);
+        let special = |r: &RemapRule| matches!(r.from.as_str(), "__node" | "__name" | "__ns");
+        let remaps = self
+            .rules
+            .iter()
+            .filter(|r| !special(r) && applies(r, &node_name));
+        let other_nodes = self.rules.iter().filter(|r| {
+            r.node.is_some() && !applies(r, if special(r) { name } else { &node_name })
+        });
+        NodeRemaps {
+            remaps: remaps.map(|r| (r.from.clone(), r.to.clone())).collect(),
+            other_nodes: other_nodes
+                .map(|r| format!("{}:{}:={}", r.node.as_deref().unwrap_or(""), r.from, r.to))
+                .collect(),
+            node_name,
+            namespace,
+        }
+    }
+
     /// Parses the arguments after the subcommand. Arguments outside `--ros-args … [--]` are
     /// refused with a message, like any unknown flag.
     pub fn parse(args: &[String]) -> Result<RosArgs, String> {
@@ -45,11 +93,18 @@ impl RosArgs {
                 "-r" | "--remap" if in_ros_args => {
                     let rule = value(arg)?;
                     let (from, to) = split_rule(&rule, arg)?;
-                    match from {
-                        "__node" | "__name" => out.node_name = Some(to.to_string()),
-                        "__ns" => out.namespace = Some(to.to_string()),
-                        _ => out.remaps.push((from.to_string(), to.to_string())),
-                    }
+                    let (node, from) = match from.split_once(':') {
+                        Some((node, from)) if !node.is_empty() && !from.is_empty() => {
+                            (Some(node.to_string()), from)
+                        }
+                        Some(_) => return Err(format!("{arg} '{rule}': expected [NODE:]FROM:=TO")),
+                        None => (None, from),
+                    };
+                    out.rules.push(RemapRule {
+                        node,
+                        from: from.to_string(),
+                        to: to.to_string(),
+                    });
                 }
                 "-p" | "--param" if in_ros_args => {
                     let rule = value(arg)?;
@@ -82,6 +137,7 @@ fn split_rule<'a>(rule: &'a str, flag: &str) -> Result<(&'a str, &'a str), Strin
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ros::names::NameResolver;
 
     fn strings(a: &[&str]) -> Vec<String> {
         a.iter().map(|s| s.to_string()).collect()
@@ -114,12 +170,14 @@ mod tests {
                 (Some("robot.dyn".to_string()), Level::Warn)
             ]
         );
-        assert_eq!(args.node_name.as_deref(), Some("dyn"));
-        assert_eq!(args.namespace.as_deref(), Some("/robot"));
+        let node = args.for_node("spatial_dynamics");
+        assert_eq!(node.node_name, "dyn");
+        assert_eq!(node.namespace.as_deref(), Some("/robot"));
         assert_eq!(
-            args.remaps,
+            node.remaps,
             vec![("joint_states".to_string(), "/arm/joint_states".to_string())]
         );
+        assert!(node.other_nodes.is_empty());
         assert_eq!(
             args.params,
             vec![("gravity".to_string(), "[0.0, 0.0, -1.62]".to_string())]
@@ -131,6 +189,9 @@ mod tests {
         assert!(RosArgs::parse(&strings(&["--ros-args", "-p", "x"]))
             .unwrap_err()
             .contains("NAME:=VALUE"));
+        assert!(RosArgs::parse(&strings(&["--ros-args", "-r", ":a:=b"]))
+            .unwrap_err()
+            .contains("[NODE:]FROM:=TO"));
         assert!(RosArgs::parse(&strings(&["--ros-args", "-r"]))
             .unwrap_err()
             .contains("needs a value"));
@@ -139,5 +200,53 @@ mod tests {
                 .unwrap_err()
                 .contains("unknown severity 'loud'")
         );
+    }
+
+    /// Rules prefixed `NODE:` apply to that node only, as in rcl: `__node` and `__ns` rules
+    /// match the node's own name, name rules its name after `__node`; the first matching rule
+    /// wins; rules for other nodes are reported.
+    #[test]
+    fn node_targeted_rules_apply_to_their_node_only() {
+        let args = RosArgs::parse(&strings(&[
+            "--ros-args",
+            "-r",
+            "other:__node:=x",
+            "-r",
+            "spatial_dynamics:__node:=dyn",
+            "-r",
+            "__node:=later",
+            "-r",
+            "spatial_dynamics:__ns:=/a",
+            "-r",
+            "dyn:joint_states:=/mine",
+            "-r",
+            "spatial_dynamics:gravity:=/not_after_the_rename",
+            "-r",
+            "joint_states:=/everyone",
+            "-r",
+            "talker:chatter:=/c",
+        ]))
+        .unwrap();
+        let node = args.for_node("spatial_dynamics");
+        assert_eq!(node.node_name, "dyn");
+        assert_eq!(node.namespace.as_deref(), Some("/a"));
+        let rule = |a: &str, b: &str| (a.to_string(), b.to_string());
+        assert_eq!(
+            node.remaps,
+            [
+                rule("joint_states", "/mine"),
+                rule("joint_states", "/everyone")
+            ]
+        );
+        assert_eq!(
+            node.other_nodes,
+            [
+                "other:__node:=x",
+                "spatial_dynamics:gravity:=/not_after_the_rename",
+                "talker:chatter:=/c"
+            ]
+        );
+        let resolver = NameResolver::new("/a", &node.node_name, &node.remaps);
+        assert_eq!(resolver.resolve("joint_states"), "/mine");
     }
 }

@@ -1,6 +1,7 @@
 """Names: `-r __ns:=/robot1` puts the node, its services, parameters and relative topics under
-/robot1; `-r __node:=NAME` renames it; `-r FROM:=TO` remaps topics (also private `~/...` ones).
-Two nodes run side by side; no node has the default name here.
+/robot1; `-r __node:=NAME` renames it; `-r FROM:=TO` remaps topics (also private `~/...` ones),
+`-r NODE:FROM:=TO` only on node NODE. Two nodes run side by side; no node has the default name
+here.
 """
 
 import pytest
@@ -21,9 +22,12 @@ Q = [0.2, -0.4, 0.6, -0.8, 1.0, -1.2, 1.4]
 def both(module_nodes, ros, workdir):
     params = workdir / "ns.yaml"
     params.write_text("/robot1/spatial_dynamics:\n  ros__parameters:\n    method: crba\n")
-    a = module_nodes.start("-r", "__ns:=/robot1", "--params-file", params, label="robot1")
+    # Rules prefixed NODE: apply to that node only (name rules: its name after __node).
+    a = module_nodes.start("-r", "__ns:=/robot1", "--params-file", params, "-r", "spatial_dynamics:~/acceleration:=/robot1/acc",
+                           "-r", "dyn2:~/gravity_effort:=/never", label="robot1")
     b = module_nodes.start(
-        "-r", "__node:=dyn2", "-r", "joint_states:=/arm/joint_states", "-r", "~/gravity_effort:=/arm/gravity", label="dyn2"
+        "-r", "__node:=dyn2", "-r", "joint_states:=/arm/joint_states", "-r", "dyn2:~/gravity_effort:=/arm/gravity",
+        "-r", "spatial_dynamics:~/acceleration:=/never", label="dyn2"
     )
     ros.wait_for_service(DescribeModel, "/robot1/spatial_dynamics/describe_model")
     ros.wait_for_service(DescribeModel, "/dyn2/describe_model")
@@ -99,6 +103,10 @@ def test_params_file_entry_for_the_namespaced_node(both, ros):
 
 def test_relative_topics_under_the_namespace(both, ros, ref):
     gravity_roundtrip(ros, ref, "/robot1/joint_states", "/robot1/spatial_dynamics/gravity_effort")
+
+
+def test_a_rule_for_the_node_by_name(both, ros):
+    answered(ros, "/robot1/joint_states", ros.collector(JointDynamics, "/robot1/acc"))
 
 
 def test_remapped_input_and_output(both, ros, ref):
