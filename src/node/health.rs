@@ -14,6 +14,8 @@ pub struct Health {
     dropped: BTreeMap<(String, String), u64>,
     published: BTreeMap<String, u64>,
     received_at_report: BTreeMap<String, u64>,
+    /// [`Health::total_dropped`] at the last report.
+    dropped_at_report: u64,
     compute_total: Duration,
     compute_max: Duration,
     computed: u64,
@@ -30,6 +32,7 @@ impl Health {
             dropped: BTreeMap::new(),
             published: BTreeMap::new(),
             received_at_report: BTreeMap::new(),
+            dropped_at_report: 0,
             compute_total: Duration::ZERO,
             compute_max: Duration::ZERO,
             computed: 0,
@@ -176,10 +179,19 @@ impl Health {
         self.computed = 0;
         self.last_report = now;
         let dropped = self.total_dropped();
-        let (level, message) = match (model_ok, dropped) {
-            (false, _) => (2, "no usable model".to_string()),
-            (true, 0) => (0, "ok".to_string()),
-            (true, n) => (1, format!("{n} inputs dropped since start")),
+        let recent = dropped - std::mem::replace(&mut self.dropped_at_report, dropped);
+        // WARN while inputs are being dropped, back to OK once a report period passes without.
+        let (level, message) = match (model_ok, recent, dropped) {
+            (false, _, _) => (2, "no usable model".to_string()),
+            (true, 0, 0) => (0, "ok".to_string()),
+            (true, 0, n) => (
+                0,
+                format!("ok ({n} inputs dropped since start, none in the last {period:.1} s)"),
+            ),
+            (true, k, n) => (
+                1,
+                format!("{k} inputs dropped in the last {period:.1} s ({n} since start)"),
+            ),
         };
         DiagnosticStatus {
             level,
@@ -251,5 +263,17 @@ mod tests {
             Some("4")
         );
         assert_eq!(get("~/gravity_effort published").as_deref(), Some("1"));
+        assert!(status.message.starts_with("57 inputs dropped in the last"));
+        // A period without drops is OK again, the total still counted.
+        let status = h.report("spatial_dynamics", "sd_arm7", true);
+        assert_eq!(status.level, 0);
+        assert!(status
+            .message
+            .starts_with("ok (57 inputs dropped since start, none in the last"));
+        h.dropped("joint_states", "unknown joint 'c' in name");
+        let status = h.report("spatial_dynamics", "sd_arm7", true);
+        assert_eq!(status.level, 1);
+        assert!(status.message.starts_with("1 inputs dropped in the last"));
+        assert!(status.message.ends_with("(58 since start)"));
     }
 }
