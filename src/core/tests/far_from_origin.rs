@@ -115,9 +115,14 @@ fn cases() -> Vec<Case> {
 
 /// Fails unless `far` equals `near` to a few ulps of `near`'s size.
 fn assert_same(case: &str, quantity: &str, near: &[f64], far: &[f64]) {
+    assert_within(1e-12, case, quantity, near, far);
+}
+
+/// Fails unless `far` equals `near` to `relative` times `1 + |near|`.
+fn assert_within(relative: f64, case: &str, quantity: &str, near: &[f64], far: &[f64]) {
     let err = max_diff(near, far);
     assert!(
-        err <= 1e-12 * (1.0 + norm(near)),
+        err <= relative * (1.0 + norm(near)),
         "{case}: {quantity} far away differs from the origin's by {err:e} (|{quantity}| = {:e})",
         norm(near)
     );
@@ -243,6 +248,25 @@ fn forward_dynamics_far_from_origin_inverts_rnea_with_a_moving_root() {
     }
 }
 
+/// How far [`near_and_far`] moves a floating robot (m, world axes): about 1000 km.
+const SHIFT: [f64; 3] = [1e6, -7e5, 3e5];
+
+/// Five random states of floating-base `model` (seeded by `seed`), each with the same state
+/// moved by [`SHIFT`] (its first three coordinates, the base's position).
+fn near_and_far(model: &Model, seed: u64) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let mut rng = Rng::new(seed);
+    (0..5)
+        .map(|_| {
+            let q = random_q(model, &mut rng);
+            let mut far = q.clone();
+            for (x, d) in far.iter_mut().zip(SHIFT) {
+                *x += d;
+            }
+            (q, far)
+        })
+        .collect()
+}
+
 /// The centre-of-mass Jacobian, a sum of each subtree's first moment about its own joint, does
 /// not depend on where the robot stands: 1000 km out as at the origin (the offsets between
 /// joints come from the joints' own placements, not from differences of world positions), and
@@ -254,41 +278,24 @@ fn the_centre_of_mass_jacobian_does_not_depend_on_where_the_robot_stands() {
     for text in [examples::DEFAULT_ARM_URDF, tree_floating_joint.as_str()] {
         let model = load(text, true);
         let mut ws = Workspace::new(&model);
-        let mut rng = Rng::new(41);
-        for _ in 0..5 {
-            let q = random_q(&model, &mut rng);
-            let mut far = q.clone();
-            for (x, d) in far.iter_mut().zip([1e6, -7e5, 3e5]) {
-                *x += d;
-            }
+        for (q, far) in near_and_far(&model, 41) {
             let (com_near, j) = center_of_mass_jacobian(&model, &mut ws, &q).unwrap();
             let near: Vec<f64> = j.iter().copied().collect();
             let (com_far, j) = center_of_mass_jacobian(&model, &mut ws, &far).unwrap();
             let far_j: Vec<f64> = j.iter().copied().collect();
             assert_same(model.name(), "J_c", &near, &far_j);
-            let moved = com_far.position - com_near.position - Vector3::new(1e6, -7e5, 3e5);
+            let moved = com_far.position - com_near.position - Vector3::from(SHIFT);
             assert!(moved.norm() < 1e-9, "{}: {moved:?}", model.name());
         }
     }
-}
-
-/// Fails unless `far` equals `near` to ~50 ulps of `near`'s size: what a result computed from
-/// the robot's own lengths alone keeps wherever the robot stands.
-fn assert_same_digits(case: &str, quantity: &str, near: &[f64], far: &[f64]) {
-    let err = max_diff(near, far);
-    assert!(
-        err <= 1e-14 * (1.0 + norm(near)),
-        "{case}: {quantity} 1000 km out differs from the origin's by {err:e} (|{quantity}| = {:e})",
-        norm(near)
-    );
 }
 
 /// The `local` and `local_world_aligned` Jacobians of every link (by `frame_jacobian` and by
 /// `joint_jacobians`) are about the link's own origin, so they do not depend on where a
 /// floating robot stands: moved 1000 km they keep the digits they have at the origin. The
 /// offsets of the joints from the link are composed from their placements along the support,
-/// as Pinocchio's `LOCAL` Jacobian composes them; differences of world positions lost about
-/// `ε · 10⁶ m ≈ 1e-10`. The models: the arm, the tree with its planar joint (a joint kept whole
+/// as Pinocchio's `LOCAL` Jacobian composes them; differences of world positions would lose
+/// about `ε · 10⁶ m ≈ 1e-10`. The models: the arm, the tree with its planar joint (a joint kept whole
 /// in the workspace) and with a floating joint below the floating base.
 #[test]
 fn local_frame_jacobians_do_not_depend_on_where_a_floating_robot_stands() {
@@ -303,13 +310,7 @@ fn local_frame_jacobians_do_not_depend_on_where_a_floating_robot_stands() {
     ] {
         let model = load(text, true);
         let mut ws = Workspace::new(&model);
-        let mut rng = Rng::new(43);
-        for _ in 0..5 {
-            let q = random_q(&model, &mut rng);
-            let mut far = q.clone();
-            for (x, d) in far.iter_mut().zip([1e6, -7e5, 3e5]) {
-                *x += d;
-            }
+        for (q, far) in near_and_far(&model, 43) {
             for link in model.links() {
                 let frame = find_frame(&model, &link.name).unwrap();
                 for reference in [ReferenceFrame::Local, ReferenceFrame::LocalWorldAligned] {
@@ -325,8 +326,8 @@ fn local_frame_jacobians_do_not_depend_on_where_a_floating_robot_stands() {
                     };
                     let (near_single, near_many) = jacobian(&q);
                     let (far_single, far_many) = jacobian(&far);
-                    assert_same_digits(model.name(), &what, &near_single, &far_single);
-                    assert_same_digits(model.name(), &what, &near_many, &far_many);
+                    assert_within(1e-14, model.name(), &what, &near_single, &far_single);
+                    assert_within(1e-14, model.name(), &what, &near_many, &far_many);
                 }
             }
         }
@@ -336,7 +337,7 @@ fn local_frame_jacobians_do_not_depend_on_where_a_floating_robot_stands() {
 /// A fixed base whose first joint stands 1000 km from the world origin (turned by `rpy`), two
 /// turns about z and a slide along x below it, and a tool fused 0.2 m past the slide: the
 /// `local` and `local_world_aligned` Jacobians of its links against their closed forms, to
-/// ~10 ulps (a difference of world positions was 1e-10 off).
+/// ~10 ulps (a difference of world positions would be 1e-10 off).
 ///
 /// With `θ₁`, `θ₂` the turns, `d` the slide and `L` the link's distance from the second joint
 /// along the slide, in link axes (turned by `θ₁ + θ₂` about the first joint's z):
