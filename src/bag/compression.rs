@@ -7,6 +7,7 @@
 
 use std::io::{BufReader, Read, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// The most bytes one record, chunk or message may take once decompressed (1 GiB).
 pub const MAX_RECORD: u64 = 1 << 30;
@@ -215,17 +216,62 @@ pub fn write_ahead_log(path: &Path) -> Option<PathBuf> {
 }
 
 /// A copy of sqlite3 database `path` and its write-ahead log `wal` in the temporary directory,
-/// for SQLite to apply the log to (it would otherwise write beside the bag to do so).
-pub fn copy_with_log(path: &Path, wal: &Path) -> Result<TempCopy, String> {
+/// for SQLite to apply the log to (it would otherwise write beside the bag to do so). Stops
+/// with an error, the copy removed, once `stop` is set.
+pub fn copy_with_log(path: &Path, wal: &Path, stop: &AtomicBool) -> Result<TempCopy, String> {
     let copy = TempCopy::for_file(path);
     for (from, to) in [
         (path.to_path_buf(), copy.path.clone()),
         (wal.to_path_buf(), TempCopy::sibling(&copy.path, "-wal")),
     ] {
-        std::fs::copy(&from, &to)
-            .map_err(|e| format!("cannot copy {} to {}: {e}", from.display(), to.display()))?;
+        let reader = std::fs::File::open(&from)
+            .map_err(|e| format!("cannot open {}: {e}", from.display()))?;
+        pump(reader, &from, &to, u64::MAX, stop)?;
     }
     Ok(copy)
+}
+
+/// Copies `reader` (the contents of `from`, decompressed if it is compressed) into the new file
+/// `to` a MiB at a time, checking `stop` before each MiB (a signal: an error) and refusing more
+/// than `limit` bytes.
+fn pump(
+    mut reader: impl Read,
+    from: &Path,
+    to: &Path,
+    limit: u64,
+    stop: &AtomicBool,
+) -> Result<(), String> {
+    let mut out = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(to)
+        .map_err(|e| format!("cannot create {}: {e}", to.display()))?;
+    let mut buf = vec![0u8; 1 << 20];
+    let mut total = 0u64;
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return Err(format!(
+                "interrupted by a signal while reading {} into {}: nothing written",
+                from.display(),
+                to.display()
+            ));
+        }
+        let n = match reader.read(&mut buf) {
+            Ok(0) => return Ok(()),
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(format!("{}: after {total} bytes read: {e}", from.display())),
+        };
+        total += n as u64;
+        if total > limit {
+            return Err(format!(
+                "{}: decompresses to more than {limit} bytes (100 times its size): refused",
+                from.display()
+            ));
+        }
+        out.write_all(&buf[..n])
+            .map_err(|e| format!("cannot write {}: {e}", to.display()))?;
+    }
 }
 
 /// The most a `file`-mode compressed file may grow to: 100 times its compressed size, and at
@@ -234,49 +280,68 @@ fn file_limit(compressed: u64) -> u64 {
     compressed.saturating_mul(100).max(1 << 30)
 }
 
-/// Decompresses a `file`-mode compressed storage file into a [`TempCopy`], streaming.
-pub fn decompress_to_temp(path: &Path) -> Result<TempCopy, String> {
+/// Decompresses a `file`-mode compressed storage file into a [`TempCopy`], streaming; stops
+/// with an error, the copy removed, once `stop` is set.
+pub fn decompress_to_temp(path: &Path, stop: &AtomicBool) -> Result<TempCopy, String> {
     let compressed = std::fs::metadata(path)
         .map_err(|e| format!("cannot open {}: {e}", path.display()))?
         .len();
     let limit = file_limit(compressed);
     let copy = TempCopy::for_file(path);
-    let mut out = std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&copy.path)
-        .map_err(|e| format!("cannot create {}: {e}", copy.path.display()))?;
-    let mut reader = zstd_file_reader(path)?.take(limit + 1);
-    let mut buf = vec![0u8; 1 << 20];
-    let mut total = 0u64;
-    loop {
-        let n = match reader.read(&mut buf) {
-            Ok(0) => break,
-            Ok(n) => n,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-            Err(e) => {
-                return Err(format!(
-                    "{}: zstd, after {total} decompressed bytes: {e}",
-                    path.display()
-                ))
-            }
-        };
-        total += n as u64;
-        if total > limit {
-            return Err(format!(
-                "{}: decompresses to more than {limit} bytes (100 times its size): refused",
-                path.display()
-            ));
-        }
-        out.write_all(&buf[..n])
-            .map_err(|e| format!("cannot write {}: {e}", copy.path.display()))?;
-    }
+    pump(
+        zstd_file_reader(path)?.take(limit + 1),
+        path,
+        &copy.path,
+        limit,
+        stop,
+    )?;
     Ok(copy)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A signal (`stop` set) ends the copies a bag's sqlite3 files need with an error and leaves
+    /// no copy behind; unset, they are whole.
+    #[test]
+    fn copies_stop_at_a_signal_and_leave_nothing() {
+        let dir = std::env::temp_dir().join(format!("sd_stop_test_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let data: Vec<u8> = (0..3_000_000u32).map(|i| (i % 251) as u8).collect();
+        let (db, wal, packed) = (
+            dir.join("b.db3"),
+            dir.join("b.db3-wal"),
+            dir.join("b.db3.zstd"),
+        );
+        std::fs::write(&db, &data).unwrap();
+        std::fs::write(&wal, &data[..1000]).unwrap();
+        std::fs::write(&packed, zstd::encode_all(&data[..], 3).unwrap()).unwrap();
+        let running = AtomicBool::new(false);
+        let copy = decompress_to_temp(&packed, &running).unwrap();
+        assert_eq!(std::fs::read(&copy.path).unwrap(), data);
+        let copy = copy_with_log(&db, &wal, &running).unwrap();
+        assert_eq!(std::fs::read(&copy.path).unwrap(), data);
+        drop(copy);
+
+        let stopped = AtomicBool::new(true);
+        let temp_entries = || {
+            let prefix = format!("spatial_dynamics_{}_", std::process::id());
+            let entries = std::fs::read_dir(std::env::temp_dir()).unwrap();
+            let names = entries.map(|e| e.unwrap().file_name().to_string_lossy().into_owned());
+            // Only this test's copies: other tests may make copies meanwhile.
+            names
+                .filter(|n| n.starts_with(&prefix) && n.contains("_stop_test"))
+                .count()
+        };
+        let before = temp_entries();
+        let err = decompress_to_temp(&packed, &stopped).unwrap_err();
+        assert!(err.contains("interrupted by a signal"), "{err}");
+        let err = copy_with_log(&db, &wal, &stopped).unwrap_err();
+        assert!(err.contains("interrupted by a signal"), "{err}");
+        assert_eq!(temp_entries(), before);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn frames_decompress_to_their_declared_size_only() {

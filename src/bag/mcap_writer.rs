@@ -591,7 +591,7 @@ pub(super) mod tests {
             assert_eq!(indexed, expected.iter().map(|e| e.1).collect::<Vec<_>>());
 
             // Ours: one topic, in order; a wrong type refused.
-            let bag = Bag::open(&path).unwrap();
+            let bag = Bag::open(&path, &Default::default()).unwrap();
             assert_eq!(bag.storage, Storage::Mcap);
             let topics = bag.topics().unwrap().unwrap();
             assert_eq!(topics[0].count, Some(3333));

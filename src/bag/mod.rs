@@ -27,6 +27,7 @@ pub use mcap_writer::{ChunkBuilder, Compression, FinishedChunk, McapWriter};
 use sqlite_file::Opening;
 use std::borrow::Cow;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 /// The storage format of a bag.
@@ -89,8 +90,10 @@ pub struct Bag {
 }
 
 impl Bag {
-    /// Opens a bag directory (with or without `metadata.yaml`) or a single storage file.
-    pub fn open(path: &Path) -> Result<Bag, String> {
+    /// Opens a bag directory (with or without `metadata.yaml`) or a single storage file. The
+    /// copies it makes of sqlite3 files (decompressed, or with their write-ahead log) stop with
+    /// an error, and are removed, once `stop` is set (a signal).
+    pub fn open(path: &Path, stop: &AtomicBool) -> Result<Bag, String> {
         let (storage, files, metadata_topics) = if path.is_dir() {
             open_directory(path)?
         } else if !path.is_file() && path.exists() {
@@ -108,7 +111,7 @@ impl Bag {
                     return Ok(None);
                 }
                 if compression::is_zstd_file(file) {
-                    return compression::decompress_to_temp(file).map(|c| Some(Arc::new(c)));
+                    return compression::decompress_to_temp(file, stop).map(|c| Some(Arc::new(c)));
                 }
                 match compression::write_ahead_log(file) {
                     Some(wal) => {
@@ -118,7 +121,7 @@ impl Bag {
                             file.display(),
                             wal.display()
                         ));
-                        compression::copy_with_log(file, &wal).map(|c| Some(Arc::new(c)))
+                        compression::copy_with_log(file, &wal, stop).map(|c| Some(Arc::new(c)))
                     }
                     None => Ok(None),
                 }
@@ -564,7 +567,7 @@ mod tests {
             names
         };
         let before = listing();
-        let opened = Bag::open(&bag).unwrap();
+        let opened = Bag::open(&bag, &Default::default()).unwrap();
         let wanted = [Wanted {
             topic: "/s",
             type_name: "std_msgs/msg/String",

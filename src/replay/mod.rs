@@ -147,7 +147,7 @@ pub fn run(model: ModelChoice, args: &Config) -> Result<(), String> {
     // From here a first SIGINT or SIGTERM stops the run at the next message, and the partial
     // output and temporary copies are removed; a second ends the process at once.
     let interrupted = Interruption::catch()?;
-    let bag = Bag::open(&args.bag)?;
+    let bag = Bag::open(&args.bag, &interrupted.flag)?;
     refuse_output_over_input(&args.out, &args.bag, &bag.files)?;
     let topics = bag.topics()?;
     if let Some(topics) = &topics {

@@ -60,7 +60,7 @@ fn scratch(ext: &str) -> PathBuf {
 fn as_bag(bytes: &[u8], ext: &str) {
     let path = scratch(ext);
     std::fs::write(&path, bytes).expect("scratch file");
-    if let Ok(bag) = Bag::open(&path) {
+    if let Ok(bag) = Bag::open(&path, &Default::default()) {
         let _ = bag.topics();
         let mut names = Vec::new();
         let mut notes = Vec::new();
