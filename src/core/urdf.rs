@@ -70,13 +70,20 @@ fn read_file(path: &Path) -> Result<String, ModelError> {
             path.display()
         )))
     };
+    let not_regular = || {
+        Err(ModelError::Io(format!(
+            "{}: not a regular file (a URDF is read from a file of at most {MAX_FILE_BYTES} bytes)",
+            path.display()
+        )))
+    };
+    // Checked before opening too: opening a named pipe waits for a writer.
+    if !std::fs::metadata(path).map_err(io)?.is_file() {
+        return not_regular();
+    }
     let file = std::fs::File::open(path).map_err(io)?;
     let meta = file.metadata().map_err(io)?;
     if !meta.is_file() {
-        return Err(ModelError::Io(format!(
-            "{}: not a regular file (a URDF is read from a file of at most {MAX_FILE_BYTES} bytes)",
-            path.display()
-        )));
+        return not_regular();
     }
     if meta.len() > MAX_FILE_BYTES {
         return too_big();

@@ -63,13 +63,18 @@ typedef enum sd_reference_frame {
 
 /**
  * A robot model (immutable once made): opaque to C. Made by `sd_model_from_urdf_file` or
- * `sd_model_from_urdf_string`, freed by `sd_model_free`.
+ * `sd_model_from_urdf_string`, freed by `sd_model_free`. A freed model keeps this handle (one
+ * pointer) allocated, empty, so that a later use of it, or a second free, is a usage error
+ * rather than undefined behaviour.
  */
 typedef struct sd_model sd_model;
 
 /**
  * Scratch buffers for one model's calls: opaque to C. Made by `sd_workspace_new`, freed by
- * `sd_workspace_free`. A workspace serves one thread at a time; give each thread its own.
+ * `sd_workspace_free`. A workspace serves one call at a time: a call while another uses it (on
+ * another thread) fails with `SD_ERROR_USAGE`; give each thread its own. A freed workspace
+ * keeps this handle allocated, empty, so that a later use of it, or a second free, is a usage
+ * error rather than undefined behaviour.
  */
 typedef struct sd_workspace sd_workspace;
 
@@ -192,7 +197,8 @@ int sd_frame_jacobian(const struct sd_model *model,
                       double *j);
 
 /**
- * Builds a model from the URDF file at `path` (NUL-terminated, UTF-8). `options` may be NULL
+ * Builds a model from the URDF file at `path` (NUL-terminated; on Unix any bytes, elsewhere
+ * UTF-8). `options` may be NULL
  * (fixed base, mimic joints followed). Chooses the model's forward-dynamics method now (the
  * one `method: auto` picks: the fewest floating-point operations among the methods agreeing
  * with the articulated-body algorithm, one that handles mimic joints when there are some),
@@ -201,7 +207,7 @@ int sd_frame_jacobian(const struct sd_model *model,
  * Returns NULL on error (`sd_last_error` says why: the file, the element or joint at fault).
  * Free the model with `sd_model_free`, after every workspace made for it.
  */
-struct sd_model *sd_model_from_urdf_file(const char *path, const struct sd_model_options *options);
+struct sd_model *sd_model_from_urdf_file(const char *file, const struct sd_model_options *options);
 
 /**
  * Builds a model from URDF text (`urdf`, NUL-terminated, UTF-8); as `sd_model_from_urdf_file`
@@ -211,34 +217,37 @@ struct sd_model *sd_model_from_urdf_string(const char *urdf,
                                            const struct sd_model_options *options);
 
 /**
- * Frees a model made by `sd_model_from_urdf_file` or `sd_model_from_urdf_string` (NULL: does
- * nothing). Its workspaces must not be used afterwards.
+ * Frees a model made by `sd_model_from_urdf_file` or `sd_model_from_urdf_string` (NULL, or a
+ * model already freed: does nothing). The handle itself stays allocated (one pointer), so that
+ * a call given it afterwards fails with `SD_ERROR_USAGE`; its workspaces are refused from then
+ * on. Free it while no other thread uses it.
  */
 void sd_model_free(struct sd_model *model);
 
 /**
- * Number of position coordinates `nq`: the length of every `q` array (0 for NULL).
+ * Number of position coordinates `nq`: the length of every `q` array (0 for NULL or freed).
  */
 size_t sd_model_nq(const struct sd_model *model);
 
 /**
  * Number of velocity coordinates `nv`: the length of every `v`, `a`, `tau`, `qdd` and `g`
  * array, the size of the `nv × nv` mass matrix and the number of columns of a `6 × nv`
- * Jacobian (0 for NULL).
+ * Jacobian (0 for NULL or freed).
  */
 size_t sd_model_nv(const struct sd_model *model);
 
 /**
  * The name of velocity coordinate `index` (`0 ≤ index < nv`), in the order of `v`: the joint's
  * name, with the component for a joint of several coordinates (`base[2]`). Owned by the model
- * (valid until `sd_model_free`). NULL for an index out of range or a NULL model (with the
- * message for `sd_last_error`).
+ * (valid until `sd_model_free`). NULL for an index out of range or a NULL or freed model (with
+ * the message for `sd_last_error`).
  */
 const char *sd_model_v_name(const struct sd_model *model, size_t index);
 
 /**
  * The forward-dynamics method `sd_forward_dynamics` uses for this model, chosen when it was
- * made: `"aba"`, `"crba"` or `"rnea_columns"` (a static string; NULL for a NULL model).
+ * made: `"aba"`, `"crba"` or `"rnea_columns"` (a static string; NULL for a NULL or freed
+ * model).
  */
 const char *sd_model_forward_dynamics_method(const struct sd_model *model);
 
@@ -251,14 +260,24 @@ const char *sd_model_forward_dynamics_method(const struct sd_model *model);
 const char *sd_last_error(void);
 
 /**
+ * The code of the last call that failed on the calling thread (`SD_OK` when none has): what
+ * a function returning a pointer (NULL on failure) failed with. Successful calls leave it as
+ * it is.
+ */
+int sd_last_status(void);
+
+/**
  * Makes the scratch buffers for `model`'s calls (NULL, with the message for `sd_last_error`,
- * when `model` is NULL). Every call after this that succeeds allocates nothing. Free it with
- * `sd_workspace_free` before its model.
+ * when `model` is NULL or freed). Every call after this that succeeds allocates nothing. Free
+ * it with `sd_workspace_free` before its model.
  */
 struct sd_workspace *sd_workspace_new(const struct sd_model *model);
 
 /**
- * Frees a workspace made by `sd_workspace_new` (NULL: does nothing).
+ * Frees a workspace made by `sd_workspace_new` (NULL, or a workspace already freed: does
+ * nothing). The handle itself stays allocated (a few bytes), so that a call given it afterwards
+ * fails with `SD_ERROR_USAGE`. A workspace in use by a call on another thread is not freed
+ * (`sd_last_error` says so).
  */
 void sd_workspace_free(struct sd_workspace *workspace);
 

@@ -28,10 +28,9 @@
 namespace sd {
 
 // A failed call: what() is the library's message (the function, and the joint, coordinate,
-// link or value at fault); status() the sd_status code. The constructors' C functions return
-// NULL, not a code: a model that cannot be made says SD_ERROR_INPUT, a workspace SD_ERROR_USAGE
-// (what() tells the cause either way). A path or URDF text holding a NUL byte, which the C
-// functions would read as its end, is refused before the C call with SD_ERROR_USAGE.
+// link or value at fault); status() the sd_status code (for the C functions that return NULL
+// on failure, the code sd_last_status() gives). A path or URDF text holding a NUL byte, which
+// the C functions would read as its end, is refused before the C call with SD_ERROR_USAGE.
 class Error : public std::runtime_error {
  public:
   Error(int status, const std::string& message) : std::runtime_error(message), status_(status) {}
@@ -47,6 +46,15 @@ inline void check(int status) {
   if (status != SD_OK) {
     const char* message = sd_last_error();
     throw Error(status, message ? message : "spatial_dynamics: unknown error");
+  }
+}
+
+// Throws the C library's last error when `made` (what a C function returning a pointer gave)
+// is NULL.
+inline void check_made(const void* made) {
+  if (!made) {
+    const int status = sd_last_status();
+    check(status != SD_OK ? status : SD_ERROR_INTERNAL);
   }
 }
 
@@ -114,14 +122,14 @@ class Model {
   // The name of velocity coordinate `index` (throws for index >= nv).
   std::string_view v_name(std::size_t index) const {
     const char* name = sd_model_v_name(model_, index);
-    if (!name) detail::check(SD_ERROR_USAGE);
+    detail::check_made(name);
     return name;
   }
   // "aba", "crba" or "rnea_columns": the method forward_dynamics uses for this model (throws
   // on a moved-from model, whose nq() and nv() are 0).
   std::string_view forward_dynamics_method() const {
     const char* name = sd_model_forward_dynamics_method(model_);
-    if (!name) detail::check(SD_ERROR_USAGE);
+    detail::check_made(name);
     return name;
   }
   // The C handle (owned by this object).
@@ -130,7 +138,7 @@ class Model {
  private:
   explicit Model(sd_model* model) : model_(model) {}
   static sd_model* made(sd_model* model) {
-    if (!model) detail::check(SD_ERROR_INPUT);
+    detail::check_made(model);
     return model;
   }
   static sd_model_options to_c(ModelOptions options) {
@@ -145,7 +153,7 @@ class Model {
 class Workspace {
  public:
   explicit Workspace(const Model& model) : workspace_(sd_workspace_new(model.get())) {
-    if (!workspace_) detail::check(SD_ERROR_USAGE);
+    detail::check_made(workspace_);
   }
   Workspace(Workspace&& other) noexcept : workspace_(std::exchange(other.workspace_, nullptr)) {}
   // Frees this workspace's C workspace and takes `other`'s, leaving `other` moved-from

@@ -30,13 +30,13 @@ pub unsafe extern "C" fn sd_rnea_derivatives(
     m: *mut f64,
 ) -> c_int {
     guard("sd_rnea_derivatives", || {
-        let (model, ws, _) = checked(model, workspace)?;
+        let (model, mut ws, _) = checked(model, workspace)?;
         let [q, v, a] = state_inputs(model, q, v, (a, "a"))?;
         let nv = model.nv();
         let dtau_dq = output(dtau_dq, nv * nv, "dtau_dq")?;
         let dtau_dv = output(dtau_dv, nv * nv, "dtau_dv")?;
         let m = output(m, nv * nv, "m")?;
-        let d = rnea_derivatives(model, ws, q, v, a)?;
+        let d = rnea_derivatives(model, &mut ws, q, v, a)?;
         write_row_major(dtau_dq, d.dtau_dq);
         write_row_major(dtau_dv, d.dtau_dv);
         write_row_major(m, d.mass_matrix);
@@ -61,13 +61,13 @@ pub unsafe extern "C" fn sd_aba_derivatives(
     minv: *mut f64,
 ) -> c_int {
     guard("sd_aba_derivatives", || {
-        let (model, ws, _) = checked(model, workspace)?;
+        let (model, mut ws, _) = checked(model, workspace)?;
         let [q, v, tau] = state_inputs(model, q, v, (tau, "tau"))?;
         let nv = model.nv();
         let ddq_dq = output(ddq_dq, nv * nv, "ddq_dq")?;
         let ddq_dv = output(ddq_dv, nv * nv, "ddq_dv")?;
         let minv = output(minv, nv * nv, "minv")?;
-        let d = aba_derivatives(model, ws, q, v, tau, &Externals::none())?;
+        let d = aba_derivatives(model, &mut ws, q, v, tau, &Externals::none())?;
         write_row_major(ddq_dq, d.ddq_dq);
         write_row_major(ddq_dv, d.ddq_dv);
         write_row_major(minv, d.minv);

@@ -29,10 +29,10 @@ pub unsafe extern "C" fn sd_rnea(
     tau: *mut f64,
 ) -> c_int {
     guard("sd_rnea", || {
-        let (model, ws, _) = checked(model, workspace)?;
+        let (model, mut ws, _) = checked(model, workspace)?;
         let [q, v, a] = state_inputs(model, q, v, (a, "a"))?;
         let tau = output(tau, model.nv(), "tau")?;
-        write(tau, rnea(model, ws, q, v, a)?);
+        write(tau, rnea(model, &mut ws, q, v, a)?);
         Ok(())
     })
 }
@@ -48,10 +48,10 @@ pub unsafe extern "C" fn sd_gravity(
     g: *mut f64,
 ) -> c_int {
     guard("sd_gravity", || {
-        let (model, ws, _) = checked(model, workspace)?;
+        let (model, mut ws, _) = checked(model, workspace)?;
         let q = input(q, model.nq(), "q")?;
         let g = output(g, model.nv(), "g")?;
-        write(g, gravity(model, ws, q)?);
+        write(g, gravity(model, &mut ws, q)?);
         Ok(())
     })
 }
@@ -71,12 +71,12 @@ pub unsafe extern "C" fn sd_forward_dynamics(
     qdd: *mut f64,
 ) -> c_int {
     guard("sd_forward_dynamics", || {
-        let (model, ws, made) = checked(model, workspace)?;
+        let (model, mut ws, made) = checked(model, workspace)?;
         let [q, v, tau] = state_inputs(model, q, v, (tau, "tau"))?;
         let qdd = output(qdd, model.nv(), "qdd")?;
         write(
             qdd,
-            forward_dynamics(model, ws, q, v, tau, made.method, &Externals::none())?,
+            forward_dynamics(model, &mut ws, q, v, tau, made.method, &Externals::none())?,
         );
         Ok(())
     })
@@ -94,10 +94,10 @@ pub unsafe extern "C" fn sd_mass_matrix(
     m: *mut f64,
 ) -> c_int {
     guard("sd_mass_matrix", || {
-        let (model, ws, _) = checked(model, workspace)?;
+        let (model, mut ws, _) = checked(model, workspace)?;
         let q = input(q, model.nq(), "q")?;
         let m = output(m, model.nv() * model.nv(), "m")?;
-        write_row_major(m, crba(model, ws, q)?);
+        write_row_major(m, crba(model, &mut ws, q)?);
         Ok(())
     })
 }

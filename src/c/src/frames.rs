@@ -55,12 +55,12 @@ pub unsafe extern "C" fn sd_frame_jacobian(
     j: *mut f64,
 ) -> c_int {
     guard("sd_frame_jacobian", || {
-        let (model, ws, _) = checked(model, workspace)?;
+        let (model, mut ws, _) = checked(model, workspace)?;
         let q = input(q, model.nq(), "q")?;
         let frame = find_frame(model, text(frame, "frame")?)?;
         let reference = reference_frame(reference)?;
         let j = output(j, 6 * model.nv(), "j")?;
-        write_row_major(j, frame_jacobian(model, ws, q, &frame, reference)?);
+        write_row_major(j, frame_jacobian(model, &mut ws, q, &frame, reference)?);
         Ok(())
     })
 }

@@ -49,17 +49,19 @@ impl From<ModelError> for Failure {
 }
 
 thread_local! {
-    /// The message of the last failed call on this thread (NUL-terminated for C).
-    static LAST_ERROR: RefCell<Option<CString>> = const { RefCell::new(None) };
+    /// The code and message of the last failed call on this thread (NUL-terminated for C).
+    static LAST_ERROR: RefCell<Option<(sd_status, CString)>> = const { RefCell::new(None) };
 }
 
 /// Stores `message` as this thread's last error, prefixed by the function that failed. An
-/// interior NUL (from a name in the description) is written as `\0`.
+/// interior NUL (from a name in the description) is written as `\0`. During the thread's
+/// teardown (a call from a thread-local destructor, after this library's own is gone) the
+/// message is not kept: the code alone says what happened.
 #[cold]
-fn set_last_error(function: &str, message: &str) {
+fn set_last_error(status: sd_status, function: &str, message: &str) {
     let text = format!("{function}: {message}").replace('\0', "\\0");
     let text = CString::new(text).unwrap_or_default();
-    LAST_ERROR.with(|e| *e.borrow_mut() = Some(text));
+    let _ = LAST_ERROR.try_with(|e| *e.borrow_mut() = Some((status, text)));
 }
 
 /// The text of a caught panic's payload.
@@ -86,7 +88,7 @@ pub(crate) fn guard(function: &str, body: impl FnOnce() -> Result<(), Failure>) 
         Ok(Err(Failure::Usage(m))) => (sd_status::SD_ERROR_USAGE, m),
         Err(payload) => (sd_status::SD_ERROR_INTERNAL, panic_message(&*payload)),
     };
-    set_last_error(function, &status.1);
+    set_last_error(status.0, function, &status.1);
     status.0 as c_int
 }
 
@@ -118,21 +120,8 @@ pub(crate) unsafe fn non_null<'a, T>(pointer: *const T, argument: &str) -> Resul
         .ok_or_else(|| Failure::Usage(format!("{argument} is NULL")))
 }
 
-/// `pointer` as a mutable reference, or a usage error naming the argument when it is NULL.
-///
-/// # Safety
-/// A non-NULL `pointer` must point to a live `T`, used by nothing else, for `'a`.
-pub(crate) unsafe fn non_null_mut<'a, T>(
-    pointer: *mut T,
-    argument: &str,
-) -> Result<&'a mut T, Failure> {
-    pointer
-        .as_mut()
-        .ok_or_else(|| Failure::Usage(format!("{argument} is NULL")))
-}
-
 /// The `len` values at `pointer`, or a usage error naming the argument when it is NULL (NULL is
-/// accepted for no values, `len = 0`).
+/// accepted for no values, `len = 0`) or not aligned for an `f64`.
 ///
 /// # Safety
 /// A non-NULL `pointer` must point to `len` readable `f64`s that stay unchanged for `'a`.
@@ -144,7 +133,19 @@ pub(crate) unsafe fn input<'a>(
     match (pointer.is_null(), len) {
         (_, 0) => Ok(&[]),
         (true, _) => Err(Failure::Usage(format!("{argument} is NULL"))),
-        (false, _) => Ok(std::slice::from_raw_parts(pointer, len)),
+        (false, _) => Ok(std::slice::from_raw_parts(aligned(pointer, argument)?, len)),
+    }
+}
+
+/// `pointer` if it is aligned for an `f64` (8 bytes), else a usage error naming the argument:
+/// a `double` array in a byte buffer at an odd offset.
+fn aligned(pointer: *const f64, argument: &str) -> Result<*const f64, Failure> {
+    if pointer.is_aligned() {
+        Ok(pointer)
+    } else {
+        Err(Failure::Usage(format!(
+            "{argument} is not aligned for double (8 bytes): {pointer:p}"
+        )))
     }
 }
 
@@ -167,12 +168,14 @@ pub(crate) unsafe fn state_inputs<'a>(
     ])
 }
 
-/// An output array: a usage error naming the argument when it is NULL and `len > 0`.
+/// An output array: a usage error naming the argument when it is NULL or not aligned for an
+/// `f64`, and `len > 0`.
 pub(crate) fn output(pointer: *mut f64, len: usize, argument: &str) -> Result<*mut f64, Failure> {
-    if pointer.is_null() && len > 0 {
-        return Err(Failure::Usage(format!("{argument} is NULL")));
+    match (pointer.is_null(), len) {
+        (_, 0) => Ok(pointer),
+        (true, _) => Err(Failure::Usage(format!("{argument} is NULL"))),
+        (false, _) => aligned(pointer, argument).map(|_| pointer),
     }
-    Ok(pointer)
 }
 
 /// The message of the last call that failed on the calling thread: which function, and what
@@ -181,8 +184,28 @@ pub(crate) fn output(pointer: *mut f64, len: usize, argument: &str) -> Result<*m
 /// return code first); the text stays valid until the next failing call on this thread.
 #[no_mangle]
 pub extern "C" fn sd_last_error() -> *const c_char {
-    catch_unwind(|| LAST_ERROR.with(|e| e.borrow().as_ref().map_or(ptr::null(), |s| s.as_ptr())))
-        .unwrap_or(ptr::null())
+    let last = |e: &RefCell<Option<(sd_status, CString)>>| {
+        e.borrow().as_ref().map_or(ptr::null(), |(_, s)| s.as_ptr())
+    };
+    catch_unwind(|| LAST_ERROR.try_with(last).unwrap_or(ptr::null())).unwrap_or(ptr::null())
+}
+
+/// The code of the last call that failed on the calling thread (`SD_OK` when none has): what
+/// a function returning a pointer (NULL on failure) failed with. Successful calls leave it as
+/// it is.
+#[no_mangle]
+pub extern "C" fn sd_last_status() -> c_int {
+    let last = |e: &RefCell<Option<(sd_status, CString)>>| {
+        e.borrow()
+            .as_ref()
+            .map_or(sd_status::SD_OK, |(code, _)| *code) as c_int
+    };
+    catch_unwind(|| {
+        LAST_ERROR
+            .try_with(last)
+            .unwrap_or(sd_status::SD_OK as c_int)
+    })
+    .unwrap_or(sd_status::SD_OK as c_int)
 }
 
 /// Writes `values` to the output array `out` (checked by [`output`]).

@@ -653,3 +653,170 @@ fn derivatives_refuse_bad_input_and_null_outputs_untouched() {
     }
     assert!(out.iter().all(|&x| x == 7.0));
 }
+
+/// A model or workspace used after it was freed, or freed twice, is a usage error naming it:
+/// the handle stays allocated, empty.
+#[test]
+fn a_freed_handle_is_refused_by_name() {
+    let h = Handles::new(DEFAULT_ARM_URDF, false);
+    let (q, _, _) = h.state();
+    let mut g = vec![7.0; h.library.nv()];
+    unsafe {
+        sd_workspace_free(h.ws);
+        sd_workspace_free(h.ws);
+        assert_eq!(sd_gravity(h.model, h.ws, q.as_ptr(), g.as_mut_ptr()), USAGE);
+        assert!(
+            last_error().contains("workspace was freed"),
+            "{}",
+            last_error()
+        );
+        let ws = sd_workspace_new(h.model);
+        sd_model_free(h.model);
+        assert_eq!(sd_gravity(h.model, ws, q.as_ptr(), g.as_mut_ptr()), USAGE);
+        assert!(last_error().contains("model was freed"), "{}", last_error());
+        assert_eq!(sd_model_nq(h.model), 0);
+        assert!(sd_model_v_name(h.model, 0).is_null());
+        assert!(sd_workspace_new(h.model).is_null());
+        assert_eq!(sd_last_status(), USAGE);
+        sd_workspace_free(ws);
+    }
+    assert!(g.iter().all(|&x| x == 7.0), "outputs untouched");
+    // `Handles` frees both again on drop: nothing happens.
+}
+
+/// Two threads calling with one workspace never get a wrong answer: a call that finds the
+/// workspace in use is refused (`SD_ERROR_USAGE`, naming it), the others answer exactly.
+#[test]
+fn a_workspace_in_use_is_refused_not_shared() {
+    let h = Handles::new(DEFAULT_ARM_URDF, false);
+    let (q, v, a) = h.state();
+    let nv = h.library.nv();
+    let mut want = vec![0.0; nv];
+    assert_eq!(h.call(sd_rnea, &q, &v, &a, &mut want), OK);
+    let (model, ws) = (h.model as usize, h.ws as usize);
+    let run = |seed: f64| {
+        let (q, v, a, want) = (q.clone(), v.clone(), a.clone(), want.clone());
+        std::thread::spawn(move || {
+            let (mut wrong, mut refused) = (0, 0);
+            for k in 0..100_000 {
+                let mut tau = vec![seed + k as f64; nv];
+                let status = unsafe {
+                    sd_rnea(
+                        model as *const sd_model,
+                        ws as *mut sd_workspace,
+                        q.as_ptr(),
+                        v.as_ptr(),
+                        a.as_ptr(),
+                        tau.as_mut_ptr(),
+                    )
+                };
+                match status {
+                    OK => wrong += usize::from(tau != want),
+                    USAGE => {
+                        assert!(last_error().contains("in use by another call"));
+                        refused += 1;
+                    }
+                    other => panic!("status {other}: {}", last_error()),
+                }
+            }
+            (wrong, refused)
+        })
+    };
+    let (one, two) = (run(1.0), run(2.0));
+    let (one, two) = (one.join().unwrap(), two.join().unwrap());
+    assert_eq!(
+        (one.0, two.0),
+        (0, 0),
+        "wrong answers with SD_OK (refused: {one:?} {two:?})"
+    );
+}
+
+/// An array that is not aligned for `double` is refused naming it, input or output.
+#[test]
+fn a_misaligned_array_is_refused_by_name() {
+    let h = Handles::new(DEFAULT_ARM_URDF, false);
+    let (q, _, _) = h.state();
+    let nq = q.len();
+    let mut bytes = vec![0u8; 8 * nq + 8];
+    let odd = unsafe { bytes.as_mut_ptr().add(1) } as *mut f64;
+    unsafe { ptr::copy_nonoverlapping(q.as_ptr() as *const u8, odd as *mut u8, 8 * nq) };
+    let mut g = vec![0.0; h.library.nv()];
+    assert_eq!(
+        unsafe { sd_gravity(h.model, h.ws, odd, g.as_mut_ptr()) },
+        USAGE
+    );
+    assert!(
+        last_error().contains("q is not aligned"),
+        "{}",
+        last_error()
+    );
+    assert_eq!(unsafe { sd_gravity(h.model, h.ws, q.as_ptr(), odd) }, USAGE);
+    assert!(
+        last_error().contains("g is not aligned"),
+        "{}",
+        last_error()
+    );
+}
+
+/// `sd_last_status` gives the code of the last failed call on the thread: what a function
+/// returning NULL failed with.
+#[test]
+fn the_last_status_is_the_last_failed_call_s_code() {
+    std::thread::spawn(|| {
+        assert_eq!(sd_last_status(), OK);
+        let broken = CString::new("<robot name='a'><link").unwrap();
+        assert!(unsafe { sd_model_from_urdf_string(broken.as_ptr(), ptr::null()) }.is_null());
+        assert_eq!(sd_last_status(), INPUT);
+        assert!(unsafe { sd_workspace_new(ptr::null()) }.is_null());
+        assert_eq!(sd_last_status(), USAGE);
+        let h = Handles::new(DEFAULT_ARM_URDF, false);
+        assert_eq!(unsafe { sd_model_nq(h.model) }, 7);
+        assert_eq!(sd_last_status(), USAGE, "a success leaves it");
+    })
+    .join()
+    .unwrap();
+}
+
+/// A path is its bytes (Unix): a file whose name is not UTF-8 is read.
+#[cfg(unix)]
+#[test]
+fn a_path_that_is_not_utf8_is_read() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = std::env::temp_dir().join(format!("sd_abi_path_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(std::ffi::OsStr::from_bytes(b"tree-\xff.urdf"));
+    std::fs::write(&path, TREE).unwrap();
+    let c_path = CString::new(path.as_os_str().as_bytes()).unwrap();
+    let model = unsafe { sd_model_from_urdf_file(c_path.as_ptr(), ptr::null()) };
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(!model.is_null(), "{}", last_error());
+    unsafe { sd_model_free(model) };
+}
+
+/// A failing call from a thread-local destructor, after the library's own thread-local state
+/// is gone, returns its code (without a message) instead of aborting the process.
+#[test]
+fn a_failing_call_during_thread_teardown_returns_its_code() {
+    use std::sync::atomic::{AtomicI32, Ordering};
+    static STATUS: AtomicI32 = AtomicI32::new(-1);
+    struct CallsOnDrop;
+    impl Drop for CallsOnDrop {
+        fn drop(&mut self) {
+            let status =
+                unsafe { sd_gravity(ptr::null(), ptr::null_mut(), ptr::null(), ptr::null_mut()) };
+            STATUS.store(status, Ordering::SeqCst);
+        }
+    }
+    thread_local! {
+        static LATE: CallsOnDrop = const { CallsOnDrop };
+    }
+    std::thread::spawn(|| {
+        // Registered first, destroyed last: after the library's message of the call below.
+        LATE.with(|_| {});
+        assert_eq!(sd_last_status(), OK);
+        let _ = unsafe { sd_gravity(ptr::null(), ptr::null_mut(), ptr::null(), ptr::null_mut()) };
+    })
+    .join()
+    .unwrap();
+    assert_eq!(STATUS.load(Ordering::SeqCst), USAGE);
+}

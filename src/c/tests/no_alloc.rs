@@ -52,17 +52,16 @@ fn calls_do_not_allocate() {
             q[3..7].copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
         }
         let (v, a) = (vec![0.2; nv], vec![-0.3; nv]);
-        let out = vec![0.0; 6 * nv.max(1) + nv * nv];
-        let (o1, o2) = (vec![0.0; nv * nv], vec![0.0; nv * nv]);
+        let mut out = vec![0.0; 6 * nv.max(1) + nv * nv];
+        let (mut o1, mut o2) = (vec![0.0; nv * nv], vec![0.0; nv * nv]);
+        let (o, p1, p2) = (out.as_mut_ptr(), o1.as_mut_ptr(), o2.as_mut_ptr());
         let frame = CString::new(link).unwrap();
         let run_all = || unsafe {
-            let o = out.as_ptr() as *mut f64;
             let mut status = 0;
             status |= sd_rnea(model, ws, q.as_ptr(), v.as_ptr(), a.as_ptr(), o);
             status |= sd_gravity(model, ws, q.as_ptr(), o);
             status |= sd_forward_dynamics(model, ws, q.as_ptr(), v.as_ptr(), a.as_ptr(), o);
             status |= sd_mass_matrix(model, ws, q.as_ptr(), o);
-            let (p1, p2) = (o1.as_ptr() as *mut f64, o2.as_ptr() as *mut f64);
             status |= sd_rnea_derivatives(model, ws, q.as_ptr(), v.as_ptr(), a.as_ptr(), o, p1, p2);
             status |= sd_aba_derivatives(model, ws, q.as_ptr(), v.as_ptr(), a.as_ptr(), o, p1, p2);
             for reference in [SD_WORLD, SD_LOCAL, SD_LOCAL_WORLD_ALIGNED] {

@@ -36,6 +36,30 @@ fn a_file_that_is_not_regular_is_refused_with_its_path() {
     }
 }
 
+/// A named pipe is refused at once: opened, it would wait for a writer that never comes.
+#[cfg(unix)]
+#[test]
+fn a_named_pipe_is_refused_without_waiting_for_a_writer() {
+    let dir = scratch("fifo");
+    let path = dir.join("robot.urdf");
+    let made = std::process::Command::new("mkfifo").arg(&path).status();
+    assert!(made.is_ok_and(|s| s.success()), "mkfifo failed");
+    let (send, receive) = std::sync::mpsc::channel();
+    let reading = path.clone();
+    std::thread::spawn(move || {
+        let result = urdf::model_from_file(&reading, &ModelOptions::default());
+        let _ = send.send(result.map(|_| ()).map_err(|e| e.to_string()));
+    });
+    let answer = receive.recv_timeout(std::time::Duration::from_secs(10));
+    if answer.is_err() {
+        // Let the blocked reader go before failing, so the test binary can exit.
+        let _ = std::fs::OpenOptions::new().write(true).open(&path);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+    let err = answer.expect("still waiting after 10 s").unwrap_err();
+    assert!(err.contains("not a regular file"), "{err}");
+}
+
 #[test]
 fn a_file_over_the_size_limit_is_refused_with_its_path_and_the_limit() {
     let dir = scratch("big");
