@@ -54,7 +54,8 @@ use crate::algorithms::validate::{all_finite_long, check_forward_inputs, check_r
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::instruction_set::run_pass;
-use crate::model::Model;
+use crate::model::{JointKind, Model};
+use crate::spatial::Vector3;
 use crate::Workspace;
 use nalgebra::{DMatrix, DVector};
 
@@ -104,16 +105,17 @@ fn derivatives_of_checked(
     ext: &Externals<'_>,
 ) -> Result<(), DynamicsError> {
     update_joints(model, ws, q);
-    if ws.plan.dof_ancestors.is_some() {
-        shared_passes(model, ws, v, tau, ext)?;
+    let free_root = if ws.plan.dof_ancestors.is_some() {
+        shared_passes(model, ws, v, tau, ext)?
     } else {
         identity_and_zeros(&mut ws.derivatives.rhs, model.nv);
         crba_solve_on_joints(model, ws, v, tau, ext)?;
         let qdd = lend_qdd(ws);
         derivative_passes(model, ws, v, qdd.as_slice(), ext, Target::SolveRows);
         ws.qdd = qdd;
-    }
-    solve_with_factor(model, ws);
+        None
+    };
+    solve_with_factor(model, ws, free_root);
     let d = &ws.derivatives;
     // One branch-free pass over each result; the coordinate is looked for only on failure.
     for (quantity, m) in [
@@ -136,8 +138,9 @@ fn lend_qdd(ws: &mut Workspace) -> DVector<f64> {
 
 /// The passes of [the module](self) on a tree (`ws.plan.dof_ancestors`), on joints already
 /// updated for `q`: `q̈` into `ws.qdd`, the factor of `H` into `ws.factor` and `−∂τ/∂q`,
-/// `−∂τ/∂q̇` by column into `ws.derivatives.rhs`. Fails, naming the coordinate, on
-/// a singular `H` or a non-finite `q̈`.
+/// `−∂τ/∂q̇` by column into `ws.derivatives.rhs`; returns [`FreeRoot`] when the root's pose
+/// columns of `∂q̈/∂q` have their closed form. Fails, naming the coordinate, on a singular `H`
+/// or a non-finite `q̈`.
 #[inline(always)]
 fn shared_passes(
     model: &Model,
@@ -145,9 +148,10 @@ fn shared_passes(
     v: &[f64],
     tau: &[f64],
     ext: &Externals<'_>,
-) -> Result<(), DynamicsError> {
+) -> Result<Option<FreeRoot>, DynamicsError> {
     let root = RootMotion::of(model, ext);
     bias_pass(model, ws, v, &root, ext);
+    let free_root = FreeRoot::of(model, ws, ext, &root);
     composite_pass(model, ws, tau);
     let Workspace {
         plan,
@@ -167,7 +171,51 @@ fn shared_passes(
     }
     ws.qdd = qdd;
     backward_pass(model, ws, Target::BranchColumnsOnComposites);
-    Ok(())
+    Ok(free_root)
+}
+
+/// A free-floating root: body 0 on a floating joint to the world (coordinates `0..6`), the
+/// world at rest (`root_velocity` zero) and not turning (`root_acceleration`'s angular part
+/// zero), so that the columns of its pose in `∂q̈/∂q` are those of [the module](self):
+/// `g_b = R_bᵀ (g − a_lin)`, the effective gravity in the root's axes.
+#[derive(Clone, Copy)]
+struct FreeRoot {
+    g_b: Vector3,
+}
+
+impl FreeRoot {
+    /// After forward pass A (`S_0` in `ws.s_world`): `(g_b)_k = S_0k,lin · (g − a_lin)` for
+    /// the root's linear columns `S_0k = (0, R_b e_k)` in world axes, with
+    /// `root.a = (0, a_lin − g)`.
+    fn of(model: &Model, ws: &Workspace, ext: &Externals<'_>, root: &RootMotion) -> Option<Self> {
+        let body = model.bodies.first()?;
+        let zero = Vector3::zeros();
+        let free = body.parent.is_none()
+            && matches!(body.joint.kind, JointKind::Floating)
+            && body.joint.coords.v_index == 0
+            && ext.root_velocity.ang == zero
+            && ext.root_velocity.lin == zero
+            && ext.root_acceleration.ang == zero;
+        free.then(|| {
+            let s = &ws.s_world[0].cols;
+            FreeRoot {
+                g_b: Vector3::from_fn(|k, _| -s[k].lin.dot(&root.a.lin)),
+            }
+        })
+    }
+
+    /// The root's six columns of `∂q̈/∂q` into the first `6 nv` entries of `ddq_dq`
+    /// (column-major): zero but rows `0..3` of column `3 + k`, `g_b × e_k`.
+    #[inline(always)]
+    fn write_columns(&self, ddq_dq: &mut [f64], nv: usize) {
+        let columns = &mut ddq_dq[..6 * nv];
+        columns.fill(0.0);
+        let g = self.g_b;
+        let crosses = [[0.0, g.z, -g.y], [-g.z, 0.0, g.x], [g.y, -g.x, 0.0]];
+        for (k, cross) in crosses.iter().enumerate() {
+            columns[(3 + k) * nv..][..3].copy_from_slice(cross);
+        }
+    }
 }
 
 /// Forward pass A: each body's `forward_terms` at `q̈ = 0` (`S_i`, `v_i`, `ψ_i`, `β_i`, `B_i`,
@@ -271,14 +319,14 @@ fn identity_and_zeros(rows: &mut [f64], nv: usize) {
 /// held row by row in `ws.derivatives.rhs` (`nv` rows of `3 nv`, the columns of `−∂τ/∂q`
 /// and `−∂τ/∂q̇` side by side: column `c` of each at `nv + 2 c` and `nv + 2 c + 1`) is solved
 /// through it ([`cholesky_solve_rows`]) and the solutions copied out.
-fn solve_with_factor(model: &Model, ws: &mut Workspace) {
-    run_pass!(solve_with_factor_in(model, ws))
+fn solve_with_factor(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>) {
+    run_pass!(solve_with_factor_in(model, ws, free_root))
 }
 
 /// [`solve_with_factor`]'s body, compiled once per instruction set ([`run_pass`]): a pass of
 /// its own, so that the solve's loops are compiled as a function of their own size.
 #[inline(always)]
-fn solve_with_factor_in(model: &Model, ws: &mut Workspace) {
+fn solve_with_factor_in(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>) {
     let (plan, factor, d) = (&ws.plan, &ws.factor, &mut ws.derivatives);
     let nv = model.nv;
     if nv == 0 {
@@ -292,13 +340,19 @@ fn solve_with_factor_in(model: &Model, ws: &mut Workspace) {
             // else writes this part of `rhs` on a tree).
             ltl_inverse_transpose(ancestors, factor, y);
             inverse_from_rows(ancestors, y, minv);
+            let ddq_dq = d.ddq_dq.as_mut_slice();
+            let v_only = if free_root.is_some() { 6 } else { 0 };
             branch_products(
                 ancestors,
                 minv,
                 pairs,
-                d.ddq_dq.as_mut_slice(),
+                ddq_dq,
                 d.ddq_dv.as_mut_slice(),
+                v_only,
             );
+            if let Some(free_root) = free_root {
+                free_root.write_columns(ddq_dq, nv);
+            }
         }
         None => {
             let k = 3 * nv;

@@ -44,7 +44,9 @@ pub(super) fn inverse_from_rows(ancestors: &Ancestors, y: &[f64], minv: &mut [f6
 
 /// `X_q = H⁻¹ B_q` into `x_q` and `X_v = H⁻¹ B_v` into `x_v` (`n × n`, column-major), `minv`
 /// the full `H⁻¹` (column-major), `b` holding `(B_q)_ij` at `2 (j n + i)` and `(B_v)_ij` after
-/// it for every `i` in `branch(j)` (other entries are not read).
+/// it for every `i` in `branch(j)` (other entries are not read). The first `v_only` columns
+/// are made of `X_v` alone: their `X_q` is the caller's to write (a free-floating root's
+/// closed form), and their `(B_q)_ij` are not read.
 #[inline(always)]
 pub(super) fn branch_products(
     ancestors: &Ancestors,
@@ -52,19 +54,34 @@ pub(super) fn branch_products(
     b: &[f64],
     x_q: &mut [f64],
     x_v: &mut [f64],
+    v_only: usize,
 ) {
     let n = ancestors.len();
     let columns = x_q.chunks_exact_mut(n).zip(x_v.chunks_exact_mut(n));
     for (j, (x_q, x_v)) in columns.enumerate() {
-        let sum = Column::<2> {
-            n,
-            columns: minv,
-            coefficients: &b[2 * j * n..2 * (j + 1) * n],
-            stride: 2,
-            ancestors: ancestors.of(j),
-            own_and_below: j..ancestors.below(j).end,
-        };
-        sum.fill([x_q, x_v]);
+        let (ancestors, own_and_below) = (ancestors.of(j), j..ancestors.below(j).end);
+        let b_j = &b[2 * j * n..2 * (j + 1) * n];
+        if j < v_only {
+            let sum = Column::<1> {
+                n,
+                columns: minv,
+                coefficients: &b_j[1..],
+                stride: 2,
+                ancestors,
+                own_and_below,
+            };
+            sum.fill([x_v]);
+        } else {
+            let sum = Column::<2> {
+                n,
+                columns: minv,
+                coefficients: b_j,
+                stride: 2,
+                ancestors,
+                own_and_below,
+            };
+            sum.fill([x_q, x_v]);
+        }
     }
 }
 
@@ -162,11 +179,16 @@ mod tests {
             let model = model_from_str(&text, &options).unwrap();
             let ancestors = Workspace::new(&model).plan.dof_ancestors.expect("a tree");
             assert_eq!(ancestors.len(), nv);
-            products_match(&ancestors);
+            products_match(&ancestors, 0);
+            if options.floating_base {
+                products_match(&ancestors, 6);
+            }
         }
     }
 
-    fn products_match(ancestors: &Ancestors) {
+    /// With `v_only` leading columns, `x_q` is left as it was there (NaN) and `B_q` is not read
+    /// there (NaN too).
+    fn products_match(ancestors: &Ancestors, v_only: usize) {
         let n = ancestors.len();
         let on_branch = |i: usize, j: usize| {
             ancestors.of(j).contains(&i) || (j..ancestors.below(j).end).contains(&i)
@@ -179,14 +201,18 @@ mod tests {
             for i in (0..n).filter(|&i| on_branch(i, j)) {
                 let (q, v) = (2.0 * rng.uniform(), 2.0 * rng.uniform());
                 (b[2 * (j * n + i)], b[2 * (j * n + i) + 1]) = (q, v);
+                if j < v_only {
+                    b[2 * (j * n + i)] = f64::NAN;
+                }
                 (b_q[(i, j)], b_v[(i, j)]) = (q, v);
             }
         }
         let (mut x_q, mut x_v) = (vec![f64::NAN; n * n], vec![f64::NAN; n * n]);
-        branch_products(ancestors, m.as_slice(), &b, &mut x_q, &mut x_v);
-        for (got, want) in [(&x_q, &m * &b_q), (&x_v, &m * &b_v)] {
+        branch_products(ancestors, m.as_slice(), &b, &mut x_q, &mut x_v, v_only);
+        assert!(x_q[..v_only * n].iter().all(|x| x.is_nan()));
+        for (got, want, skip) in [(&x_q, &m * &b_q, v_only * n), (&x_v, &m * &b_v, 0)] {
             let scale = want.amax();
-            for (k, (g, w)) in got.iter().zip(want.as_slice()).enumerate() {
+            for (k, (g, w)) in got.iter().zip(want.as_slice()).enumerate().skip(skip) {
                 assert!((g - w).abs() <= 1e-14 * scale, "entry {k}: {g} against {w}");
             }
         }
