@@ -36,6 +36,27 @@
 //! `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` as the sum of the columns of `H⁻¹` over its branch (the column
 //! of `∂τ/∂q` is zero elsewhere).
 //!
+//! A free-floating root on a tree (body 0 on a floating joint to the world) in a world at rest
+//! and not turning (`root_velocity` zero, `root_acceleration = (0, a_lin)`) feels gravity in
+//! nothing but its own linear acceleration. Gravity enters as the world's acceleration
+//! `a_0 = (0, a_lin − g)`, which reaches the root in its own axes as `(0, −g_b)`, with
+//! `g_b = R_bᵀ (g − a_lin)` the effective gravity (`R_b` the root's orientation), and adds to
+//! its acceleration `S_0 q̈_0 = (ω̇, v̇)` as `−g_b` in its linear coordinates would. Nothing
+//! else depends on the root's pose: the velocities come from `q̇` alone and the external
+//! wrenches are fixed to their bodies. So `q̈ = q̈* + (g_b; 0; …; 0)`, `q̈*` the accelerations
+//! at `g − a_lin = 0`, and on the tangent (`R_b → R_b exp(ε e_k×)`, so
+//! `g_b → g_b + ε g_b × e_k`) the root's six columns of `∂q̈/∂q` are, exactly:
+//! ```text
+//! ∂q̈/∂q_k = 0                               (k = 0, 1, 2: the root's linear coordinates)
+//! ∂q̈/∂q_{3+k} = (g_b × e_k; 0; …; 0)        (k = 0, 1, 2: its angular coordinates)
+//! ```
+//! They are written so, with `(g_b)_k = S_0k,lin · (g − a_lin)` from the root's linear columns
+//! in world axes, and the products make only `∂q̈/∂q̇` in those columns (backward pass B still
+//! makes `∂τ/∂q`'s entries there; they are not read). In a moving or turning world the root's
+//! velocity `X v_0 + S_0 q̇_0` and acceleration `X a_0 + …` in its own axes depend on its pose
+//! (`X` the world-to-root transform): then, and for any other root, every column goes through
+//! the products.
+//!
 //! With mimic joints (whose shared coordinates break the tree pattern of `H`) `q̈` comes from
 //! CRBA, a bias RNEA and a dense Cholesky factor instead, and the passes of `rnea_derivatives`
 //! run whole at `(q, q̇, q̈)`.

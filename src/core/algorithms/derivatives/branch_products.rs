@@ -166,7 +166,8 @@ mod tests {
     /// Against the dense products `M B_q`, `M B_v` with `B` zero off the branches, on a
     /// branched tree with a floating base (14 coordinates) and on chains of 1 to 40 (every
     /// width of the last block, after none, one or two blocks of 16), with every entry of `b`
-    /// off the branches poisoned (NaN): none is read.
+    /// off the branches poisoned (NaN): none is read; and on the tree with its six floating-base
+    /// columns made of `X_v` alone.
     #[test]
     fn the_products_over_the_branches_are_the_dense_products() {
         let tree = include_str!("../../tests/models/tree.urdf");
