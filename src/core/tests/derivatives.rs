@@ -269,14 +269,16 @@ fn forward_dynamics_derivatives_match_central_differences() {
 
 /// A free-floating root (the tree's floating joint; the default arm on a floating base) in a
 /// world at rest, with wrenches fixed to the bodies and the world accelerating without turning,
-/// takes the closed form of its pose columns of `∂q̈/∂q` (`aba_derivatives`' module doc): zero
-/// but `g_b × e_k` in the root's linear rows of angular column `k`, `g_b = R_bᵀ (g − a_lin)`.
+/// takes the closed form of its pose columns of `∂q̈/∂q` and linear rate columns of `∂q̈/∂q̇`
+/// (`aba_derivatives`' module doc): zero but, in the root's linear rows, `g_b × e_k` in
+/// angular pose column `k` (`g_b = R_bᵀ (g − a_lin)`) and `e_k × ω` in linear rate column `k`.
 /// They match central differences, as every other column does, and the general
-/// `−H⁻¹ ∂τ/∂q` (from `rnea_derivatives_with` at `q̈`) to 1e-12 of `|g_b|`. With the world
-/// spinning or turning the closed form would be wrong by about `|g|`: the general path is
-/// taken and matches central differences.
+/// `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` (from `rnea_derivatives_with` at `q̈`) to 1e-12 of `|g_b|` and
+/// of `1 + |ω|`. With the world spinning (or, for the pose columns, turning) the closed form
+/// would be wrong by about `|g|` or `|ω|`: the general path is taken and matches central
+/// differences.
 #[test]
-fn a_free_floating_root_s_pose_columns_are_in_closed_form_where_they_hold() {
+fn a_free_floating_root_s_columns_are_in_closed_form_where_they_hold() {
     let models = [
         ("tree, floating joint", tree_with_a_floating_joint()),
         ("default arm, floating base", floating(DEFAULT_ARM_URDF)),
@@ -308,44 +310,69 @@ fn a_free_floating_root_s_pose_columns_are_in_closed_form_where_they_hold() {
         };
         let s = state(model, 17);
         let nv = model.nv();
-        for (name, ext, closed) in [
-            ("wrenches", still(zero), true),
-            ("wrenches, world accelerating", still(a_lin), true),
-            ("world spinning", spinning, false),
-            ("world turning", turning, false),
+        let omega = Vector3::new(s.v[3], s.v[4], s.v[5]);
+        // Whether the closed form holds for the pose columns, and for the rate columns.
+        for (name, ext, pose_holds, rates_hold) in [
+            ("wrenches", still(zero), true, true),
+            ("wrenches, world accelerating", still(a_lin), true, true),
+            ("world spinning", spinning, false, false),
+            ("world turning", turning, false, true),
         ] {
             let case = format!("{case}, {name}");
             check_aba_derivatives(&case, model, &s, &ext);
             let mut ws = Workspace::new(model);
             let d = aba_derivatives(model, &mut ws, &s.q, &s.v, &s.a, &ext).unwrap();
-            let (dq, minv) = (d.ddq_dq.clone(), d.minv.clone());
+            let (dq, dv, minv) = (d.ddq_dq.clone(), d.ddq_dv.clone(), d.minv.clone());
             let qdd = ws.qdd().to_vec();
-            let general = -&minv
-                * rnea_derivatives_with(model, &mut ws, &s.q, &s.v, &qdd, &ext)
-                    .unwrap()
-                    .dtau_dq;
+            let id = rnea_derivatives_with(model, &mut ws, &s.q, &s.v, &qdd, &ext).unwrap();
+            let (general_q, general_v) = (-&minv * id.dtau_dq, -&minv * id.dtau_dv);
             let e = body_placements(model, &mut ws, &s.q).unwrap()[0].rot;
             let g_b = e * (model.gravity() - ext.root_acceleration.lin);
-            let mut closed_form = nalgebra::DMatrix::<f64>::zeros(nv, 6);
+            let (mut pose, mut rates) = (
+                nalgebra::DMatrix::<f64>::zeros(nv, 6),
+                nalgebra::DMatrix::<f64>::zeros(nv, 3),
+            );
             for k in 0..3 {
-                let column = g_b.cross(&Vector3::ith(k, 1.0));
-                closed_form.view_mut((0, 3 + k), (3, 1)).copy_from(&column);
+                let e_k = Vector3::ith(k, 1.0);
+                pose.view_mut((0, 3 + k), (3, 1))
+                    .copy_from(&g_b.cross(&e_k));
+                rates.view_mut((0, k), (3, 1)).copy_from(&e_k.cross(&omega));
             }
-            let (from_closed, from_general) = (
-                (dq.columns(0, 6) - &closed_form).amax(),
-                (dq.columns(0, 6) - general.columns(0, 6)).amax(),
-            );
-            assert!(
-                from_general <= 1e-12 * g_b.norm(),
-                "{case}: {from_general:e} from −H⁻¹ ∂τ/∂q"
-            );
-            if closed {
-                assert!(from_closed <= 1e-12 * g_b.norm(), "{case}: {from_closed:e}");
-            } else {
+            for (what, got, general, closed_form, holds, scale) in [
+                (
+                    "ddq_dq",
+                    dq.columns(0, 6),
+                    general_q.columns(0, 6),
+                    pose,
+                    pose_holds,
+                    g_b.norm(),
+                ),
+                (
+                    "ddq_dv",
+                    dv.columns(0, 3),
+                    general_v.columns(0, 3),
+                    rates,
+                    rates_hold,
+                    1.0 + omega.norm(),
+                ),
+            ] {
+                let from_general = (got - general).amax();
+                let from_closed = (got - closed_form).amax();
                 assert!(
-                    from_closed > 0.1,
-                    "{case}: the closed form holds ({from_closed:e})"
+                    from_general <= 1e-12 * scale,
+                    "{case}: {what} {from_general:e} from the general product"
                 );
+                if holds {
+                    assert!(
+                        from_closed <= 1e-12 * scale,
+                        "{case}: {what} {from_closed:e}"
+                    );
+                } else if what == "ddq_dq" || name == "world spinning" {
+                    assert!(
+                        from_closed > 0.1,
+                        "{case}: {what}: the closed form holds ({from_closed:e})"
+                    );
+                }
             }
         }
     }
