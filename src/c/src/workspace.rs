@@ -23,6 +23,15 @@ pub struct sd_workspace {
     workspace: UnsafeCell<Option<Box<Workspace>>>,
 }
 
+impl sd_workspace {
+    /// Takes `busy` if no call holds it: whether this caller now holds it.
+    fn acquire(&self) -> bool {
+        self.busy
+            .compare_exchange(false, true, Ordering::Acquire, Ordering::Relaxed)
+            .is_ok()
+    }
+}
+
 /// The workspace of one call, released when dropped (also when the call panics).
 pub(crate) struct InUse<'a> {
     busy: &'a AtomicBool,
@@ -55,11 +64,7 @@ impl Drop for InUse<'_> {
 /// A non-NULL `workspace` must have been made by this library (freed or not).
 unsafe fn take<'a>(workspace: *const sd_workspace) -> Result<InUse<'a>, Failure> {
     let handle = non_null(workspace, "workspace")?;
-    if handle
-        .busy
-        .compare_exchange(false, true, Ordering::Acquire, Ordering::Relaxed)
-        .is_err()
-    {
+    if !handle.acquire() {
         return Err(Failure::Usage(
             "workspace is in use by another call (give each thread its own workspace)".into(),
         ));
@@ -114,11 +119,7 @@ pub unsafe extern "C" fn sd_workspace_free(workspace: *mut sd_workspace) {
         let Some(handle) = workspace.as_ref() else {
             return Ok(());
         };
-        if handle
-            .busy
-            .compare_exchange(false, true, Ordering::Acquire, Ordering::Relaxed)
-            .is_err()
-        {
+        if !handle.acquire() {
             return Err(Failure::Usage(
                 "workspace is in use by another call: not freed".into(),
             ));

@@ -18,6 +18,7 @@
 mod common;
 
 use common::{pendulum_on_a_rail, random_q, Rng};
+use spatial_dynamics_core::algorithms::kinematics::body_placements;
 use spatial_dynamics_core::algorithms::{
     aba_derivatives, crba, forward_dynamics, rnea, rnea_derivatives, rnea_derivatives_with,
 };
@@ -200,26 +201,18 @@ fn check_rnea_derivatives(case: &str, model: &Model, s: &State, ext: &Externals<
     }
 }
 
-fn check_aba_derivatives(case: &str, model: &Model, s: &State) {
+fn check_aba_derivatives(case: &str, model: &Model, s: &State, ext: &Externals<'_>) {
     let mut ws = Workspace::new(model);
     let tau = s.a.clone();
-    let d = aba_derivatives(model, &mut ws, &s.q, &s.v, &tau, &Externals::none()).unwrap();
+    let d = aba_derivatives(model, &mut ws, &s.q, &s.v, &tau, ext).unwrap();
     let (dq, dv, minv) = (d.ddq_dq.clone(), d.ddq_dv.clone(), d.minv.clone());
     let eigenvalues = crba(model, &mut ws, &s.q).unwrap().symmetric_eigenvalues();
     let kappa = eigenvalues.max() / eigenvalues.min();
     let tol = TOL + 1.5 * kappa * f64::EPSILON / H;
     let mut fd = |q: &[f64], v: &[f64], tau: &[f64]| {
-        forward_dynamics(
-            model,
-            &mut ws,
-            q,
-            v,
-            tau,
-            ForwardDynamicsMethod::Crba,
-            &Externals::none(),
-        )
-        .unwrap()
-        .to_vec()
+        forward_dynamics(model, &mut ws, q, v, tau, ForwardDynamicsMethod::Crba, ext)
+            .unwrap()
+            .to_vec()
     };
     for k in 0..model.nv() {
         let col = central(&mut |t| fd(&along(model, &s.q, k, t), &s.v, &tau));
@@ -240,19 +233,24 @@ fn inverse_dynamics_derivatives_match_central_differences() {
     }
 }
 
+/// One wrench on each body of `model` (body frame), components in ±2, seeded by `seed`.
+fn random_wrenches(model: &Model, seed: u64) -> Vec<Force> {
+    let mut rng = Rng::new(seed);
+    (0..model.nbodies())
+        .map(|_| {
+            let w = rng.vector(6, 2.0);
+            Force::new(
+                Vector3::new(w[0], w[1], w[2]),
+                Vector3::new(w[3], w[4], w[5]),
+            )
+        })
+        .collect()
+}
+
 #[test]
 fn inverse_dynamics_derivatives_with_external_wrenches_and_a_moving_base() {
     for (case, model) in models() {
-        let mut rng = Rng::new(7);
-        let wrenches: Vec<Force> = (0..model.nbodies())
-            .map(|_| {
-                let w = rng.vector(6, 2.0);
-                Force::new(
-                    Vector3::new(w[0], w[1], w[2]),
-                    Vector3::new(w[3], w[4], w[5]),
-                )
-            })
-            .collect();
+        let wrenches = random_wrenches(&model, 7);
         let ext = Externals {
             wrenches: Some(&wrenches),
             root_velocity: Motion::new(Vector3::new(0.3, -0.2, 0.1), Vector3::new(0.5, 0.4, -0.6)),
@@ -269,7 +267,109 @@ fn inverse_dynamics_derivatives_with_external_wrenches_and_a_moving_base() {
 fn forward_dynamics_derivatives_match_central_differences() {
     for (case, model) in models() {
         for seed in 1..3 {
-            check_aba_derivatives(case, &model, &state(&model, seed));
+            check_aba_derivatives(case, &model, &state(&model, seed), &Externals::none());
+        }
+    }
+}
+
+/// A free-floating root (the tree's floating joint; the default arm on a floating base) in a
+/// world at rest, with wrenches fixed to the bodies and the world accelerating without turning,
+/// takes the closed form of its pose columns of `∂q̈/∂q` and linear rate columns of `∂q̈/∂q̇`
+/// (`aba_derivatives`' module doc): zero but, in the root's linear rows, `g_b × e_k` in
+/// angular pose column `k` (`g_b = R_bᵀ (g − a_lin)`) and `e_k × ω` in linear rate column `k`.
+/// They match central differences, as every other column does, and the general
+/// `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` (from `rnea_derivatives_with` at `q̈`) to 1e-12 of `|g_b|` and
+/// of `1 + |ω|`. With the world spinning (or, for the pose columns, turning) the closed form
+/// would be wrong by about `|g|` or `|ω|`: the general path is taken and matches central
+/// differences.
+#[test]
+fn a_free_floating_root_s_columns_are_in_closed_form_where_they_hold() {
+    let models = [
+        ("tree, floating joint", tree_with_a_floating_joint()),
+        ("default arm, floating base", floating(DEFAULT_ARM_URDF)),
+    ];
+    for (case, model) in &models {
+        let wrenches = random_wrenches(model, 13);
+        let (zero, a_lin) = (Vector3::zeros(), Vector3::new(-0.4, 0.7, 1.3));
+        let still = |a_lin| Externals {
+            wrenches: Some(&wrenches),
+            root_velocity: Motion::new(zero, zero),
+            root_acceleration: Motion::new(zero, a_lin),
+        };
+        let spinning = Externals {
+            root_velocity: Motion::new(Vector3::new(0.5, 0.4, -0.6), zero),
+            ..still(zero)
+        };
+        let turning = Externals {
+            root_acceleration: Motion::new(Vector3::new(1.0, -2.0, 0.5), a_lin),
+            ..still(a_lin)
+        };
+        let s = state(model, 17);
+        let nv = model.nv();
+        let omega = Vector3::new(s.v[3], s.v[4], s.v[5]);
+        // Whether the closed form holds for the pose columns, and for the rate columns.
+        for (name, ext, pose_holds, rates_hold) in [
+            ("wrenches", still(zero), true, true),
+            ("wrenches, world accelerating", still(a_lin), true, true),
+            ("world spinning", spinning, false, false),
+            ("world turning", turning, false, true),
+        ] {
+            let case = format!("{case}, {name}");
+            check_aba_derivatives(&case, model, &s, &ext);
+            let mut ws = Workspace::new(model);
+            let d = aba_derivatives(model, &mut ws, &s.q, &s.v, &s.a, &ext).unwrap();
+            let (dq, dv, minv) = (d.ddq_dq.clone(), d.ddq_dv.clone(), d.minv.clone());
+            let qdd = ws.qdd().to_vec();
+            let id = rnea_derivatives_with(model, &mut ws, &s.q, &s.v, &qdd, &ext).unwrap();
+            let (general_q, general_v) = (-&minv * id.dtau_dq, -&minv * id.dtau_dv);
+            let e = body_placements(model, &mut ws, &s.q).unwrap()[0].rot;
+            let g_b = e * (model.gravity() - ext.root_acceleration.lin);
+            let (mut pose, mut rates) = (
+                nalgebra::DMatrix::<f64>::zeros(nv, 6),
+                nalgebra::DMatrix::<f64>::zeros(nv, 3),
+            );
+            for k in 0..3 {
+                let e_k = Vector3::ith(k, 1.0);
+                pose.view_mut((0, 3 + k), (3, 1))
+                    .copy_from(&g_b.cross(&e_k));
+                rates.view_mut((0, k), (3, 1)).copy_from(&e_k.cross(&omega));
+            }
+            for (what, got, general, closed_form, holds, scale) in [
+                (
+                    "ddq_dq",
+                    dq.columns(0, 6),
+                    general_q.columns(0, 6),
+                    pose,
+                    pose_holds,
+                    g_b.norm(),
+                ),
+                (
+                    "ddq_dv",
+                    dv.columns(0, 3),
+                    general_v.columns(0, 3),
+                    rates,
+                    rates_hold,
+                    1.0 + omega.norm(),
+                ),
+            ] {
+                let from_general = (got - general).amax();
+                let from_closed = (got - closed_form).amax();
+                assert!(
+                    from_general <= 1e-12 * scale,
+                    "{case}: {what} {from_general:e} from the general product"
+                );
+                if holds {
+                    assert!(
+                        from_closed <= 1e-12 * scale,
+                        "{case}: {what} {from_closed:e}"
+                    );
+                } else if what == "ddq_dq" || name == "world spinning" {
+                    assert!(
+                        from_closed > 0.1,
+                        "{case}: {what}: the closed form holds ({from_closed:e})"
+                    );
+                }
+            }
         }
     }
 }

@@ -36,6 +36,34 @@
 //! `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` as the sum of the columns of `H⁻¹` over its branch (the column
 //! of `∂τ/∂q` is zero elsewhere).
 //!
+//! A free-floating root on a tree (body 0 on a floating joint to the world) in a world at rest
+//! and not turning (`root_velocity` zero, `root_acceleration = (0, a_lin)`) has six columns
+//! of `∂q̈/∂q` and three of `∂q̈/∂q̇` in closed form. Gravity enters as the world's acceleration
+//! `a_0 = (0, a_lin − g)`, which reaches the root in its own axes as `(0, −g_b)`, with
+//! `g_b = R_bᵀ (g − a_lin)` the effective gravity (`R_b` the root's orientation), and adds to
+//! its acceleration `S_0 q̈_0 = (ω̇, v̇)` as `−g_b` in its linear coordinates would. Nothing
+//! else depends on the root's pose: the velocities come from `q̇` alone and the external
+//! wrenches are fixed to their bodies. So `q̈ = q̈* + (g_b; 0; …; 0)`, `q̈*` the accelerations
+//! at `g − a_lin = 0`, and on the tangent (`R_b → R_b exp(ε e_k×)`, so
+//! `g_b → g_b + ε g_b × e_k`) the root's pose columns are, exactly, for `k = 0, 1, 2`:
+//! ```text
+//! ∂q̈/∂q_k = 0,   ∂q̈/∂q_{3+k} = (g_b × e_k; 0; …; 0)
+//! ```
+//! Its linear rates `u = q̇_0..3` are the velocity of its origin in its own axes, `R_bᵀ ṗ`, so
+//! `q̈_0..3 = u̇ = R_bᵀ p̈ − ω × u` (`ω = q̇_3..6`). Adding `ε e_k` to `u` moves every body by
+//! the same constant velocity `ε R_b e_k` in a world that does not turn, which changes no force
+//! and so neither `p̈`, `ω̇` nor any joint's `q̈`: for `k = 0, 1, 2`
+//! ```text
+//! ∂q̈/∂q̇_k = (e_k × ω; 0; …; 0)
+//! ```
+//! Those nine columns are written so, with `(g_b)_k = S_0k,lin · (g − a_lin)` from the root's
+//! linear columns in world axes; the products make only `∂q̈/∂q̇` in the angular columns and
+//! nothing in the linear ones (backward pass B still makes `∂τ/∂q`'s and `∂τ/∂q̇`'s entries
+//! there; they are not read). In a moving or turning world the root's velocity
+//! `X v_0 + S_0 q̇_0` and acceleration `X a_0 + …` in its own axes depend on its pose (`X` the
+//! world-to-root transform): then, and for any other root, every column goes through the
+//! products.
+//!
 //! With mimic joints (whose shared coordinates break the tree pattern of `H`) `q̈` comes from
 //! CRBA, a bias RNEA and a dense Cholesky factor instead, and the passes of `rnea_derivatives`
 //! run whole at `(q, q̇, q̈)`.
@@ -54,7 +82,8 @@ use crate::algorithms::validate::{all_finite_long, check_forward_inputs, check_r
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::instruction_set::run_pass;
-use crate::model::Model;
+use crate::model::{JointKind, Model};
+use crate::spatial::Vector3;
 use crate::Workspace;
 use nalgebra::{DMatrix, DVector};
 
@@ -104,16 +133,17 @@ fn derivatives_of_checked(
     ext: &Externals<'_>,
 ) -> Result<(), DynamicsError> {
     update_joints(model, ws, q);
-    if ws.plan.dof_ancestors.is_some() {
-        shared_passes(model, ws, v, tau, ext)?;
+    let free_root = if ws.plan.dof_ancestors.is_some() {
+        shared_passes(model, ws, v, tau, ext)?
     } else {
         identity_and_zeros(&mut ws.derivatives.rhs, model.nv);
         crba_solve_on_joints(model, ws, v, tau, ext)?;
         let qdd = lend_qdd(ws);
         derivative_passes(model, ws, v, qdd.as_slice(), ext, Target::SolveRows);
         ws.qdd = qdd;
-    }
-    solve_with_factor(model, ws);
+        None
+    };
+    solve_with_factor(model, ws, free_root);
     let d = &ws.derivatives;
     // One branch-free pass over each result; the coordinate is looked for only on failure.
     for (quantity, m) in [
@@ -136,8 +166,9 @@ fn lend_qdd(ws: &mut Workspace) -> DVector<f64> {
 
 /// The passes of [the module](self) on a tree (`ws.plan.dof_ancestors`), on joints already
 /// updated for `q`: `q̈` into `ws.qdd`, the factor of `H` into `ws.factor` and `−∂τ/∂q`,
-/// `−∂τ/∂q̇` by column into `ws.derivatives.rhs`. Fails, naming the coordinate, on
-/// a singular `H` or a non-finite `q̈`.
+/// `−∂τ/∂q̇` by column into `ws.derivatives.rhs`; returns [`FreeRoot`] when the root's pose
+/// columns of `∂q̈/∂q` have their closed form. Fails, naming the coordinate, on a singular `H`
+/// or a non-finite `q̈`.
 #[inline(always)]
 fn shared_passes(
     model: &Model,
@@ -145,9 +176,10 @@ fn shared_passes(
     v: &[f64],
     tau: &[f64],
     ext: &Externals<'_>,
-) -> Result<(), DynamicsError> {
+) -> Result<Option<FreeRoot>, DynamicsError> {
     let root = RootMotion::of(model, ext);
     bias_pass(model, ws, v, &root, ext);
+    let free_root = FreeRoot::of(model, ws, v, ext, &root);
     composite_pass(model, ws, tau);
     let Workspace {
         plan,
@@ -167,7 +199,65 @@ fn shared_passes(
     }
     ws.qdd = qdd;
     backward_pass(model, ws, Target::BranchColumnsOnComposites);
-    Ok(())
+    Ok(free_root)
+}
+
+/// A free-floating root: body 0 on a floating joint to the world (coordinates `0..6`), the
+/// world at rest (`root_velocity` zero) and not turning (`root_acceleration`'s angular part
+/// zero), so that the columns of its pose in `∂q̈/∂q` and of its linear rates in `∂q̈/∂q̇` are
+/// those of [the module](self): `g_b = R_bᵀ (g − a_lin)` is the effective gravity in the
+/// root's axes, `ω` the root's angular velocity (its rates `q̇_3..6`).
+#[derive(Clone, Copy)]
+struct FreeRoot {
+    g_b: Vector3,
+    omega: Vector3,
+}
+
+impl FreeRoot {
+    /// After forward pass A (`S_0` in `ws.s_world`): `(g_b)_k = S_0k,lin · (g − a_lin)` for
+    /// the root's linear columns `S_0k = (0, R_b e_k)` in world axes, with
+    /// `root.a = (0, a_lin − g)`.
+    fn of(
+        model: &Model,
+        ws: &Workspace,
+        v: &[f64],
+        ext: &Externals<'_>,
+        root: &RootMotion,
+    ) -> Option<Self> {
+        let body = model.bodies.first()?;
+        let zero = Vector3::zeros();
+        let free = body.parent.is_none()
+            && matches!(body.joint.kind, JointKind::Floating)
+            && body.joint.coords.v_index == 0
+            && ext.root_velocity.ang == zero
+            && ext.root_velocity.lin == zero
+            && ext.root_acceleration.ang == zero;
+        free.then(|| {
+            let s = &ws.s_world[0].cols;
+            FreeRoot {
+                g_b: Vector3::from_fn(|k, _| -s[k].lin.dot(&root.a.lin)),
+                omega: Vector3::new(v[3], v[4], v[5]),
+            }
+        })
+    }
+
+    /// The root's six columns of `∂q̈/∂q` into the first `6 nv` entries of `ddq_dq` and its
+    /// three linear columns of `∂q̈/∂q̇` into the first `3 nv` of `ddq_dv` (column-major): zero
+    /// but rows `0..3`, `g_b × e_k` in column `3 + k` of `ddq_dq` and `e_k × ω` in column `k`
+    /// of `ddq_dv`.
+    #[inline(always)]
+    fn write_columns(&self, ddq_dq: &mut [f64], ddq_dv: &mut [f64], nv: usize) {
+        let (g, w) = (self.g_b, self.omega);
+        let pose = [[0.0, g.z, -g.y], [-g.z, 0.0, g.x], [g.y, -g.x, 0.0]];
+        let rates = [[0.0, -w.z, w.y], [w.z, 0.0, -w.x], [-w.y, w.x, 0.0]];
+        for (columns, first, crosses) in [(ddq_dq, 3, pose), (ddq_dv, 0, rates)] {
+            let columns = &mut columns[..(first + 3) * nv];
+            columns.fill(0.0);
+            for (k, cross) in crosses.iter().enumerate() {
+                columns[(first + k) * nv..][..3].copy_from_slice(cross);
+            }
+        }
+    }
 }
 
 /// Forward pass A: each body's `forward_terms` at `q̈ = 0` (`S_i`, `v_i`, `ψ_i`, `β_i`, `B_i`,
@@ -271,14 +361,14 @@ fn identity_and_zeros(rows: &mut [f64], nv: usize) {
 /// held row by row in `ws.derivatives.rhs` (`nv` rows of `3 nv`, the columns of `−∂τ/∂q`
 /// and `−∂τ/∂q̇` side by side: column `c` of each at `nv + 2 c` and `nv + 2 c + 1`) is solved
 /// through it ([`cholesky_solve_rows`]) and the solutions copied out.
-fn solve_with_factor(model: &Model, ws: &mut Workspace) {
-    run_pass!(solve_with_factor_in(model, ws))
+fn solve_with_factor(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>) {
+    run_pass!(solve_with_factor_in(model, ws, free_root))
 }
 
 /// [`solve_with_factor`]'s body, compiled once per instruction set ([`run_pass`]): a pass of
 /// its own, so that the solve's loops are compiled as a function of their own size.
 #[inline(always)]
-fn solve_with_factor_in(model: &Model, ws: &mut Workspace) {
+fn solve_with_factor_in(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>) {
     let (plan, factor, d) = (&ws.plan, &ws.factor, &mut ws.derivatives);
     let nv = model.nv;
     if nv == 0 {
@@ -292,13 +382,13 @@ fn solve_with_factor_in(model: &Model, ws: &mut Workspace) {
             // else writes this part of `rhs` on a tree).
             ltl_inverse_transpose(ancestors, factor, y);
             inverse_from_rows(ancestors, y, minv);
-            branch_products(
-                ancestors,
-                minv,
-                pairs,
-                d.ddq_dq.as_mut_slice(),
-                d.ddq_dv.as_mut_slice(),
-            );
+            let (ddq_dq, ddq_dv) = (d.ddq_dq.as_mut_slice(), d.ddq_dv.as_mut_slice());
+            // A free root's rate columns 0..3 and pose columns 0..6 in closed form.
+            let (v_from, q_from) = if free_root.is_some() { (3, 6) } else { (0, 0) };
+            branch_products(ancestors, minv, pairs, ddq_dq, ddq_dv, v_from, q_from);
+            if let Some(free_root) = free_root {
+                free_root.write_columns(ddq_dq, ddq_dv, nv);
+            }
         }
         None => {
             let k = 3 * nv;

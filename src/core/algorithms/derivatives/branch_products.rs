@@ -44,7 +44,9 @@ pub(super) fn inverse_from_rows(ancestors: &Ancestors, y: &[f64], minv: &mut [f6
 
 /// `X_q = H⁻¹ B_q` into `x_q` and `X_v = H⁻¹ B_v` into `x_v` (`n × n`, column-major), `minv`
 /// the full `H⁻¹` (column-major), `b` holding `(B_q)_ij` at `2 (j n + i)` and `(B_v)_ij` after
-/// it for every `i` in `branch(j)` (other entries are not read).
+/// it for every `i` in `branch(j)` (other entries are not read). Columns `j < q_from` of
+/// `X_q` and `j < v_from` of `X_v` are the caller's to write (a free-floating root's closed
+/// form, `v_from ≤ q_from`): they are not made, nor their entries of `B` read.
 #[inline(always)]
 pub(super) fn branch_products(
     ancestors: &Ancestors,
@@ -52,19 +54,35 @@ pub(super) fn branch_products(
     b: &[f64],
     x_q: &mut [f64],
     x_v: &mut [f64],
+    v_from: usize,
+    q_from: usize,
 ) {
     let n = ancestors.len();
     let columns = x_q.chunks_exact_mut(n).zip(x_v.chunks_exact_mut(n));
-    for (j, (x_q, x_v)) in columns.enumerate() {
-        let sum = Column::<2> {
-            n,
-            columns: minv,
-            coefficients: &b[2 * j * n..2 * (j + 1) * n],
-            stride: 2,
-            ancestors: ancestors.of(j),
-            own_and_below: j..ancestors.below(j).end,
-        };
-        sum.fill([x_q, x_v]);
+    for (j, (x_q, x_v)) in columns.enumerate().skip(v_from) {
+        let (ancestors, own_and_below) = (ancestors.of(j), j..ancestors.below(j).end);
+        let b_j = &b[2 * j * n..2 * (j + 1) * n];
+        if j < q_from {
+            let sum = Column::<1> {
+                n,
+                columns: minv,
+                coefficients: &b_j[1..],
+                stride: 2,
+                ancestors,
+                own_and_below,
+            };
+            sum.fill([x_v]);
+        } else {
+            let sum = Column::<2> {
+                n,
+                columns: minv,
+                coefficients: b_j,
+                stride: 2,
+                ancestors,
+                own_and_below,
+            };
+            sum.fill([x_q, x_v]);
+        }
     }
 }
 
@@ -149,7 +167,8 @@ mod tests {
     /// Against the dense products `M B_q`, `M B_v` with `B` zero off the branches, on a
     /// branched tree with a floating base (14 coordinates) and on chains of 1 to 40 (every
     /// width of the last block, after none, one or two blocks of 16), with every entry of `b`
-    /// off the branches poisoned (NaN): none is read.
+    /// off the branches poisoned (NaN): none is read; and on the tree with its first three
+    /// floating-base columns not made and the next three made of `X_v` alone.
     #[test]
     fn the_products_over_the_branches_are_the_dense_products() {
         let tree = include_str!("../../tests/models/tree.urdf");
@@ -162,11 +181,16 @@ mod tests {
             let model = model_from_str(&text, &options).unwrap();
             let ancestors = Workspace::new(&model).plan.dof_ancestors.expect("a tree");
             assert_eq!(ancestors.len(), nv);
-            products_match(&ancestors);
+            products_match(&ancestors, 0, 0);
+            if options.floating_base {
+                products_match(&ancestors, 3, 6);
+            }
         }
     }
 
-    fn products_match(ancestors: &Ancestors) {
+    /// Columns `j < q_from` of `x_q` and `j < v_from` of `x_v` are left as they were (NaN), and
+    /// their entries of `B_q`, `B_v` are not read (NaN too).
+    fn products_match(ancestors: &Ancestors, v_from: usize, q_from: usize) {
         let n = ancestors.len();
         let on_branch = |i: usize, j: usize| {
             ancestors.of(j).contains(&i) || (j..ancestors.below(j).end).contains(&i)
@@ -179,14 +203,30 @@ mod tests {
             for i in (0..n).filter(|&i| on_branch(i, j)) {
                 let (q, v) = (2.0 * rng.uniform(), 2.0 * rng.uniform());
                 (b[2 * (j * n + i)], b[2 * (j * n + i) + 1]) = (q, v);
+                if j < q_from {
+                    b[2 * (j * n + i)] = f64::NAN;
+                }
+                if j < v_from {
+                    b[2 * (j * n + i) + 1] = f64::NAN;
+                }
                 (b_q[(i, j)], b_v[(i, j)]) = (q, v);
             }
         }
         let (mut x_q, mut x_v) = (vec![f64::NAN; n * n], vec![f64::NAN; n * n]);
-        branch_products(ancestors, m.as_slice(), &b, &mut x_q, &mut x_v);
-        for (got, want) in [(&x_q, &m * &b_q), (&x_v, &m * &b_v)] {
+        branch_products(
+            ancestors,
+            m.as_slice(),
+            &b,
+            &mut x_q,
+            &mut x_v,
+            v_from,
+            q_from,
+        );
+        assert!(x_q[..q_from * n].iter().all(|x| x.is_nan()));
+        assert!(x_v[..v_from * n].iter().all(|x| x.is_nan()));
+        for (got, want, skip) in [(&x_q, &m * &b_q, q_from * n), (&x_v, &m * &b_v, v_from * n)] {
             let scale = want.amax();
-            for (k, (g, w)) in got.iter().zip(want.as_slice()).enumerate() {
+            for (k, (g, w)) in got.iter().zip(want.as_slice()).enumerate().skip(skip) {
                 assert!((g - w).abs() <= 1e-14 * scale, "entry {k}: {g} against {w}");
             }
         }
