@@ -8,8 +8,8 @@ forward_dynamics (every method), mass_matrix, frame_placement and frame_jacobian
 three references), center_of_mass, rnea_derivatives and aba_derivatives (Pinocchio's M and M⁻¹
 symmetrised from their upper triangle), each to TOLERANCE relative to the reference's largest
 entry. Then: N states as 2-D arrays equal the single calls row by row, bit for bit; errors
-raise DynamicsError, a ValueError, naming the coordinate, frame, argument or row; a batch runs
-with the GIL released; the stubs (src/python/spatial_dynamics.pyi) name exactly the module's
+raise DynamicsError, a ValueError, naming the coordinate, frame, argument or row; masked arrays
+raise TypeError naming the argument; a batch runs with the GIL released; the stubs (src/python/spatial_dynamics.pyi) name exactly the module's
 public names and Model's.
 
 The package is installed into the venv by launch_scripts/setup_python_env.sh.
@@ -437,6 +437,44 @@ def test_only_real_numbers_are_taken(make, what):
         m.gravity(make(m.nq))
     with pytest.raises(TypeError, match=rf"^tau must be real numbers .*, not {what}"):
         m.forward_dynamics(s.q_ours, s.v_ours, make(m.nv))
+
+
+def test_masked_arrays_are_refused():
+    """A numpy masked array is refused, mask or not, by every array argument of every method,
+    for one state and for N, with a TypeError naming the argument: the computation would read
+    the values under the mask. Its ``.data`` (or ``.filled(x)``) is taken."""
+    s = setup_of(PACKAGE_CASES[0])
+    m, q, v, frame = s.model, s.q_ours, s.v_ours, s.model.link_names[-1]
+    methods = (
+        (m.rnea, ("q", "v", "a")),
+        (m.gravity, ("q",)),
+        (m.forward_dynamics, ("q", "v", "tau")),
+        (m.mass_matrix, ("q",)),
+        (lambda q: m.frame_placement(q, frame), ("q",)),
+        (lambda q: m.frame_jacobian(q, frame, "local"), ("q",)),
+        (m.center_of_mass, ("q",)),
+        (m.rnea_derivatives, ("q", "v", "a")),
+        (m.aba_derivatives, ("q", "v", "tau")),
+    )
+    for state in ((q, v, v), tuple(np.tile(x, (3, 1)) for x in (q, v, v))):
+        for call, names in methods:
+            for k, name in enumerate(names):
+                args = list(state[: len(names)])
+                mask = np.zeros(args[k].shape, dtype=bool)
+                mask.flat[-1] = True
+                args[k] = np.ma.array(args[k], mask=mask)
+                refused = rf"^{name} is a masked array .* pass {name}\.filled"
+                with pytest.raises(TypeError, match=refused):
+                    call(*args)
+    hidden = q.copy()
+    hidden[0] = 1e300
+    masked = np.ma.array(hidden, mask=[True] + [False] * (m.nq - 1))
+    with pytest.raises(TypeError, match=r"^q is a masked array"):
+        m.gravity(np.ma.array(q))  # no mask at all: refused too
+    with pytest.raises(TypeError, match=r"^q is a masked array"):
+        m.gravity(masked)
+    assert np.array_equal(m.gravity(masked.filled(q[0])), m.gravity(q))
+    assert np.array_equal(m.gravity(masked.data), m.gravity(hidden))
 
 
 def test_real_dtypes_are_converted():

@@ -2,11 +2,12 @@
 //! shape without converting it: a numpy array as it is, anything else (a list, a tuple, an
 //! object with `__array__`) through `numpy.asarray`. Only real numbers are taken (dtype kinds
 //! float, signed and unsigned integer): anything else (bool, complex, strings, bytes, dates,
-//! objects, `None`) is a `TypeError` naming the argument. A 1-D argument is one state, a 2-D one
-//! N states (a row each); any other shape is a `DynamicsError` naming the argument and the
-//! length the model needs. [`Arg::rows`] then reads the values: a C-contiguous, aligned,
-//! native float64 array is borrowed as it is, anything else is copied once into a new float64
-//! array. Exceptions other than `ValueError` raised by numpy on the way (`MemoryError`,
+//! objects, `None`) is a `TypeError` naming the argument, and so is a masked array
+//! (`numpy.ma.MaskedArray`), whose mask the computation could not honour. A 1-D argument is one
+//! state, a 2-D one N states (a row each); any other shape is a `DynamicsError` naming the
+//! argument and the length the model needs. [`Arg::rows`] then reads the values: a
+//! C-contiguous, aligned, native float64 array is borrowed as it is, anything else is copied
+//! once into a new float64 array. Exceptions other than `ValueError` raised by numpy on the way (`MemoryError`,
 //! `KeyboardInterrupt`) propagate unchanged.
 
 use crate::errors::error;
@@ -17,7 +18,7 @@ use numpy::{
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
-use pyo3::types::IntoPyDict;
+use pyo3::types::{IntoPyDict, PyType};
 
 /// One argument whose dtype and shape were checked, not yet read as float64.
 pub struct Arg<'py> {
@@ -31,7 +32,16 @@ impl<'py> Arg<'py> {
     /// `value`, the argument called `name`, as states of `len` values each.
     pub fn inspect(value: &Bound<'py, PyAny>, name: &str, len: usize) -> PyResult<Self> {
         let array = match value.cast::<PyUntypedArray>() {
-            Ok(array) => array.clone(),
+            Ok(array) => {
+                if !value.is_exact_instance_of::<PyUntypedArray>() && is_masked(value)? {
+                    return Err(PyTypeError::new_err(format!(
+                        "{name} is a masked array (numpy.ma.MaskedArray): masked arrays are not \
+                         taken, their mask would be ignored; pass {name}.filled(value) or \
+                         {name}.data"
+                    )));
+                }
+                array.clone()
+            }
             Err(_) => as_array(value, name)?,
         };
         let kind = array.dtype().kind();
@@ -105,6 +115,24 @@ impl Rows<'_> {
             .as_slice()
             .map_err(|_| error("an argument's float64 copy is not contiguous"))
     }
+}
+
+/// Whether `value` is a numpy masked array (`numpy.ma.MaskedArray` or a subclass). None exists
+/// before `numpy.ma` is imported (numpy does not import it by itself), so the check does not
+/// import it: it looks in `sys.modules`.
+#[cold]
+fn is_masked(value: &Bound<'_, PyAny>) -> PyResult<bool> {
+    static MASKED_ARRAY: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+    let py = value.py();
+    if let Some(masked) = MASKED_ARRAY.get(py) {
+        return value.is_instance(masked.bind(py));
+    }
+    let modules = py.import("sys")?.getattr("modules")?;
+    let Ok(ma) = modules.get_item("numpy.ma") else {
+        return Ok(false);
+    };
+    let masked = ma.getattr("MaskedArray")?.cast_into::<PyType>()?;
+    value.is_instance(MASKED_ARRAY.get_or_init(py, || masked.unbind()).bind(py))
 }
 
 /// `numpy.asarray(value)`: the array numpy reads from a list, tuple or other array-like. A
