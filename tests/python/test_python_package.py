@@ -9,8 +9,9 @@ three references), center_of_mass, rnea_derivatives and aba_derivatives (Pinocch
 symmetrised from their upper triangle), each to TOLERANCE relative to the reference's largest
 entry. Then: N states as 2-D arrays equal the single calls row by row, bit for bit; errors
 raise DynamicsError, a ValueError, naming the coordinate, frame, argument or row; masked arrays
-raise TypeError naming the argument; a batch runs with the GIL released; the stubs (src/python/spatial_dynamics.pyi) name exactly the module's
-public names and Model's.
+raise TypeError naming the argument; a batch runs with the GIL released, from the inputs as
+they were at the call while another thread writes them; the stubs
+(src/python/spatial_dynamics.pyi) name exactly the module's public names and Model's.
 
 The package is installed into the venv by launch_scripts/setup_python_env.sh.
 """
@@ -22,6 +23,7 @@ import copy
 import json
 import os
 import pickle
+import sys
 import threading
 import time
 import zlib
@@ -324,6 +326,53 @@ def test_a_batch_runs_with_the_gil_released():
     )
 
 
+def test_a_batch_reads_its_inputs_as_they_were_when_called():
+    """A batch computes with the GIL released, so another Python thread may write its input
+    arrays meanwhile. It reads a copy taken with the GIL held: its results are those of the
+    inputs as they were at the call, equal bit for bit to those of an untouched copy, while a
+    thread adds 1 to the inputs' rows, from the last block back, during the call. The switch
+    interval is raised until that thread runs, so it runs only once the call has released the
+    GIL (after the copy: the result cannot depend on timing), and it must have started writing
+    before the call returned (else the test shows nothing). Read in place, the last rows would
+    be read after the thread changed them: the results differ. What this cannot show is a write
+    by native code that releases the GIL (a numpy operation on a large array) during the copy."""
+    s = setup_of(PACKAGE_CASES[0])
+    m, rng, rows, block = s.model, np.random.default_rng(5), 200_000, 1000
+    qs = np.tile(s.q_ours, (rows, 1)) + 0.1 * rng.standard_normal((rows, m.nq))
+    vs, as_ = rng.standard_normal((2, rows, m.nv))
+    untouched = qs.copy(), vs.copy(), as_.copy()
+    want = m.rnea(*untouched)
+    go, done, first_write = threading.Event(), threading.Event(), []
+    interval = sys.getswitchinterval()
+
+    def scribble():
+        go.wait()
+        sys.setswitchinterval(interval)  # running: the call has released the GIL
+        while not done.is_set():
+            for stop in range(rows, 0, -block):
+                if not first_write:
+                    first_write.append(time.perf_counter())
+                for x in (qs, vs, as_):
+                    x[stop - block : stop] += 1.0
+                if done.is_set():
+                    break
+
+    writer = threading.Thread(target=scribble)
+    writer.start()
+    sys.setswitchinterval(100.0)
+    try:
+        go.set()
+        got = m.rnea(qs, vs, as_)
+        returned = time.perf_counter()
+    finally:
+        sys.setswitchinterval(interval)
+        done.set()
+        writer.join()
+    assert first_write and first_write[0] < returned, "no write during the call: too short to tell"
+    assert not np.array_equal(qs[-1], untouched[0][-1]), "the inputs were not written"
+    assert np.array_equal(got, want), f"{np.sum(np.any(got != want, axis=1))} rows differ"
+
+
 def stub_names():
     """(module names, Model's names) that the stubs declare, public only."""
     tree = ast.parse(STUBS.read_text())
@@ -343,6 +392,7 @@ def test_stubs_name_exactly_the_public_api():
     public = {n for n in dir(sd) if not n.startswith("_")} - {"spatial_dynamics"}
     assert module == public
     assert model == {n for n in dir(sd.Model) if not n.startswith("_")}
+
 
 
 ARM = REPO / "config" / "models" / "default_arm.urdf"
