@@ -11,7 +11,8 @@ entry. Then: N states as 2-D arrays equal the single calls row by row, bit for b
 raise DynamicsError, a ValueError, naming the coordinate, frame, argument or row; masked arrays
 raise TypeError naming the argument; a batch runs with the GIL released, from the inputs as
 they were at the call while another thread writes them; the stubs
-(src/python/spatial_dynamics.pyi) name exactly the module's public names and Model's.
+(src/python/spatial_dynamics.pyi) name exactly the module's public names and Model's, with the
+module's parameters.
 
 The package is installed into the venv by launch_scripts/setup_python_env.sh.
 """
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import ast
 import copy
+import inspect
 import json
 import os
 import pickle
@@ -393,6 +395,61 @@ def test_stubs_name_exactly_the_public_api():
     assert module == public
     assert model == {n for n in dir(sd.Model) if not n.startswith("_")}
 
+
+def stub_functions():
+    """{name: (where the module keeps it, its stub)} of every function the stubs declare: at
+    module level, and in classes (``Model.rnea``, dunder methods too), properties left out."""
+    tree = ast.parse(STUBS.read_text())
+    found = {}
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef):
+            found[node.name] = (sd, node)
+        elif isinstance(node, ast.ClassDef):
+            for f in node.body:
+                if isinstance(f, ast.FunctionDef) and not any(
+                    isinstance(d, ast.Name) and d.id == "property" for d in f.decorator_list
+                ):
+                    found[f"{node.name}.{f.name}"] = (getattr(sd, node.name), f)
+    return found
+
+
+def stub_parameters(f: ast.FunctionDef):
+    """A stub's parameters as (name, kind, default), in order; a method's ``self`` is
+    positional-only, as ``$self`` in a ``__text_signature__``."""
+    a, empty, kinds = f.args, inspect.Parameter.empty, inspect.Parameter
+    positional = a.posonlyargs + a.args
+    defaults = [ast.literal_eval(d) for d in a.defaults]
+    defaults = [empty] * (len(positional) - len(defaults)) + defaults
+    static = any(isinstance(d, ast.Name) and d.id == "staticmethod" for d in f.decorator_list)
+    out = []
+    for i, (arg, default) in enumerate(zip(positional, defaults)):
+        only = arg in a.posonlyargs or (i == 0 and arg.arg == "self" and not static)
+        kind = kinds.POSITIONAL_ONLY if only else kinds.POSITIONAL_OR_KEYWORD
+        out.append((arg.arg, kind, default))
+    if a.vararg:
+        out.append((a.vararg.arg, kinds.VAR_POSITIONAL, empty))
+    for arg, default in zip(a.kwonlyargs, a.kw_defaults):
+        default = empty if default is None else ast.literal_eval(default)
+        out.append((arg.arg, kinds.KEYWORD_ONLY, default))
+    if a.kwarg:
+        out.append((a.kwarg.arg, kinds.VAR_KEYWORD, empty))
+    return out
+
+
+def test_stub_signatures_are_the_module_s():
+    """Each function and method the stubs declare (dunder methods too) has the parameters of
+    the module's ``__text_signature__``: the same names in the same order, kinds and defaults,
+    so a call by keyword that type-checks against the stubs is one the module takes."""
+    found = stub_functions()
+    assert "Model.rnea" in found and "Model.__deepcopy__" in found
+    for name, (owner, stub) in found.items():
+        function = getattr(owner, stub.name)
+        assert function.__text_signature__, f"{name} has no __text_signature__"
+        parameters = inspect.signature(function).parameters.values()
+        ours = [(p.name, p.kind, p.default) for p in parameters]
+        assert ours == stub_parameters(stub), f"{name}: module {function.__text_signature__}"
+    m = sd.Model.from_urdf(ARM)
+    assert m.__deepcopy__(memo={}) is m
 
 
 ARM = REPO / "config" / "models" / "default_arm.urdf"

@@ -260,8 +260,10 @@ impl Model {
         slf
     }
 
-    /// The model itself, as `__copy__`: a `Model` is immutable.
-    fn __deepcopy__(slf: Py<Self>, _memo: &Bound<'_, PyAny>) -> Py<Self> {
+    /// The model itself, as `__copy__`: a `Model` is immutable. `memo` (named as in
+    /// `copy.deepcopy`'s protocol and the stubs, so it can be passed by keyword) is not needed.
+    #[allow(unused_variables)]
+    fn __deepcopy__(slf: Py<Self>, memo: &Bound<'_, PyAny>) -> Py<Self> {
         slf
     }
 
