@@ -13,8 +13,8 @@
 //! numpy cannot allocate is its `MemoryError` or `ValueError`), every value written by the
 //! kernels: one state's results have the per-state shape, N states' results `(N, *shape)`, row
 //! `i` being state `i`'s. `numpy.empty`, unlike `numpy.zeros`, keeps the GIL: no other thread
-//! runs between the call and the copy of its float64 inputs, which are the arguments as they
-//! were at the call.
+//! runs between the call and the copy of its float64 inputs (unless numpy releases the GIL to
+//! convert another argument), which are then the arguments as they were at the call.
 
 use crate::arrays::{shape_text, states_of, Arg};
 use crate::errors::{error, from_library};
