@@ -3,11 +3,12 @@ centre of mass and the derivatives of dynamics, over the Rust library spatial_dy
 
 Arguments are real numbers: numpy arrays of a float or integer dtype, or sequences of numbers
 (anything but float64 C-contiguous aligned arrays is converted to float64; bool, complex,
-strings, dates, objects and None raise TypeError). 1-D for one state, 2-D with one state a row
-for N states, computed with the GIL released (on every core when the batch is worth it) and
-returned stacked (a leading axis of N). SI units; ``q`` and ``v`` in the order of
-``Model.v_names``; a floating base's ``q = [x y z qx qy qz qw]`` and ``v = [linear; angular]``
-in the base frame; matrices row-major.
+strings, dates, objects, None and masked arrays raise TypeError). 1-D for one state, 2-D with
+one state a row for N states, computed with the GIL released (on every core when the batch is
+worth it) from a copy of the arguments taken at the call, and returned stacked (a leading axis
+of N). SI units; ``q`` and ``v`` in the order of ``Model.v_names``; a floating base's
+``q = [x y z qx qy qz qw]`` and ``v = [linear; angular]`` in the base frame; matrices
+row-major.
 """
 
 from os import PathLike

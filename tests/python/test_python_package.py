@@ -8,9 +8,11 @@ forward_dynamics (every method), mass_matrix, frame_placement and frame_jacobian
 three references), center_of_mass, rnea_derivatives and aba_derivatives (Pinocchio's M and M⁻¹
 symmetrised from their upper triangle), each to TOLERANCE relative to the reference's largest
 entry. Then: N states as 2-D arrays equal the single calls row by row, bit for bit; errors
-raise DynamicsError, a ValueError, naming the coordinate, frame, argument or row; a batch runs
-with the GIL released; the stubs (src/python/spatial_dynamics.pyi) name exactly the module's
-public names and Model's.
+raise DynamicsError, a ValueError, naming the coordinate, frame, argument or row; masked arrays
+raise TypeError naming the argument; a batch runs with the GIL released, from the inputs as
+they were at the call while another thread writes them; the stubs
+(src/python/spatial_dynamics.pyi) name exactly the module's public names and Model's, with the
+module's parameters.
 
 The package is installed into the venv by launch_scripts/setup_python_env.sh.
 """
@@ -19,9 +21,11 @@ from __future__ import annotations
 
 import ast
 import copy
+import inspect
 import json
 import os
 import pickle
+import sys
 import threading
 import time
 import zlib
@@ -324,6 +328,53 @@ def test_a_batch_runs_with_the_gil_released():
     )
 
 
+def test_a_batch_reads_its_inputs_as_they_were_when_called():
+    """A batch computes with the GIL released, so another Python thread may write its input
+    arrays meanwhile. It reads a copy taken with the GIL held: its results are those of the
+    inputs as they were at the call, equal bit for bit to those of an untouched copy, while a
+    thread adds 1 to the inputs' rows, from the last block back, during the call. The switch
+    interval is raised until that thread runs, so it runs only once the call has released the
+    GIL (after the copy: the result cannot depend on timing), and it must have started writing
+    before the call returned (else the test shows nothing). Read in place, the last rows would
+    be read after the thread changed them: the results differ. What this cannot show is a write
+    by native code that releases the GIL (a numpy operation on a large array) during the copy."""
+    s = setup_of(PACKAGE_CASES[0])
+    m, rng, rows, block = s.model, np.random.default_rng(5), 200_000, 1000
+    qs = np.tile(s.q_ours, (rows, 1)) + 0.1 * rng.standard_normal((rows, m.nq))
+    vs, as_ = rng.standard_normal((2, rows, m.nv))
+    untouched = qs.copy(), vs.copy(), as_.copy()
+    want = m.rnea(*untouched)
+    go, done, first_write = threading.Event(), threading.Event(), []
+    interval = sys.getswitchinterval()
+
+    def scribble():
+        go.wait()
+        sys.setswitchinterval(interval)  # running: the call has released the GIL
+        while not done.is_set():
+            for stop in range(rows, 0, -block):
+                if not first_write:
+                    first_write.append(time.perf_counter())
+                for x in (qs, vs, as_):
+                    x[stop - block : stop] += 1.0
+                if done.is_set():
+                    break
+
+    writer = threading.Thread(target=scribble)
+    writer.start()
+    sys.setswitchinterval(100.0)
+    try:
+        go.set()
+        got = m.rnea(qs, vs, as_)
+        returned = time.perf_counter()
+    finally:
+        sys.setswitchinterval(interval)
+        done.set()
+        writer.join()
+    assert first_write and first_write[0] < returned, "no write during the call: too short to tell"
+    assert not np.array_equal(qs[-1], untouched[0][-1]), "the inputs were not written"
+    assert np.array_equal(got, want), f"{np.sum(np.any(got != want, axis=1))} rows differ"
+
+
 def stub_names():
     """(module names, Model's names) that the stubs declare, public only."""
     tree = ast.parse(STUBS.read_text())
@@ -343,6 +394,62 @@ def test_stubs_name_exactly_the_public_api():
     public = {n for n in dir(sd) if not n.startswith("_")} - {"spatial_dynamics"}
     assert module == public
     assert model == {n for n in dir(sd.Model) if not n.startswith("_")}
+
+
+def stub_functions():
+    """{name: (where the module keeps it, its stub)} of every function the stubs declare: at
+    module level, and in classes (``Model.rnea``, dunder methods too), properties left out."""
+    tree = ast.parse(STUBS.read_text())
+    found = {}
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef):
+            found[node.name] = (sd, node)
+        elif isinstance(node, ast.ClassDef):
+            for f in node.body:
+                if isinstance(f, ast.FunctionDef) and not any(
+                    isinstance(d, ast.Name) and d.id == "property" for d in f.decorator_list
+                ):
+                    found[f"{node.name}.{f.name}"] = (getattr(sd, node.name), f)
+    return found
+
+
+def stub_parameters(f: ast.FunctionDef):
+    """A stub's parameters as (name, kind, default), in order; a method's ``self`` is
+    positional-only, as ``$self`` in a ``__text_signature__``."""
+    a, empty, kinds = f.args, inspect.Parameter.empty, inspect.Parameter
+    positional = a.posonlyargs + a.args
+    defaults = [ast.literal_eval(d) for d in a.defaults]
+    defaults = [empty] * (len(positional) - len(defaults)) + defaults
+    static = any(isinstance(d, ast.Name) and d.id == "staticmethod" for d in f.decorator_list)
+    out = []
+    for i, (arg, default) in enumerate(zip(positional, defaults)):
+        only = arg in a.posonlyargs or (i == 0 and arg.arg == "self" and not static)
+        kind = kinds.POSITIONAL_ONLY if only else kinds.POSITIONAL_OR_KEYWORD
+        out.append((arg.arg, kind, default))
+    if a.vararg:
+        out.append((a.vararg.arg, kinds.VAR_POSITIONAL, empty))
+    for arg, default in zip(a.kwonlyargs, a.kw_defaults):
+        default = empty if default is None else ast.literal_eval(default)
+        out.append((arg.arg, kinds.KEYWORD_ONLY, default))
+    if a.kwarg:
+        out.append((a.kwarg.arg, kinds.VAR_KEYWORD, empty))
+    return out
+
+
+def test_stub_signatures_are_the_module_s():
+    """Each function and method the stubs declare (dunder methods too) has the parameters of
+    the module's ``__text_signature__``: the same names in the same order, kinds and defaults,
+    so a call by keyword that type-checks against the stubs is one the module takes."""
+    found = stub_functions()
+    assert "Model.rnea" in found and "Model.__deepcopy__" in found
+    for name, (owner, stub) in found.items():
+        function = getattr(owner, stub.name)
+        assert function.__text_signature__, f"{name} has no __text_signature__"
+        parameters = inspect.signature(function).parameters.values()
+        ours = [(p.name, p.kind, p.default) for p in parameters]
+        assert ours == stub_parameters(stub), f"{name}: module {function.__text_signature__}"
+    m = sd.Model.from_urdf(ARM)
+    assert m.__deepcopy__(memo={}) is m
 
 
 ARM = REPO / "config" / "models" / "default_arm.urdf"
@@ -437,6 +544,44 @@ def test_only_real_numbers_are_taken(make, what):
         m.gravity(make(m.nq))
     with pytest.raises(TypeError, match=rf"^tau must be real numbers .*, not {what}"):
         m.forward_dynamics(s.q_ours, s.v_ours, make(m.nv))
+
+
+def test_masked_arrays_are_refused():
+    """A numpy masked array is refused, mask or not, by every array argument of every method,
+    for one state and for N, with a TypeError naming the argument: the computation would read
+    the values under the mask. Its ``.data`` (or ``.filled(x)``) is taken."""
+    s = setup_of(PACKAGE_CASES[0])
+    m, q, v, frame = s.model, s.q_ours, s.v_ours, s.model.link_names[-1]
+    methods = (
+        (m.rnea, ("q", "v", "a")),
+        (m.gravity, ("q",)),
+        (m.forward_dynamics, ("q", "v", "tau")),
+        (m.mass_matrix, ("q",)),
+        (lambda q: m.frame_placement(q, frame), ("q",)),
+        (lambda q: m.frame_jacobian(q, frame, "local"), ("q",)),
+        (m.center_of_mass, ("q",)),
+        (m.rnea_derivatives, ("q", "v", "a")),
+        (m.aba_derivatives, ("q", "v", "tau")),
+    )
+    for state in ((q, v, v), tuple(np.tile(x, (3, 1)) for x in (q, v, v))):
+        for call, names in methods:
+            for k, name in enumerate(names):
+                args = list(state[: len(names)])
+                mask = np.zeros(args[k].shape, dtype=bool)
+                mask.flat[-1] = True
+                args[k] = np.ma.array(args[k], mask=mask)
+                refused = rf"^{name} is a masked array .* pass {name}\.filled"
+                with pytest.raises(TypeError, match=refused):
+                    call(*args)
+    hidden = q.copy()
+    hidden[0] = 1e300
+    masked = np.ma.array(hidden, mask=[True] + [False] * (m.nq - 1))
+    with pytest.raises(TypeError, match=r"^q is a masked array"):
+        m.gravity(np.ma.array(q))  # no mask at all: refused too
+    with pytest.raises(TypeError, match=r"^q is a masked array"):
+        m.gravity(masked)
+    assert np.array_equal(m.gravity(masked.filled(q[0])), m.gravity(q))
+    assert np.array_equal(m.gravity(masked.data), m.gravity(hidden))
 
 
 def test_real_dtypes_are_converted():

@@ -2,12 +2,15 @@
 //! shape without converting it: a numpy array as it is, anything else (a list, a tuple, an
 //! object with `__array__`) through `numpy.asarray`. Only real numbers are taken (dtype kinds
 //! float, signed and unsigned integer): anything else (bool, complex, strings, bytes, dates,
-//! objects, `None`) is a `TypeError` naming the argument. A 1-D argument is one state, a 2-D one
-//! N states (a row each); any other shape is a `DynamicsError` naming the argument and the
-//! length the model needs. [`Arg::rows`] then reads the values: a C-contiguous, aligned,
-//! native float64 array is borrowed as it is, anything else is copied once into a new float64
-//! array. Exceptions other than `ValueError` raised by numpy on the way (`MemoryError`,
-//! `KeyboardInterrupt`) propagate unchanged.
+//! objects, `None`) is a `TypeError` naming the argument, and so is a masked array
+//! (`numpy.ma.MaskedArray`), whose mask the computation could not honour. A 1-D argument is one
+//! state, a 2-D one N states (a row each); any other shape is a `DynamicsError` naming the
+//! argument and the length the model needs. [`Arg::rows`] then reads the values: a
+//! C-contiguous, aligned, native float64 array is borrowed as it is, anything else is copied
+//! once into a new float64 array. Values read with the GIL released must be private (another
+//! Python thread could write a shared array meanwhile): a borrowed array that other code can
+//! reach is then copied, with the GIL held. Exceptions other than `ValueError` raised by numpy
+//! on the way (`MemoryError`, `KeyboardInterrupt`) propagate unchanged.
 
 use crate::errors::error;
 use numpy::{
@@ -17,7 +20,7 @@ use numpy::{
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
-use pyo3::types::IntoPyDict;
+use pyo3::types::{IntoPyDict, PyList, PyTuple, PyType};
 
 /// One argument whose dtype and shape were checked, not yet read as float64.
 pub struct Arg<'py> {
@@ -25,14 +28,30 @@ pub struct Arg<'py> {
     array: Bound<'py, PyUntypedArray>,
     /// `None` for one state (1-D), `Some(n)` for `n` rows (2-D).
     pub states: Option<usize>,
+    /// Whether `array` was made by `numpy.asarray` from a list or tuple: a new array that no
+    /// other code refers to.
+    fresh: bool,
 }
 
 impl<'py> Arg<'py> {
     /// `value`, the argument called `name`, as states of `len` values each.
     pub fn inspect(value: &Bound<'py, PyAny>, name: &str, len: usize) -> PyResult<Self> {
-        let array = match value.cast::<PyUntypedArray>() {
-            Ok(array) => array.clone(),
-            Err(_) => as_array(value, name)?,
+        let (array, fresh) = match value.cast::<PyUntypedArray>() {
+            Ok(array) => {
+                if !value.is_exact_instance_of::<PyUntypedArray>() && is_masked(value)? {
+                    return Err(PyTypeError::new_err(format!(
+                        "{name} is a masked array (numpy.ma.MaskedArray): masked arrays are not \
+                         taken, their mask would be ignored; pass {name}.filled(value) or \
+                         {name}.data"
+                    )));
+                }
+                (array.clone(), false)
+            }
+            Err(_) => {
+                let fresh = value.is_exact_instance_of::<PyList>()
+                    || value.is_exact_instance_of::<PyTuple>();
+                (as_array(value, name)?, fresh)
+            }
         };
         let kind = array.dtype().kind();
         if !matches!(kind, b'f' | b'i' | b'u') {
@@ -53,20 +72,56 @@ impl<'py> Arg<'py> {
             name: name.to_string(),
             array,
             states,
+            fresh,
         })
     }
 
     /// The values as float64 rows: borrowed when the array is C-contiguous, aligned and native
-    /// float64, otherwise copied into a new array.
-    pub fn rows(&self) -> PyResult<Rows<'py>> {
+    /// float64, otherwise copied into a new array. With `private`, for values read with the GIL
+    /// released, an array that would be borrowed is copied unless `numpy.asarray` made it from
+    /// a list or tuple: no Python thread can then write the values being read. Either way, the
+    /// values are copied once at most.
+    pub fn rows(&self, private: bool) -> PyResult<Rows<'py>> {
         if let Ok(floats) = self.array.cast::<PyArrayDyn<f64>>() {
             if floats.is_c_contiguous() && floats.is_aligned() {
                 if let Ok(borrowed) = floats.try_readonly() {
-                    return Ok(Rows { array: borrowed });
+                    if private && !self.fresh {
+                        return self.own(&borrowed);
+                    }
+                    return Ok(Rows::Array(borrowed));
                 }
             }
         }
         self.copy()
+    }
+
+    /// The values of `borrowed` copied with the GIL held (no Python code writes them
+    /// meanwhile): up to [`SMALL_COPY`] values into a `Vec`, more into a new array by
+    /// `numpy.empty`, which keeps the GIL and asks for huge pages (most of a large copy's time
+    /// is the page faults of its new memory); a size numpy cannot allocate is its `MemoryError`.
+    fn own(&self, borrowed: &PyReadonlyArrayDyn<'py, f64>) -> PyResult<Rows<'py>> {
+        static EMPTY: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+        let py = self.array.py();
+        let values = borrowed
+            .as_slice()
+            .map_err(|_| error(format!("{} is not contiguous", self.name)))?;
+        if values.len() <= SMALL_COPY {
+            return Ok(Rows::Owned(values.to_vec()));
+        }
+        let copy = EMPTY
+            .import(py, "numpy", "empty")?
+            .call1((PyTuple::new(py, self.array.shape())?,))?
+            .cast_into::<PyArrayDyn<f64>>()
+            .map_err(|_| error("numpy.empty did not return a float64 array"))?;
+        copy.try_readwrite()
+            .map_err(|e| error(format!("a copy of {} cannot be written: {e}", self.name)))?
+            .as_slice_mut()
+            .map_err(|_| error(format!("a copy of {} is not contiguous", self.name)))?
+            .copy_from_slice(values);
+        let array = copy
+            .try_readonly()
+            .map_err(|e| error(format!("a copy of {} cannot be read: {e}", self.name)))?;
+        Ok(Rows::Array(array))
     }
 
     /// `numpy.array(self, dtype=float64, order="C")`: a new array, contiguous and aligned.
@@ -89,22 +144,50 @@ impl<'py> Arg<'py> {
         let borrowed = array
             .try_readonly()
             .map_err(|e| error(format!("{} cannot be read: {e}", self.name)))?;
-        Ok(Rows { array: borrowed })
+        Ok(Rows::Array(borrowed))
     }
 }
 
+/// The most values [`Arg::rows`] copies into a `Vec` (256 KiB): a numpy call costs more than
+/// such a copy, whose memory the allocator has at hand.
+const SMALL_COPY: usize = 1 << 15;
+
 /// One argument's values, float64, C-contiguous and aligned.
-pub struct Rows<'py> {
-    array: PyReadonlyArrayDyn<'py, f64>,
+pub enum Rows<'py> {
+    /// A numpy array: the argument itself, or a new array it was copied or converted into.
+    Array(PyReadonlyArrayDyn<'py, f64>),
+    /// A copy of a small argument's values.
+    Owned(Vec<f64>),
 }
 
 impl Rows<'_> {
     /// Every value, row after row.
     pub fn values(&self) -> PyResult<&[f64]> {
-        self.array
-            .as_slice()
-            .map_err(|_| error("an argument's float64 copy is not contiguous"))
+        match self {
+            Rows::Array(array) => array
+                .as_slice()
+                .map_err(|_| error("an argument's float64 copy is not contiguous")),
+            Rows::Owned(values) => Ok(values),
+        }
     }
+}
+
+/// Whether `value` is a numpy masked array (`numpy.ma.MaskedArray` or a subclass). None exists
+/// before `numpy.ma` is imported (numpy does not import it by itself), so the check does not
+/// import it: it looks in `sys.modules`.
+#[cold]
+fn is_masked(value: &Bound<'_, PyAny>) -> PyResult<bool> {
+    static MASKED_ARRAY: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+    let py = value.py();
+    if let Some(masked) = MASKED_ARRAY.get(py) {
+        return value.is_instance(masked.bind(py));
+    }
+    let modules = py.import("sys")?.getattr("modules")?;
+    let Ok(ma) = modules.get_item("numpy.ma") else {
+        return Ok(false);
+    };
+    let masked = ma.getattr("MaskedArray")?.cast_into::<PyType>()?;
+    value.is_instance(MASKED_ARRAY.get_or_init(py, || masked.unbind()).bind(py))
 }
 
 /// `numpy.asarray(value)`: the array numpy reads from a list, tuple or other array-like. A

@@ -1,15 +1,20 @@
 //! One kernel (a library function writing its results into output slices) run over one state
 //! or over N states, with workspaces kept by the model between calls ([`Workspaces`]). N states
-//! are computed with the GIL released: the calling thread takes blocks of rows from a shared
-//! queue, reading each block's inputs in place in the arguments' buffers and writing its
-//! results in place in the outputs'; after its first block, the time that block took tells how
-//! many more threads the remaining rows are worth (none for a small batch, at most
-//! `std::thread::available_parallelism()` in all, asked once per process), which join it on the
-//! queue, each with a workspace of the pool. A block goes to a block kernel (a library function
-//! over many rows, e.g. `rnea_rows`) or, by [`run`], to the one-state kernel row by row. The
-//! outputs are numpy arrays allocated once per call by `numpy.zeros` (a size numpy cannot
-//! allocate is its `MemoryError` or `ValueError`): one state's results have the per-state
-//! shape, N states' results `(N, *shape)`, row `i` being state `i`'s.
+//! are computed with the GIL released, from inputs that are the call's own: another Python
+//! thread may write the arguments meanwhile, so a float64 array that one state reads in place
+//! is copied, with the GIL held, for N (an argument converted to float64 is a new array
+//! already). The calling thread takes blocks of rows from a shared queue, reading each block's
+//! inputs and writing its results in place in the outputs'; after its first block, the time
+//! that block took tells how many more threads the remaining rows are worth (none for a small
+//! batch, at most `std::thread::available_parallelism()` in all, asked once per process), which
+//! join it on the queue, each with a workspace of the pool. A block goes to a block kernel (a
+//! library function over many rows, e.g. `rnea_rows`) or, by [`run`], to the one-state kernel
+//! row by row. The outputs are numpy arrays allocated once per call by `numpy.empty` (a size
+//! numpy cannot allocate is its `MemoryError` or `ValueError`), every value written by the
+//! kernels: one state's results have the per-state shape, N states' results `(N, *shape)`, row
+//! `i` being state `i`'s. `numpy.empty`, unlike `numpy.zeros`, keeps the GIL: no other thread
+//! runs between the call and the copy of its float64 inputs (unless numpy releases the GIL to
+//! convert another argument), which are then the arguments as they were at the call.
 
 use crate::arrays::{shape_text, states_of, Arg};
 use crate::errors::{error, from_library};
@@ -113,14 +118,15 @@ where
         let mut shape = Vec::with_capacity(per_state.len() + 1);
         shape.extend(states);
         shape.extend_from_slice(per_state);
-        arrays.push(zeros(py, &shape)?);
+        arrays.push(empty(py, &shape)?);
     }
     let arrays: [Bound<'py, PyArrayDyn<f64>>; O] = arrays
         .try_into()
         .map_err(|_| error("one result array per output was not made"))?;
+    // N states are read with the GIL released: their values must be the call's own.
     let mut rows = Vec::with_capacity(I);
     for arg in &args {
-        rows.push(arg.rows()?);
+        rows.push(arg.rows(states.is_some())?);
     }
     let mut ins: [&[f64]; I] = [&[]; I];
     for (k, r) in rows.iter().enumerate() {
@@ -163,11 +169,12 @@ where
     Ok(arrays)
 }
 
-/// `numpy.zeros(shape)` (float64, C order). A shape whose bytes overflow the address space is a
-/// `MemoryError` naming it; numpy's own errors (`MemoryError` when the memory is not there)
-/// propagate unchanged.
-fn zeros<'py>(py: Python<'py>, shape: &[usize]) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    static ZEROS: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
+/// `numpy.empty(shape)` (float64, C order, values unset: the kernels write every one). A shape
+/// whose bytes overflow the address space is a `MemoryError` naming it; numpy's own errors
+/// (`MemoryError` when the memory is not there) propagate unchanged. Unlike `numpy.zeros`, it
+/// keeps the GIL.
+fn empty<'py>(py: Python<'py>, shape: &[usize]) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    static EMPTY: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
     let bytes = shape
         .iter()
         .try_fold(size_of::<f64>(), |bytes, &n| bytes.checked_mul(n));
@@ -177,11 +184,11 @@ fn zeros<'py>(py: Python<'py>, shape: &[usize]) -> PyResult<Bound<'py, PyArrayDy
             shape_text(shape)
         )));
     }
-    ZEROS
-        .import(py, "numpy", "zeros")?
+    EMPTY
+        .import(py, "numpy", "empty")?
         .call1((PyTuple::new(py, shape)?,))?
         .cast_into::<PyArrayDyn<f64>>()
-        .map_err(|_| error("numpy.zeros did not return a float64 array"))
+        .map_err(|_| error("numpy.empty did not return a float64 array"))
 }
 
 /// The `n` states: the calling thread takes blocks of rows in order from a shared queue; the

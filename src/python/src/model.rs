@@ -1,9 +1,10 @@
 //! `Model`: a robot model built from URDF (immutable), its coordinates' names, and the library's
-//! algorithms as methods. Each method takes real numbers (float64 arrays read in place, other
-//! float and integer arrays and sequences of numbers converted): 1-D for one state, 2-D for N
-//! states (a row each, results stacked). Conventions are the library's: SI units, `q` and `v`
-//! in the order of `v_names`, a floating base's `q = [x y z qx qy qz qw]` and
-//! `v = [linear; angular]` in the base frame; matrices row-major (numpy's C order).
+//! algorithms as methods. Each method takes real numbers (float64 arrays read in place for one
+//! state and copied for N, other float and integer arrays and sequences of numbers converted;
+//! masked arrays refused): 1-D for one state, 2-D for N states (a row each, results stacked).
+//! Conventions are the library's: SI units, `q` and `v` in the order of `v_names`, a floating
+//! base's `q = [x y z qx qy qz qw]` and `v = [linear; angular]` in the base frame; matrices
+//! row-major (numpy's C order).
 
 use crate::batch::{run, run_blocks, Workspaces};
 use crate::errors::{error, from_library};
@@ -259,8 +260,10 @@ impl Model {
         slf
     }
 
-    /// The model itself, as `__copy__`: a `Model` is immutable.
-    fn __deepcopy__(slf: Py<Self>, _memo: &Bound<'_, PyAny>) -> Py<Self> {
+    /// The model itself, as `__copy__`: a `Model` is immutable. `memo` (named as in
+    /// `copy.deepcopy`'s protocol and the stubs, so it can be passed by keyword) is not needed.
+    #[allow(unused_variables)]
+    fn __deepcopy__(slf: Py<Self>, memo: &Bound<'_, PyAny>) -> Py<Self> {
         slf
     }
 
