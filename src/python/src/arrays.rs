@@ -12,6 +12,7 @@
 //! reach is then copied, with the GIL held. Exceptions other than `ValueError` raised by numpy
 //! on the way (`MemoryError`, `KeyboardInterrupt`) propagate unchanged.
 
+use crate::batch::empty;
 use crate::errors::error;
 use numpy::{
     PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
@@ -100,19 +101,13 @@ impl<'py> Arg<'py> {
     /// `numpy.empty`, which keeps the GIL and asks for huge pages (most of a large copy's time
     /// is the page faults of its new memory); a size numpy cannot allocate is its `MemoryError`.
     fn own(&self, borrowed: &PyReadonlyArrayDyn<'py, f64>) -> PyResult<Rows<'py>> {
-        static EMPTY: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
-        let py = self.array.py();
         let values = borrowed
             .as_slice()
             .map_err(|_| error(format!("{} is not contiguous", self.name)))?;
         if values.len() <= SMALL_COPY {
             return Ok(Rows::Owned(values.to_vec()));
         }
-        let copy = EMPTY
-            .import(py, "numpy", "empty")?
-            .call1((PyTuple::new(py, self.array.shape())?,))?
-            .cast_into::<PyArrayDyn<f64>>()
-            .map_err(|_| error("numpy.empty did not return a float64 array"))?;
+        let copy = empty(self.array.py(), self.array.shape())?;
         copy.try_readwrite()
             .map_err(|e| error(format!("a copy of {} cannot be written: {e}", self.name)))?
             .as_slice_mut()

@@ -173,7 +173,10 @@ where
 /// whose bytes overflow the address space is a `MemoryError` naming it; numpy's own errors
 /// (`MemoryError` when the memory is not there) propagate unchanged. Unlike `numpy.zeros`, it
 /// keeps the GIL.
-fn empty<'py>(py: Python<'py>, shape: &[usize]) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+pub(crate) fn empty<'py>(
+    py: Python<'py>,
+    shape: &[usize],
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     static EMPTY: PyOnceLock<Py<PyAny>> = PyOnceLock::new();
     let bytes = shape
         .iter()
