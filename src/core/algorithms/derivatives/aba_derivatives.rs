@@ -81,7 +81,7 @@ use crate::algorithms::ltl::{ltl_factor, ltl_inverse_transpose, ltl_solve};
 use crate::algorithms::validate::{all_finite_long, check_forward_inputs, check_result};
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
-use crate::instruction_set::run_pass;
+use crate::instruction_set::{run_pass, run_wide_pass};
 use crate::model::{JointKind, Model};
 use crate::spatial::Vector3;
 use crate::Workspace;
@@ -361,14 +361,42 @@ fn identity_and_zeros(rows: &mut [f64], nv: usize) {
 /// held row by row in `ws.derivatives.rhs` (`nv` rows of `3 nv`, the columns of `−∂τ/∂q`
 /// and `−∂τ/∂q̇` side by side: column `c` of each at `nv + 2 c` and `nv + 2 c + 1`) is solved
 /// through it ([`cholesky_solve_rows`]) and the solutions copied out.
+///
+/// A model of [`WIDE_FROM`] coordinates or more runs the AVX-512 copy where the processor has
+/// it ([`run_wide_pass`]), with its wider blocks.
 fn solve_with_factor(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>) {
-    run_pass!(solve_with_factor_in(model, ws, free_root))
+    if model.nv >= WIDE_FROM && ws.plan.instruction_set.is_wide() {
+        run_wide_pass!(solve_wide(model, ws, free_root))
+    } else {
+        run_pass!(solve_narrow(model, ws, free_root))
+    }
+}
+
+/// The fewest coordinates for which [`solve_with_factor`] runs the AVX-512 copy: measured
+/// faster on TALOS (50 coordinates), slower on Solo12 and ANYmal (18), whose columns fit the
+/// AVX2 copy's blocks.
+const WIDE_FROM: usize = 32;
+
+/// [`solve_with_factor_in`] with the AVX-512 copy's blocks.
+#[inline(always)]
+fn solve_wide(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>) {
+    solve_with_factor_in::<true>(model, ws, free_root)
+}
+
+/// [`solve_with_factor_in`] with the blocks of the other copies.
+#[inline(always)]
+fn solve_narrow(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>) {
+    solve_with_factor_in::<false>(model, ws, free_root)
 }
 
 /// [`solve_with_factor`]'s body, compiled once per instruction set ([`run_pass`]): a pass of
 /// its own, so that the solve's loops are compiled as a function of their own size.
 #[inline(always)]
-fn solve_with_factor_in(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>) {
+fn solve_with_factor_in<const WIDE: bool>(
+    model: &Model,
+    ws: &mut Workspace,
+    free_root: Option<FreeRoot>,
+) {
     let (plan, factor, d) = (&ws.plan, &ws.factor, &mut ws.derivatives);
     let nv = model.nv;
     if nv == 0 {
@@ -381,11 +409,11 @@ fn solve_with_factor_in(model: &Model, ws: &mut Workspace, free_root: Option<Fre
             // Y = L⁻ᵀ: the entries it does not write are zero from the allocation on (nothing
             // else writes this part of `rhs` on a tree).
             ltl_inverse_transpose(ancestors, factor, y);
-            inverse_from_rows(ancestors, y, minv);
+            inverse_from_rows::<WIDE>(ancestors, y, minv);
             let (ddq_dq, ddq_dv) = (d.ddq_dq.as_mut_slice(), d.ddq_dv.as_mut_slice());
             // A free root's rate columns 0..3 and pose columns 0..6 in closed form.
             let (v_from, q_from) = if free_root.is_some() { (3, 6) } else { (0, 0) };
-            branch_products(ancestors, minv, pairs, ddq_dq, ddq_dv, v_from, q_from);
+            branch_products::<WIDE>(ancestors, minv, pairs, ddq_dq, ddq_dv, v_from, q_from);
             if let Some(free_root) = free_root {
                 free_root.write_columns(ddq_dq, ddq_dv, nv);
             }

@@ -26,8 +26,14 @@ use crate::plan::Ancestors;
 /// ```text
 /// H⁻¹[:, s] = Σ_{c ∈ ancestors(s) ∪ {s}} (row c of Y)ᵀ Y_cs
 /// ```
+///
+/// With `WIDE` the blocks are those of the AVX-512 copy ([`Column::fill`]).
 #[inline(always)]
-pub(super) fn inverse_from_rows(ancestors: &Ancestors, y: &[f64], minv: &mut [f64]) {
+pub(super) fn inverse_from_rows<const WIDE: bool>(
+    ancestors: &Ancestors,
+    y: &[f64],
+    minv: &mut [f64],
+) {
     let n = ancestors.len();
     for (s, column) in minv.chunks_exact_mut(n).enumerate() {
         let sum = Column::<1> {
@@ -38,7 +44,7 @@ pub(super) fn inverse_from_rows(ancestors: &Ancestors, y: &[f64], minv: &mut [f6
             ancestors: ancestors.of(s),
             own_and_below: s..s + 1,
         };
-        sum.fill([column]);
+        sum.fill::<WIDE>([column]);
     }
 }
 
@@ -46,9 +52,10 @@ pub(super) fn inverse_from_rows(ancestors: &Ancestors, y: &[f64], minv: &mut [f6
 /// the full `H⁻¹` (column-major), `b` holding `(B_q)_ij` at `2 (j n + i)` and `(B_v)_ij` after
 /// it for every `i` in `branch(j)` (other entries are not read). Columns `j < q_from` of
 /// `X_q` and `j < v_from` of `X_v` are the caller's to write (a free-floating root's closed
-/// form, `v_from ≤ q_from`): they are not made, nor their entries of `B` read.
+/// form, `v_from ≤ q_from`): they are not made, nor their entries of `B` read. With `WIDE`
+/// the blocks are those of the AVX-512 copy ([`Column::fill`]).
 #[inline(always)]
-pub(super) fn branch_products(
+pub(super) fn branch_products<const WIDE: bool>(
     ancestors: &Ancestors,
     minv: &[f64],
     b: &[f64],
@@ -71,7 +78,7 @@ pub(super) fn branch_products(
                 ancestors,
                 own_and_below,
             };
-            sum.fill([x_v]);
+            sum.fill::<WIDE>([x_v]);
         } else {
             let sum = Column::<2> {
                 n,
@@ -81,7 +88,7 @@ pub(super) fn branch_products(
                 ancestors,
                 own_and_below,
             };
-            sum.fill([x_q, x_v]);
+            sum.fill::<WIDE>([x_q, x_v]);
         }
     }
 }
@@ -102,23 +109,32 @@ impl<const K: usize> Column<'_, K> {
     /// The `K` columns into `out`, by blocks of 16 rows while more than 20 are left, then the
     /// rest (1 to 20 rows) as one block: a block's loop costs about the same bookkeeping
     /// whatever its width, so a short block of its own would cost nearly what a full one does.
+    /// With `WIDE` (the AVX-512 copy, whose 32 registers of eight
+    /// values hold 56 rows of two products) by blocks of 32 while more than 56 are left, then
+    /// the rest as one block: a column of up to 56 rows walks its branch once.
     #[inline(always)]
-    fn fill(&self, mut out: [&mut [f64]; K]) {
+    fn fill<const WIDE: bool>(&self, mut out: [&mut [f64]; K]) {
         let n = self.n;
         let mut r = 0;
-        while n - r > 20 {
-            self.rows::<16>(r, &mut out);
-            r += 16;
-        }
-        macro_rules! last_block {
-            ($($w:literal)*) => {
+        macro_rules! blocks {
+            ($width:literal, $longest_last:literal, $($w:literal)*) => {{
+                while n - r > $longest_last {
+                    self.rows::<$width>(r, &mut out);
+                    r += $width;
+                }
                 match n - r {
                     $($w => self.rows::<$w>(r, &mut out),)*
                     _ => {} // no rows left (n = 0)
                 }
-            };
+            }};
         }
-        last_block!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20);
+        if WIDE {
+            blocks!(32, 56, 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26
+                27 28 29 30 31 32 33 34 35 36 37 38 39 40 41 42 43 44 45 46 47 48 49 50 51 52 53
+                54 55 56)
+        } else {
+            blocks!(16, 20, 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20)
+        }
     }
 
     /// Rows `r .. r + W` of the `K` columns, summed in registers over the branch.
@@ -165,10 +181,11 @@ mod tests {
     use nalgebra::DMatrix;
 
     /// Against the dense products `M B_q`, `M B_v` with `B` zero off the branches, on a
-    /// branched tree with a floating base (14 coordinates) and on chains of 1 to 40 (every
-    /// width of the last block, after none, one or two blocks of 16), with every entry of `b`
-    /// off the branches poisoned (NaN): none is read; and on the tree with its first three
-    /// floating-base columns not made and the next three made of `X_v` alone.
+    /// branched tree with a floating base (14 coordinates) and on chains of 1 to 40, 55 to 60
+    /// and 87 to 90 (every width of the last narrow block after none, one or two blocks of 16,
+    /// and of the wide blocks around their bounds, 56 and 32 + 56), in either blocking, with
+    /// every entry of `b` off the branches poisoned (NaN): none is read; and on the tree with
+    /// its first three floating-base columns not made and the next three made of `X_v` alone.
     #[test]
     fn the_products_over_the_branches_are_the_dense_products() {
         let tree = include_str!("../../tests/models/tree.urdf");
@@ -176,21 +193,24 @@ mod tests {
             floating_base: true,
             ..Default::default()
         };
-        let chains = (1..=40).map(|n| (pendulum_urdf(n, 0.3, 0.5), ModelOptions::default(), n));
+        let lengths = (1..=40).chain(55..=60).chain(87..=90);
+        let chains = lengths.map(|n| (pendulum_urdf(n, 0.3, 0.5), ModelOptions::default(), n));
         for (text, options, nv) in [(tree.to_string(), floating, 14)].into_iter().chain(chains) {
             let model = model_from_str(&text, &options).unwrap();
             let ancestors = Workspace::new(&model).plan.dof_ancestors.expect("a tree");
             assert_eq!(ancestors.len(), nv);
-            products_match(&ancestors, 0, 0);
+            products_match::<false>(&ancestors, 0, 0);
+            products_match::<true>(&ancestors, 0, 0);
             if options.floating_base {
-                products_match(&ancestors, 3, 6);
+                products_match::<false>(&ancestors, 3, 6);
+                products_match::<true>(&ancestors, 3, 6);
             }
         }
     }
 
     /// Columns `j < q_from` of `x_q` and `j < v_from` of `x_v` are left as they were (NaN), and
     /// their entries of `B_q`, `B_v` are not read (NaN too).
-    fn products_match(ancestors: &Ancestors, v_from: usize, q_from: usize) {
+    fn products_match<const WIDE: bool>(ancestors: &Ancestors, v_from: usize, q_from: usize) {
         let n = ancestors.len();
         let on_branch = |i: usize, j: usize| {
             ancestors.of(j).contains(&i) || (j..ancestors.below(j).end).contains(&i)
@@ -213,15 +233,8 @@ mod tests {
             }
         }
         let (mut x_q, mut x_v) = (vec![f64::NAN; n * n], vec![f64::NAN; n * n]);
-        branch_products(
-            ancestors,
-            m.as_slice(),
-            &b,
-            &mut x_q,
-            &mut x_v,
-            v_from,
-            q_from,
-        );
+        let (minv, b) = (m.as_slice(), &b);
+        branch_products::<WIDE>(ancestors, minv, b, &mut x_q, &mut x_v, v_from, q_from);
         assert!(x_q[..q_from * n].iter().all(|x| x.is_nan()));
         assert!(x_v[..v_from * n].iter().all(|x| x.is_nan()));
         for (got, want, skip) in [(&x_q, &m * &b_q, q_from * n), (&x_v, &m * &b_v, v_from * n)] {
