@@ -227,4 +227,44 @@ mod tests {
         let answer = engine.linearize(&req);
         assert_eq!(answer.message, "base_wrench.torque.z is inf");
     }
+
+    /// One damped joint (`d = 0.5`): in simulate mode with `passive: [damping]` the continuous
+    /// `∂q̈/∂q̇` is `−d H⁻¹` and an empty effort holds the state still (`q̈ = 0`); in serve mode
+    /// `∂q̈/∂q̇` is the model's own, zero for one joint.
+    #[test]
+    fn simulate_mode_linearises_with_the_simulators_passive_forces() {
+        let urdf = r#"<robot name="damped"><link name="world"/>
+            <link name="rod"><inertial><origin xyz="0 0 -0.5"/><mass value="2"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.01"/></inertial></link>
+            <joint name="j" type="revolute"><parent link="world"/><child link="rod"/><axis xyz="0 1 0"/>
+            <limit lower="-3" upper="3" effort="100" velocity="10"/><dynamics damping="0.5"/></joint>
+            </robot>"#;
+        let req = LinearizeRequest {
+            name: vec!["j".into()],
+            position: vec![0.3],
+            velocity: vec![0.2],
+            ..Default::default()
+        };
+        for simulate in [false, true] {
+            let settings = Settings {
+                robot_description: urdf.into(),
+                simulate,
+                passive: vec!["damping".into()],
+                ..Settings::default()
+            };
+            let mut engine = Engine::from_settings(&settings, None).unwrap();
+            let answer = engine.linearize(&req);
+            assert!(answer.success, "{}", answer.message);
+            let damping = if simulate { -0.5 * answer.minv[0] } else { 0.0 };
+            assert!(
+                (answer.a[3] - damping).abs() < 1e-12 && (answer.ddq_dv[0] - damping).abs() < 1e-12,
+                "simulate {simulate}: ∂q̈/∂q̇ {} (expected {damping})",
+                answer.a[3]
+            );
+            assert!(
+                answer.acceleration[0].abs() < 1e-12,
+                "{:?}",
+                answer.acceleration
+            );
+        }
+    }
 }
