@@ -290,8 +290,8 @@ impl Simulator {
     }
 
     /// The passive joint forces the step applies: their joint data and which of them act
-    /// ([`SimConfig::passive`]), as [`linearize_with_passive`](crate::algorithms::linearize_with_passive)
-    /// takes them.
+    /// ([`SimConfig::passive`]), as
+    /// [`linearize_with_passive`](crate::algorithms::linearize_with_passive) takes them.
     pub fn passive_forces(&self) -> (&PassiveForces, &Passive) {
         (&self.eval.passive, &self.config.passive)
     }
