@@ -51,8 +51,8 @@ pub use bias::bias;
 pub use center_of_mass::{center_of_mass, center_of_mass_jacobian, CenterOfMass};
 pub use crba::crba;
 pub use derivatives::{
-    aba_derivatives, integrate_jacobians, linearize, rnea_derivatives, rnea_derivatives_with,
-    AbaDerivatives, Linearization, RneaDerivatives,
+    aba_derivatives, integrate_jacobians, linearize, linearize_with_passive, rnea_derivatives,
+    rnea_derivatives_with, AbaDerivatives, Linearization, RneaDerivatives,
 };
 pub use energy::energy;
 pub use forward_dynamics::{forward_dynamics, ForwardDynamicsMethod};

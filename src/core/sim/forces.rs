@@ -165,6 +165,61 @@ impl PassiveForces {
         }
         clamped
     }
+
+    /// The diagonal partials of [`total`](Self::total)'s `τ_t = clamp(τ_cmd) + τ_p(q, q̇)`, each
+    /// per velocity coordinate (zero, or one for `du`, where no passive force acts), by the same
+    /// formulas and branches:
+    ///
+    /// - `du = ∂τ_t/∂τ_cmd = clamp'(τ_cmd)`: 0 for a command `total` clamps, else 1,
+    /// - `dv = ∂τ_t/∂q̇ = −d − (f / v_s) (1 − tanh²(q̇ / v_s)) − b` (each term when on; `b` only
+    ///   outside a position limit while moving further out),
+    /// - `dq = ∂τ_t/∂q = −k` outside a position limit (0 at the bound itself, where `total`
+    ///   adds no limit force).
+    ///
+    /// The slices are the model's `nv` long; `q`, `v` and `tau_cmd` as [`total`](Self::total)
+    /// takes them.
+    #[allow(clippy::too_many_arguments)]
+    pub fn total_partials(
+        &self,
+        on: &Passive,
+        q: &[f64],
+        v: &[f64],
+        tau_cmd: &[f64],
+        dq: &mut [f64],
+        dv: &mut [f64],
+        du: &mut [f64],
+    ) {
+        dq.fill(0.0);
+        dv.fill(0.0);
+        du.fill(1.0);
+        for &(qi, vi, ref l) in &self.joints {
+            if on.effort_limits
+                && l.effort > 0.0
+                && l.effort.is_finite()
+                && tau_cmd[vi].abs() > l.effort
+            {
+                du[vi] = 0.0;
+            }
+            let rate = v[vi];
+            if on.damping {
+                dv[vi] -= l.damping;
+            }
+            if on.friction {
+                let t = (rate / FRICTION_SMOOTHING).tanh();
+                dv[vi] -= l.friction / FRICTION_SMOOTHING * (1.0 - t * t);
+            }
+            if on.position_limits && l.lower < l.upper {
+                let x = q[qi];
+                let outward = (x < l.lower && rate < 0.0) || (x > l.upper && rate > 0.0);
+                if x < l.lower || x > l.upper {
+                    dq[vi] -= LIMIT_STIFFNESS;
+                }
+                if outward {
+                    dv[vi] -= LIMIT_DAMPING;
+                }
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -289,6 +289,13 @@ impl Simulator {
             .clamp_efforts(&self.config.passive, tau_cmd, out);
     }
 
+    /// The passive joint forces the step applies: their joint data and which of them act
+    /// ([`SimConfig::passive`]), as
+    /// [`linearize_with_passive`](crate::algorithms::linearize_with_passive) takes them.
+    pub fn passive_forces(&self) -> (&PassiveForces, &Passive) {
+        (&self.eval.passive, &self.config.passive)
+    }
+
     /// How many effort evaluations were clamped to their limits so far.
     pub fn clamped(&self) -> u64 {
         self.eval.clamped

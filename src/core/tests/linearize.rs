@@ -1,7 +1,8 @@
 //! `linearize` and `integrate_jacobians` against independent references: the closed form of a
 //! rod pendulum (continuous and discrete), central differences of one actual step of the
 //! library's `Simulator` (semi-implicit Euler, passive forces off) on fixed, floating and mimic
-//! models, and central differences of `Model::integrate` for the SE(3) Jacobians.
+//! models, and with every passive force on (and of its acceleration for `dt = 0`) on a chain
+//! at its limits, and central differences of `Model::integrate` for the SE(3) Jacobians.
 //!
 //! Differences are measured on the tangent: `q ⊕ ε e_k` perturbs, and the answer's change is
 //! `log(q⁺₀⁻¹ q⁺)`, computed here from the rotation's axis-angle and `V(φ)⁻¹` (an inverse by LU,
@@ -18,11 +19,12 @@ mod common;
 use common::{max_diff, random_q, Rng};
 use nalgebra::{DMatrix, Matrix3, UnitQuaternion, Vector3};
 use spatial_dynamics_core::algorithms::{
-    aba_derivatives, integrate_jacobians, linearize, Linearization,
+    aba_derivatives, forward_dynamics, integrate_jacobians, linearize, linearize_with_passive,
+    Linearization,
 };
 use spatial_dynamics_core::model::examples::{pendulum_urdf, DEFAULT_ARM_URDF, MIMIC_GRIPPER_URDF};
 use spatial_dynamics_core::model::JointKind;
-use spatial_dynamics_core::sim::{Integrator, Passive, SimConfig, Simulator, State};
+use spatial_dynamics_core::sim::{Integrator, Passive, PassiveForces, SimConfig, Simulator, State};
 use spatial_dynamics_core::{
     urdf, DynamicsError, Externals, ForwardDynamicsMethod, Model, ModelOptions, Workspace,
 };
@@ -106,10 +108,15 @@ fn skew(a: &Vector3<f64>) -> Matrix3<f64> {
 }
 
 /// Richardson's five-point derivative of `f` at 0 along a scalar, each value a vector.
-fn five_point(mut f: impl FnMut(f64) -> Vec<f64>) -> Vec<f64> {
-    let (p1, m1, p2, m2) = (f(EPS), f(-EPS), f(2.0 * EPS), f(-2.0 * EPS));
+fn five_point(f: impl FnMut(f64) -> Vec<f64>) -> Vec<f64> {
+    five_point_by(EPS, f)
+}
+
+/// [`five_point`] with the step `eps`.
+fn five_point_by(eps: f64, mut f: impl FnMut(f64) -> Vec<f64>) -> Vec<f64> {
+    let (p1, m1, p2, m2) = (f(eps), f(-eps), f(2.0 * eps), f(-2.0 * eps));
     (0..p1.len())
-        .map(|i| (8.0 * (p1[i] - m1[i]) - (p2[i] - m2[i])) / (12.0 * EPS))
+        .map(|i| (8.0 * (p1[i] - m1[i]) - (p2[i] - m2[i])) / (12.0 * eps))
         .collect()
 }
 
@@ -123,8 +130,9 @@ fn point(model: &Model, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     (q, v, tau)
 }
 
-/// The simulator's semi-implicit Euler step of `h` from `(q, v)` under `τ`, passive forces off:
-/// `[log(q⁺₀⁻¹ q⁺); v⁺]` with `q⁺₀` the step's end from the unperturbed point.
+/// The simulator's semi-implicit Euler step of `h` from `(q, v)` under `τ`, passive forces off
+/// (or those of [`Step::with_passive`]): `[log(q⁺₀⁻¹ q⁺); v⁺]` with `q⁺₀` the step's end from
+/// the unperturbed point.
 struct Step {
     model: Model,
     sim: Simulator,
@@ -133,13 +141,24 @@ struct Step {
 
 impl Step {
     fn new(model: &Model, q: &[f64], v: &[f64], tau: &[f64], h: f64) -> Step {
+        Step::with_passive(model, q, v, tau, h, Passive::default())
+    }
+
+    fn with_passive(
+        model: &Model,
+        q: &[f64],
+        v: &[f64],
+        tau: &[f64],
+        h: f64,
+        passive: Passive,
+    ) -> Step {
         let config = SimConfig {
             integrator: Integrator::SemiImplicitEuler,
             // CRBA: ABA does not take mimic joints.
             method: ForwardDynamicsMethod::Crba,
             dt: h,
             substeps: 1,
-            passive: Passive::default(),
+            passive,
             ..Default::default()
         };
         let mut step = Step {
@@ -438,6 +457,204 @@ fn linearize_allocates_nothing() {
     for dt in [0.0, 1e-3] {
         let n = common::allocations_during(|| {
             linearize(&model, &mut ws, &q, &v, &tau, dt, &mut lin).unwrap();
+        });
+        assert_eq!(n, 0, "dt = {dt}: {n} allocations");
+    }
+}
+
+/// Three revolute joints about `y` in a chain, each with damping 0.3, friction 0.2, position
+/// limits `[−1, 1]` and an effort limit of 5.
+fn passive_chain() -> Model {
+    let inertial = r#"<inertial><origin xyz="0 0 0.2"/><mass value="1"/><inertia ixx="0.02" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.005"/></inertial>"#;
+    let mut urdf = String::from(r#"<robot name="passive_chain"><link name="world"/>"#);
+    for i in 1..=3 {
+        let parent = if i == 1 {
+            "world".to_string()
+        } else {
+            format!("l{}", i - 1)
+        };
+        urdf += &format!(
+            r#"<link name="l{i}">{inertial}</link>
+            <joint name="j{i}" type="revolute"><parent link="{parent}"/><child link="l{i}"/>
+            <origin xyz="0 0 0.4"/><axis xyz="0 1 0"/>
+            <limit lower="-1" upper="1" effort="5" velocity="10"/>
+            <dynamics damping="0.3" friction="0.2"/></joint>"#
+        );
+    }
+    urdf += "</robot>";
+    load(&urdf, false)
+}
+
+/// The points about which [`linearization_includes_the_simulators_passive_forces`] linearises,
+/// `(q, q̇, τ)`: joint 1 outside its upper limit moving further out (spring and damper), then
+/// outside its lower limit moving back in (spring alone); joint 2 inside its limits, slow enough
+/// for the smoothed friction to curve (`q̇ = 2 v_s`); joint 3's command of 8 clamped to 5.
+#[allow(clippy::type_complexity)]
+fn passive_points() -> [(Vec<f64>, Vec<f64>, Vec<f64>); 2] {
+    [
+        (
+            vec![1.2, 0.3, -0.5],
+            vec![0.5, -0.02, 0.3],
+            vec![1.0, -0.5, 8.0],
+        ),
+        (
+            vec![-1.1, -0.4, 0.6],
+            vec![0.4, 0.02, -0.7],
+            vec![-1.0, 0.5, -8.0],
+        ),
+    ]
+}
+
+/// `A`, `B` of the simulator's dynamics with damping, friction, effort and position limits on:
+/// for `dt = 1 ms` the central differences of one step of the simulator itself (semi-implicit
+/// Euler with those passive forces), and for `dt = 0` the lower rows against central
+/// differences of its acceleration `FD(q, q̇, clamp(τ) + τ_p)` ([`PassiveForces::total`], as
+/// the simulator evaluates it), the upper rows `[0 1]`.
+///
+/// The step is `ε = 1e-6`: every kink (the bounds, the damper's switch at `q̇ = 0`, the effort
+/// clamp) is more than `2ε` away, and the friction `tanh(q̇ / v_s)` with `v_s = 0.01` has
+/// `|f⁽⁵⁾| ~ v_s⁻⁵ = 1e10`, a truncation `ε⁴ |f⁽⁵⁾| / 30 ≈ 3e-16`; rounding is
+/// `1.5 ε_mach F / ε ≈ 3.3e-10 F` for values of order `F` (up to the limit spring's 1000 N·m/rad
+/// over `H`), times the solve's conditioning. The bound is `1e-6 (1 + F)`; the errors measured
+/// are printed (`--nocapture`): at most 4e-9 (1 + F).
+#[test]
+fn linearization_includes_the_simulators_passive_forces() {
+    const EPS_PASSIVE: f64 = 1e-6;
+    const TOL_PASSIVE: f64 = 1e-6;
+    let model = passive_chain();
+    let nv = model.nv();
+    let forces = PassiveForces::new(&model);
+    let on = Passive::all();
+    let mut ws = Workspace::new(&model);
+    let mut lin = Linearization::new(&model);
+    let mut fd_ws = Workspace::new(&model);
+    let mut total = vec![0.0; nv];
+    let mut qdd = |q: &[f64], v: &[f64], tau: &[f64]| {
+        forces.total(&on, q, v, tau, &mut total);
+        let a = forward_dynamics(
+            &model,
+            &mut fd_ws,
+            q,
+            v,
+            &total,
+            ForwardDynamicsMethod::Aba,
+            &Externals::none(),
+        )
+        .unwrap();
+        a.to_vec()
+    };
+    let check = |what: &str, k: usize, fd: &[f64], analytic: &[f64], scale: f64| {
+        let err = max_diff(fd, analytic);
+        assert!(
+            err <= TOL_PASSIVE * scale,
+            "{what} column {k} off by {err:e}\nfd {fd:?}\nanalytic {analytic:?}"
+        );
+        err / scale
+    };
+    for (q, v, tau) in passive_points() {
+        let mut worst = 0.0f64;
+        // Continuous time: the lower rows are the derivatives of the simulator's q̈.
+        linearize_with_passive(
+            &model,
+            &mut ws,
+            &q,
+            &v,
+            &tau,
+            0.0,
+            Some((&forces, &on)),
+            &mut lin,
+        )
+        .unwrap();
+        let a0 = qdd(&q, &v, &tau);
+        let scale = 1.0 + a0.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        assert!(
+            max_diff(ws.qdd(), &a0) < 1e-12 * scale,
+            "q̈ {:?} vs {a0:?}",
+            ws.qdd()
+        );
+        for k in 0..nv {
+            let lower = |m: &DMatrix<f64>, c: usize| column(m, c)[nv..].to_vec();
+            let upper = |m: &DMatrix<f64>, c: usize| column(m, c)[..nv].to_vec();
+            let dq = five_point_by(EPS_PASSIVE, |e| qdd(&moved(&model, &q, k, e), &v, &tau));
+            let dv = five_point_by(EPS_PASSIVE, |e| {
+                let mut v = v.clone();
+                v[k] += e;
+                qdd(&q, &v, &tau)
+            });
+            let du = five_point_by(EPS_PASSIVE, |e| {
+                let mut tau = tau.clone();
+                tau[k] += e;
+                qdd(&q, &v, &tau)
+            });
+            worst = worst.max(check("continuous ∂q̈/∂q", k, &dq, &lower(lin.a(), k), scale));
+            worst = worst.max(check(
+                "continuous ∂q̈/∂q̇",
+                k,
+                &dv,
+                &lower(lin.a(), nv + k),
+                scale,
+            ));
+            worst = worst.max(check("continuous ∂q̈/∂τ", k, &du, &lower(lin.b(), k), scale));
+            let mut e = vec![0.0; nv];
+            e[k] = 1.0;
+            assert_eq!(upper(lin.a(), nv + k), e);
+            assert!(upper(lin.a(), k)
+                .iter()
+                .chain(&upper(lin.b(), k))
+                .all(|&x| x == 0.0));
+        }
+        // The clamped command moves nothing.
+        assert!(column(lin.b(), 2).iter().all(|&x| x == 0.0));
+        // Discrete time: the columns are the derivatives of the simulator's step.
+        let h = 1e-3;
+        linearize_with_passive(
+            &model,
+            &mut ws,
+            &q,
+            &v,
+            &tau,
+            h,
+            Some((&forces, &on)),
+            &mut lin,
+        )
+        .unwrap();
+        let mut step = Step::with_passive(&model, &q, &v, &tau, h, on);
+        let x0 = step.x(&q, &v, &tau);
+        let scale = 1.0 + x0.iter().chain(&q).fold(0.0f64, |m, x| m.max(x.abs()));
+        for k in 0..nv {
+            let dq = five_point_by(EPS_PASSIVE, |e| step.x(&moved(&model, &q, k, e), &v, &tau));
+            let dv = five_point_by(EPS_PASSIVE, |e| {
+                let mut v = v.clone();
+                v[k] += e;
+                step.x(&q, &v, &tau)
+            });
+            let du = five_point_by(EPS_PASSIVE, |e| {
+                let mut tau = tau.clone();
+                tau[k] += e;
+                step.x(&q, &v, &tau)
+            });
+            worst = worst.max(check("∂x⁺/∂q", k, &dq, &column(lin.a(), k), scale));
+            worst = worst.max(check("∂x⁺/∂q̇", k, &dv, &column(lin.a(), nv + k), scale));
+            worst = worst.max(check("∂x⁺/∂τ", k, &du, &column(lin.b(), k), scale));
+        }
+        println!("passive chain at q = {q:?}: largest error {worst:.1e} × (1 + F)");
+    }
+}
+
+/// With passive forces the linearisation allocates nothing either.
+#[test]
+fn linearize_with_passive_allocates_nothing() {
+    let model = passive_chain();
+    let forces = PassiveForces::new(&model);
+    let on = Passive::all();
+    let mut ws = Workspace::new(&model);
+    let mut lin = Linearization::new(&model);
+    let (q, v, tau) = passive_points()[0].clone();
+    let passive = Some((&forces, &on));
+    linearize_with_passive(&model, &mut ws, &q, &v, &tau, 1e-3, passive, &mut lin).unwrap();
+    for dt in [0.0, 1e-3] {
+        let n = common::allocations_during(|| {
+            linearize_with_passive(&model, &mut ws, &q, &v, &tau, dt, passive, &mut lin).unwrap();
         });
         assert_eq!(n, 0, "dt = {dt}: {n} allocations");
     }

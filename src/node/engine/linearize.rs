@@ -1,17 +1,23 @@
 //! `~/linearize`: the state-space `A`, `B` of `x = [q; v]`, `u = τ` at the state a request
 //! gives (see `msg/srv/Linearize.srv`), in continuous time or over one semi-implicit Euler step,
-//! from the library's [`linearize`].
+//! from the library's [`linearize_with_passive`].
 //!
 //! The state is read as for `~/forward_dynamics` (joint arrays by name, the floating base from
-//! `base_pose` and `base_twist`); an empty `effort` linearises at `τ = ID(q, v, 0)`, the efforts
-//! that hold the state still. Every matrix is answered row-major over the velocity coordinates
-//! in answer order: a floating base's six first, then the joints as the request named them.
+//! `base_pose` and `base_twist`). In serve mode the dynamics are the model's own, and an empty
+//! `effort` linearises at `τ = ID(q, v, 0)`, the efforts that hold the state still. In simulate
+//! mode they are the simulator's, with the passive joint forces of its `passive` parameter,
+//! `q̈ = FD(q, v, clamp(τ) + τ_p(q, v))`, and an empty `effort` is the command
+//! `τ = ID(q, v, 0) − τ_p(q, v)` whose total effort holds the state still (refused, naming the
+//! joint, where that command is beyond an effort limit the simulator clamps). Every matrix is
+//! answered row-major over the velocity coordinates in answer order: a floating base's six
+//! first, then the joints as the request named them.
 
 use super::requests::{Refused, NOT_FINITE};
 use super::Engine;
 use crate::ros::msgs::{LinearizeRequest, LinearizeResponse};
 use nalgebra::DMatrix;
-use spatial_dynamics_core::algorithms::{bias, linearize, Linearization};
+use spatial_dynamics_core::algorithms::{bias, linearize_with_passive, Linearization};
+use spatial_dynamics_core::sim::{Passive, PassiveForces};
 use spatial_dynamics_core::Externals;
 
 impl Engine {
@@ -34,21 +40,41 @@ impl Engine {
             )
             .map_err(|e| e.to_string())?;
             self.tau.copy_from_slice(tau);
+            if let Some((forces, on)) = self
+                .simulation
+                .as_ref()
+                .map(|s| s.simulator().passive_forces())
+            {
+                if let Err(vi) = holding_command(forces, on, &self.q, &self.v, &mut self.tau) {
+                    let (index, columns) = self.velocity_columns();
+                    let name =
+                        (index.iter().position(|&i| i == vi)).map_or("a joint", |c| &columns[c]);
+                    return Err(format!(
+                        "the effort that holds the state still is beyond {name}'s effort \
+                         limit: give the efforts to linearise at"
+                    ));
+                }
+            }
         } else {
             self.read_efforts(&req.effort, &req.base_wrench)?;
         }
+        let passive = self
+            .simulation
+            .as_ref()
+            .map(|s| s.simulator().passive_forces());
         let (index, columns) = self.velocity_columns();
         let model = &self.model;
         let linearization = self
             .linearization
             .get_or_insert_with(|| Linearization::new(model));
-        let d = linearize(
+        let d = linearize_with_passive(
             &self.model,
             &mut self.ws,
             &self.q,
             &self.v,
             &self.tau,
             req.dt,
+            passive,
             linearization,
         )
         .map_err(|e| e.to_string())?;
@@ -129,6 +155,31 @@ const BASE_COLUMNS: [&str; 6] = [
     "angular_z",
 ];
 
+/// `tau = ID(q, v, 0) − τ_p(q, v)`, from `tau = ID(q, v, 0)`: the command whose total effort
+/// `clamp(τ) + τ_p` ([`PassiveForces::total`]) is `ID(q, v, 0)`, holding the state still under
+/// the passive forces `on`. Where that command is beyond its joint's effort limit (with
+/// `on.effort_limits`) no command holds the state still: the error is that velocity index.
+fn holding_command(
+    forces: &PassiveForces,
+    on: &Passive,
+    q: &[f64],
+    v: &[f64],
+    tau: &mut [f64],
+) -> Result<(), usize> {
+    let nv = tau.len();
+    let (zero, mut passive) = (vec![0.0; nv], vec![0.0; nv]);
+    forces.total(on, q, v, &zero, &mut passive);
+    for (tau, p) in tau.iter_mut().zip(&passive) {
+        *tau -= p;
+    }
+    let mut clamped = vec![0.0; nv];
+    forces.clamp_efforts(on, tau, &mut clamped);
+    match (0..nv).find(|&i| clamped[i] != tau[i]) {
+        Some(i) => Err(i),
+        None => Ok(()),
+    }
+}
+
 /// `m`'s entries at `rows` × `columns`, row-major.
 pub(super) fn permuted(m: &DMatrix<f64>, rows: &[usize], columns: &[usize]) -> Vec<f64> {
     rows.iter()
@@ -175,5 +226,45 @@ mod tests {
         req.base_wrench.torque.z = f64::INFINITY;
         let answer = engine.linearize(&req);
         assert_eq!(answer.message, "base_wrench.torque.z is inf");
+    }
+
+    /// One damped joint (`d = 0.5`): in simulate mode with `passive: [damping]` the continuous
+    /// `∂q̈/∂q̇` is `−d H⁻¹` and an empty effort holds the state still (`q̈ = 0`); in serve mode
+    /// `∂q̈/∂q̇` is the model's own, zero for one joint.
+    #[test]
+    fn simulate_mode_linearises_with_the_simulators_passive_forces() {
+        let urdf = r#"<robot name="damped"><link name="world"/>
+            <link name="rod"><inertial><origin xyz="0 0 -0.5"/><mass value="2"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.01"/></inertial></link>
+            <joint name="j" type="revolute"><parent link="world"/><child link="rod"/><axis xyz="0 1 0"/>
+            <limit lower="-3" upper="3" effort="100" velocity="10"/><dynamics damping="0.5"/></joint>
+            </robot>"#;
+        let req = LinearizeRequest {
+            name: vec!["j".into()],
+            position: vec![0.3],
+            velocity: vec![0.2],
+            ..Default::default()
+        };
+        for simulate in [false, true] {
+            let settings = Settings {
+                robot_description: urdf.into(),
+                simulate,
+                passive: vec!["damping".into()],
+                ..Settings::default()
+            };
+            let mut engine = Engine::from_settings(&settings, None).unwrap();
+            let answer = engine.linearize(&req);
+            assert!(answer.success, "{}", answer.message);
+            let damping = if simulate { -0.5 * answer.minv[0] } else { 0.0 };
+            assert!(
+                (answer.a[3] - damping).abs() < 1e-12 && (answer.ddq_dv[0] - damping).abs() < 1e-12,
+                "simulate {simulate}: ∂q̈/∂q̇ {} (expected {damping})",
+                answer.a[3]
+            );
+            assert!(
+                answer.acceleration[0].abs() < 1e-12,
+                "{:?}",
+                answer.acceleration
+            );
+        }
     }
 }

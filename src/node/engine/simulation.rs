@@ -74,6 +74,13 @@ pub struct Simulation {
     publish_tf: bool,
 }
 
+impl Simulation {
+    /// The simulator stepping the state.
+    pub(super) fn simulator(&self) -> &Simulator {
+        &self.sim
+    }
+}
+
 impl Engine {
     /// Starts simulating (simulate mode) from `initial_positions`, or stops (serve mode).
     pub(crate) fn configure_simulation(&mut self, settings: &Settings) -> Result<(), String> {

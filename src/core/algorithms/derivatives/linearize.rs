@@ -26,15 +26,31 @@
 //! B = [h² D_v H⁻¹;  h H⁻¹]
 //! ```
 //!
-//! `A = 1 + h A_c + O(h²)` with `A_c` the continuous `A`. No passive joint forces, contacts or
-//! external wrenches enter: the map is of the model's own dynamics under `τ`, the simulator's
-//! step with its passive forces off.
+//! `A = 1 + h A_c + O(h²)` with `A_c` the continuous `A`. No contacts or external wrenches
+//! enter. [`linearize`] is of the model's own dynamics under `τ`, the simulator's step with its
+//! passive forces off.
+//!
+//! **Passive joint forces** ([`linearize_with_passive`]): the simulator's dynamics
+//! `q̈ = FD(q, q̇, τ_t)` under the total effort `τ_t = clamp(τ) + τ_p(q, q̇)`
+//! ([`PassiveForces::total`]), evaluated at the step's start `(q, q̇)` as semi-implicit Euler
+//! does. Every passive term acts on one one-dof coordinate alone, so its partials are diagonal
+//! ([`PassiveForces::total_partials`]): with `P_q = diag(∂τ_p/∂q)`, `P_v = diag(∂τ_p/∂q̇)`,
+//! `U = diag(clamp'(τ))` (0 for a clamped command, else 1) and the derivatives of `FD` taken
+//! at `τ_t`,
+//!
+//! ```text
+//! ∂q̈/∂q = ∂FD/∂q + H⁻¹ P_q,   ∂q̈/∂q̇ = ∂FD/∂q̇ + H⁻¹ P_v,   ∂q̈/∂τ = H⁻¹ U
+//! ```
+//!
+//! and these take the place of `∂q̈/∂q`, `∂q̈/∂q̇` and `H⁻¹` in `A` and `B` above (`B`'s
+//! column `j` is scaled by `U_jj`).
 
 use super::integrate_jacobians::integrate_jacobians;
 use super::rnea_derivatives::check_matrix;
 use super::{aba_derivatives, AbaDerivatives};
 use crate::error::{check_len, DynamicsError};
 use crate::model::{JointKind, Model};
+use crate::sim::{Passive, PassiveForces};
 use crate::spatial::{skew, Vector3};
 use crate::{Externals, Workspace};
 use nalgebra::DMatrix;
@@ -48,6 +64,12 @@ pub struct Linearization {
     dq: DMatrix<f64>,
     dv: DMatrix<f64>,
     v_next: Vec<f64>,
+    /// The total effort `τ_t` and the diagonals `∂τ_t/∂q`, `∂τ_t/∂q̇`, `∂τ_t/∂τ` of the
+    /// passive forces.
+    tau_total: Vec<f64>,
+    dtau_dq: Vec<f64>,
+    dtau_dv: Vec<f64>,
+    dtau_du: Vec<f64>,
 }
 
 impl Linearization {
@@ -63,6 +85,10 @@ impl Linearization {
             dq: zeros(nv, nv),
             dv: zeros(nv, nv),
             v_next: vec![0.0; nv],
+            tau_total: vec![0.0; nv],
+            dtau_dq: vec![0.0; nv],
+            dtau_dv: vec![0.0; nv],
+            dtau_du: vec![0.0; nv],
         }
     }
 
@@ -91,6 +117,26 @@ pub fn linearize<'w>(
     dt: f64,
     out: &mut Linearization,
 ) -> Result<AbaDerivatives<'w>, DynamicsError> {
+    linearize_with_passive(model, ws, q, v, tau, dt, None, out)
+}
+
+/// [`linearize`] of the simulator's dynamics with the passive joint forces `passive` (the
+/// forces' joint data and which of them act) added to the command `τ`:
+/// `q̈ = FD(q, q̇, clamp(τ) + τ_p(q, q̇))` (the module doc gives the partials). `None` is
+/// [`linearize`]. The returned `∂q̈/∂q`, `∂q̈/∂q̇` include the passive terms; its `minv` is
+/// `H⁻¹ = ∂q̈/∂τ_t`, of the total effort (`B` carries `clamp'`); `q̈` is left in `ws.qdd()`.
+/// Allocates nothing.
+#[allow(clippy::too_many_arguments)]
+pub fn linearize_with_passive<'w>(
+    model: &Model,
+    ws: &'w mut Workspace,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    dt: f64,
+    passive: Option<(&PassiveForces, &Passive)>,
+    out: &mut Linearization,
+) -> Result<AbaDerivatives<'w>, DynamicsError> {
     if !(dt.is_finite() && dt >= 0.0) {
         return Err(DynamicsError::BadStep { dt });
     }
@@ -100,7 +146,32 @@ pub fn linearize<'w>(
         nv,
         out.v_next.len(),
     )?;
+    let tau = match passive {
+        Some((forces, on)) => {
+            check_len("q", model.nq(), q.len())?;
+            check_len("v", nv, v.len())?;
+            check_len("tau", nv, tau.len())?;
+            forces.total(on, q, v, tau, &mut out.tau_total);
+            forces.total_partials(
+                on,
+                q,
+                v,
+                tau,
+                &mut out.dtau_dq,
+                &mut out.dtau_dv,
+                &mut out.dtau_du,
+            );
+            &out.tau_total[..]
+        }
+        None => {
+            out.dtau_dq.fill(0.0);
+            out.dtau_dv.fill(0.0);
+            out.dtau_du.fill(1.0);
+            tau
+        }
+    };
     aba_derivatives(model, ws, q, v, tau, &Externals::none())?;
+    add_passive_partials(ws, &out.dtau_dq, &out.dtau_dv);
     let d = &ws.derivatives;
     let (a, b) = (&mut out.a, &mut out.b);
     if dt == 0.0 {
@@ -151,6 +222,11 @@ pub fn linearize<'w>(
         let mut top_left = a.view_mut((0, 0), (nv, nv));
         top_left += &out.dq;
     }
+    for (mut column, &u) in b.column_iter_mut().zip(&out.dtau_du) {
+        if u != 1.0 {
+            column *= u;
+        }
+    }
     check_matrix(model, "A", a)?;
     check_matrix(model, "B", b)?;
     Ok(AbaDerivatives {
@@ -158,4 +234,18 @@ pub fn linearize<'w>(
         ddq_dv: &ws.derivatives.ddq_dv,
         minv: &ws.derivatives.minv,
     })
+}
+
+/// `∂q̈/∂q += H⁻¹ diag(p_q)`, `∂q̈/∂q̇ += H⁻¹ diag(p_v)` in `ws`'s derivatives of forward
+/// dynamics: column `j` of `H⁻¹` scaled by the passive partial of coordinate `j`.
+fn add_passive_partials(ws: &mut Workspace, p_q: &[f64], p_v: &[f64]) {
+    let d = &mut ws.derivatives;
+    for (j, (&pq, &pv)) in p_q.iter().zip(p_v).enumerate() {
+        if pq != 0.0 {
+            d.ddq_dq.column_mut(j).axpy(pq, &d.minv.column(j), 1.0);
+        }
+        if pv != 0.0 {
+            d.ddq_dv.column_mut(j).axpy(pv, &d.minv.column(j), 1.0);
+        }
+    }
 }

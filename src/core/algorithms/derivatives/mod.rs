@@ -26,7 +26,7 @@ mod velocity_product;
 
 pub use aba_derivatives::{aba_derivatives, AbaDerivatives};
 pub use integrate_jacobians::integrate_jacobians;
-pub use linearize::{linearize, Linearization};
+pub use linearize::{linearize, linearize_with_passive, Linearization};
 pub use rnea_derivatives::{rnea_derivatives, rnea_derivatives_with, RneaDerivatives};
 
 use crate::model::Model;
