@@ -16,7 +16,7 @@
 //!
 //! **The copies compute the same bits.** Rust neither contracts a multiplication and an
 //! addition into one fused rounding nor reorders floating-point operations, whatever the target
-//! features, so every operation is the same IEEE operation in either copy: only the instructions
+//! features, so every operation is the same IEEE operation in every copy: only the instructions
 //! that carry it differ (a test holds every dispatched kernel to exact equality).
 
 use crate::{Model, Workspace};
