@@ -199,6 +199,27 @@ fn moved(model: &Model, q: &[f64], k: usize, eps: f64) -> Vec<f64> {
     out
 }
 
+/// Five-point differences of `f(q, q̇, τ)` along coordinate `k` of each: `q` on the tangent
+/// ([`moved`]), `q̇` and `τ` as they are.
+fn state_columns(
+    model: &Model,
+    (q, v, tau): (&[f64], &[f64], &[f64]),
+    k: usize,
+    eps: f64,
+    mut f: impl FnMut(&[f64], &[f64], &[f64]) -> Vec<f64>,
+) -> [Vec<f64>; 3] {
+    let bumped = |x: &[f64], e: f64| {
+        let mut x = x.to_vec();
+        x[k] += e;
+        x
+    };
+    [
+        five_point_by(eps, |e| f(&moved(model, q, k, e), v, tau)),
+        five_point_by(eps, |e| f(q, &bumped(v, e), tau)),
+        five_point_by(eps, |e| f(q, v, &bumped(tau, e))),
+    ]
+}
+
 fn column(m: &DMatrix<f64>, c: usize) -> Vec<f64> {
     m.column(c).iter().copied().collect()
 }
@@ -575,17 +596,7 @@ fn linearization_includes_the_simulators_passive_forces() {
         for k in 0..nv {
             let lower = |m: &DMatrix<f64>, c: usize| column(m, c)[nv..].to_vec();
             let upper = |m: &DMatrix<f64>, c: usize| column(m, c)[..nv].to_vec();
-            let dq = five_point_by(EPS_PASSIVE, |e| qdd(&moved(&model, &q, k, e), &v, &tau));
-            let dv = five_point_by(EPS_PASSIVE, |e| {
-                let mut v = v.clone();
-                v[k] += e;
-                qdd(&q, &v, &tau)
-            });
-            let du = five_point_by(EPS_PASSIVE, |e| {
-                let mut tau = tau.clone();
-                tau[k] += e;
-                qdd(&q, &v, &tau)
-            });
+            let [dq, dv, du] = state_columns(&model, (&q, &v, &tau), k, EPS_PASSIVE, &mut qdd);
             worst = worst.max(check("continuous ∂q̈/∂q", k, &dq, &lower(lin.a(), k), scale));
             worst = worst.max(check(
                 "continuous ∂q̈/∂q̇",
@@ -622,17 +633,10 @@ fn linearization_includes_the_simulators_passive_forces() {
         let x0 = step.x(&q, &v, &tau);
         let scale = 1.0 + x0.iter().chain(&q).fold(0.0f64, |m, x| m.max(x.abs()));
         for k in 0..nv {
-            let dq = five_point_by(EPS_PASSIVE, |e| step.x(&moved(&model, &q, k, e), &v, &tau));
-            let dv = five_point_by(EPS_PASSIVE, |e| {
-                let mut v = v.clone();
-                v[k] += e;
-                step.x(&q, &v, &tau)
-            });
-            let du = five_point_by(EPS_PASSIVE, |e| {
-                let mut tau = tau.clone();
-                tau[k] += e;
-                step.x(&q, &v, &tau)
-            });
+            let [dq, dv, du] =
+                state_columns(&model, (&q, &v, &tau), k, EPS_PASSIVE, |q, v, tau| {
+                    step.x(q, v, tau)
+                });
             worst = worst.max(check("∂x⁺/∂q", k, &dq, &column(lin.a(), k), scale));
             worst = worst.max(check("∂x⁺/∂q̇", k, &dv, &column(lin.a(), nv + k), scale));
             worst = worst.max(check("∂x⁺/∂τ", k, &du, &column(lin.b(), k), scale));
