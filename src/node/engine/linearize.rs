@@ -267,4 +267,50 @@ mod tests {
             );
         }
     }
+
+    /// A rod whose gravity torque at the state (`2 · 9.81 · 0.5 · sin 0.3` ≈ 2.9 N·m) is beyond
+    /// its 1 N·m effort limit: in simulate mode with `passive: [effort_limits]` no command holds
+    /// it still, so an empty effort is refused naming the joint, and given efforts are still
+    /// answered; in serve mode (nothing clamped) the empty effort is answered.
+    #[test]
+    fn a_holding_effort_beyond_the_effort_limit_is_refused_naming_the_joint() {
+        let urdf = r#"<robot name="weak"><link name="world"/>
+            <link name="rod"><inertial><origin xyz="0 0 -0.5"/><mass value="2"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.01"/></inertial></link>
+            <joint name="weak_joint" type="revolute"><parent link="world"/><child link="rod"/><axis xyz="0 1 0"/>
+            <limit lower="-3" upper="3" effort="1" velocity="10"/></joint>
+            </robot>"#;
+        let req = LinearizeRequest {
+            name: vec!["weak_joint".into()],
+            position: vec![0.3],
+            velocity: vec![0.0],
+            ..Default::default()
+        };
+        for simulate in [false, true] {
+            let settings = Settings {
+                robot_description: urdf.into(),
+                simulate,
+                passive: vec!["effort_limits".into()],
+                ..Settings::default()
+            };
+            let mut engine = Engine::from_settings(&settings, None).unwrap();
+            let answer = engine.linearize(&req);
+            if simulate {
+                assert!(!answer.success);
+                assert!(
+                    answer.message.contains("weak_joint's effort limit"),
+                    "{}",
+                    answer.message
+                );
+                let given = LinearizeRequest {
+                    effort: vec![0.5],
+                    ..req.clone()
+                };
+                let answer = engine.linearize(&given);
+                assert!(answer.success, "{}", answer.message);
+            } else {
+                assert!(answer.success, "{}", answer.message);
+                assert!(answer.effort[0].abs() > 2.0, "{:?}", answer.effort);
+            }
+        }
+    }
 }
