@@ -9,7 +9,7 @@ three references), center_of_mass, rnea_derivatives and aba_derivatives (Pinocch
 symmetrised from their upper triangle), each to TOLERANCE relative to the reference's largest
 entry. Then: N states as 2-D arrays equal the single calls row by row, bit for bit; errors
 raise DynamicsError, a ValueError, naming the coordinate, frame, argument or row; masked arrays
-raise TypeError naming the argument; a batch runs with the GIL released, from the inputs as
+raise TypeError naming the argument (or its item, inside a list); a batch runs with the GIL released, from the inputs as
 they were at the call while another thread writes them; the stubs
 (src/python/spatial_dynamics.pyi) name exactly the module's public names and Model's, with the
 module's parameters.
@@ -582,6 +582,15 @@ def test_masked_arrays_are_refused():
         m.gravity(masked)
     assert np.array_equal(m.gravity(masked.filled(q[0])), m.gravity(q))
     assert np.array_equal(m.gravity(masked.data), m.gravity(hidden))
+    # Inside a list or tuple (numpy.asarray would drop the mask): a masked row of N states, or
+    # numpy.ma.masked among one state's values, named by its index.
+    with pytest.raises(TypeError, match=r"^q\[1\] is a masked array .* pass q\[1\]\.filled"):
+        m.gravity([q, masked, q])
+    with pytest.raises(TypeError, match=r"^v\[0\] is a masked array"):
+        m.rnea(q, (masked, q), [q, q])
+    with pytest.raises(TypeError, match=r"^q\[2\] is a masked array"):
+        m.gravity([*q[:2], np.ma.masked, *q[3:]])
+    assert np.array_equal(m.gravity([q, masked.data]), np.stack([m.gravity(q), m.gravity(hidden)]))
 
 
 def test_real_dtypes_are_converted():

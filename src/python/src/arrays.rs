@@ -3,7 +3,8 @@
 //! object with `__array__`) through `numpy.asarray`. Only real numbers are taken (dtype kinds
 //! float, signed and unsigned integer): anything else (bool, complex, strings, bytes, dates,
 //! objects, `None`) is a `TypeError` naming the argument, and so is a masked array
-//! (`numpy.ma.MaskedArray`), whose mask the computation could not honour. A 1-D argument is one
+//! (`numpy.ma.MaskedArray`), whose mask the computation could not honour, also as an item of a
+//! list or tuple (`name[i]`). A 1-D argument is one
 //! state, a 2-D one N states (a row each); any other shape is a `DynamicsError` naming the
 //! argument and the length the model needs. [`Arg::rows`] then reads the values: a
 //! C-contiguous, aligned, native float64 array is borrowed as it is, anything else is copied
@@ -51,6 +52,9 @@ impl<'py> Arg<'py> {
             Err(_) => {
                 let fresh = value.is_exact_instance_of::<PyList>()
                     || value.is_exact_instance_of::<PyTuple>();
+                if fresh {
+                    refuse_masked_rows(value, name)?;
+                }
                 (as_array(value, name)?, fresh)
             }
         };
@@ -167,22 +171,50 @@ impl Rows<'_> {
     }
 }
 
-/// Whether `value` is a numpy masked array (`numpy.ma.MaskedArray` or a subclass). None exists
-/// before `numpy.ma` is imported (numpy does not import it by itself), so the check does not
-/// import it: it looks in `sys.modules`.
+/// Whether `value` is a numpy masked array (`numpy.ma.MaskedArray` or a subclass).
 #[cold]
 fn is_masked(value: &Bound<'_, PyAny>) -> PyResult<bool> {
+    match masked_array_type(value.py())? {
+        Some(masked) => value.is_instance(masked.bind(value.py())),
+        None => Ok(false),
+    }
+}
+
+/// `numpy.ma.MaskedArray`, or `None` while `numpy.ma` is not imported: no masked array exists
+/// before (numpy does not import it by itself), so this does not import it; it looks in
+/// `sys.modules`.
+fn masked_array_type(py: Python<'_>) -> PyResult<Option<&'static Py<PyType>>> {
     static MASKED_ARRAY: PyOnceLock<Py<PyType>> = PyOnceLock::new();
-    let py = value.py();
     if let Some(masked) = MASKED_ARRAY.get(py) {
-        return value.is_instance(masked.bind(py));
+        return Ok(Some(masked));
     }
     let modules = py.import("sys")?.getattr("modules")?;
     let Ok(ma) = modules.get_item("numpy.ma") else {
-        return Ok(false);
+        return Ok(None);
     };
     let masked = ma.getattr("MaskedArray")?.cast_into::<PyType>()?;
-    value.is_instance(MASKED_ARRAY.get_or_init(py, || masked.unbind()).bind(py))
+    Ok(Some(MASKED_ARRAY.get_or_init(py, || masked.unbind())))
+}
+
+/// A `TypeError` naming `{name}[i]` for the first item of the list or tuple `value` that is a
+/// masked array (a row of N states, or `numpy.ma.masked` among the values): `numpy.asarray`
+/// would read the values under its mask (a masked value as NaN, a masked row's hidden data as
+/// it is).
+fn refuse_masked_rows(value: &Bound<'_, PyAny>, name: &str) -> PyResult<()> {
+    let Some(masked) = masked_array_type(value.py())? else {
+        return Ok(());
+    };
+    let masked = masked.bind(value.py());
+    for (i, item) in value.try_iter()?.enumerate() {
+        if item?.is_instance(masked)? {
+            return Err(PyTypeError::new_err(format!(
+                "{name}[{i}] is a masked array (numpy.ma.MaskedArray): masked arrays are not \
+                 taken, their mask would be ignored; pass {name}[{i}].filled(value) or \
+                 {name}[{i}].data"
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// `numpy.asarray(value)`: the array numpy reads from a list, tuple or other array-like. A
