@@ -542,17 +542,14 @@ mod tests {
         std::fs::create_dir_all(&bag).unwrap();
         let live = dir.join("live.db3");
         let db = rusqlite::Connection::open(&live).unwrap();
-        db.execute_batch(
-            "PRAGMA journal_mode=WAL; PRAGMA wal_autocheckpoint=0;
-             CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
-                 serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
-             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
-                 timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+        db.execute_batch(&format!(
+            "PRAGMA journal_mode=WAL; PRAGMA wal_autocheckpoint=0; {}
              INSERT INTO topics VALUES (1, '/s', 'std_msgs/msg/String', 'cdr', '');
              INSERT INTO messages VALUES (1, 1, 10, X'000100000300000061620000');
              PRAGMA wal_checkpoint(TRUNCATE);
              INSERT INTO messages VALUES (2, 1, 20, X'000100000300000068690000');",
-        )
+            sqlite_file::ROSBAG2_TABLES
+        ))
         .unwrap();
         // What a killed recorder leaves: the database and its log, the second row only in the log.
         std::fs::copy(&live, bag.join("bag_0.db3")).unwrap();

@@ -227,6 +227,15 @@ pub fn read(
     })
 }
 
+/// The two tables of a rosbag2 database, as its recorder creates them (tests make bags with
+/// them).
+#[cfg(test)]
+pub(crate) const ROSBAG2_TABLES: &str =
+    "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+         serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+     CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
+         timestamp INTEGER NOT NULL, data BLOB NOT NULL);";
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -240,17 +249,13 @@ mod tests {
         let path = dir.join("bag_0.db3");
         {
             let db = Connection::open(&path).unwrap();
-            db.execute_batch(
-                "PRAGMA journal_mode=WAL;
-                 CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
-                     serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
-                 CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
-                     timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+            db.execute_batch(&format!(
+                "PRAGMA journal_mode=WAL; {ROSBAG2_TABLES}
                  INSERT INTO topics VALUES (1, '/s', 'std_msgs/String', 'cdr', '');
                  INSERT INTO messages VALUES (1, 1, 20, X'000100000300000068690000');
                  INSERT INTO messages VALUES (2, 1, 10, X'000100000300000061620000');
-                 PRAGMA wal_checkpoint(TRUNCATE);",
-            )
+                 PRAGMA wal_checkpoint(TRUNCATE);"
+            ))
             .unwrap();
         }
         for extra in ["-wal", "-shm"] {
