@@ -198,7 +198,12 @@ fn shared_passes(
         acceleration_terms(model, ws, i, v, qdd.as_slice(), &root);
     }
     ws.qdd = qdd;
-    backward_pass(model, ws, Target::BranchColumnsOnComposites);
+    let free = free_root.is_some();
+    backward_pass(
+        model,
+        ws,
+        Target::BranchColumnsOnComposites { free_root: free },
+    );
     Ok(free_root)
 }
 

@@ -338,8 +338,10 @@ pub(crate) enum Target {
     SolveRows,
     /// The columns of [`BranchColumns`], on the composite inertias `aba_derivatives`' bias pass
     /// summed: `ws.derivatives.composite` holds `I^C_i` and `ws.f_cols` `I^C_i S_ik` for each
-    /// coordinate.
-    BranchColumnsOnComposites,
+    /// coordinate. With `free_root`, body 0 is a free-floating root whose six pose columns of
+    /// `∂τ/∂q` and three linear rate columns of `∂τ/∂q̇` are not read (`aba_derivatives` has
+    /// their columns of `∂q̈/∂q`, `∂q̈/∂q̇` in closed form): those entries are written as zero.
+    BranchColumnsOnComposites { free_root: bool },
 }
 
 /// Backward pass: sums `I^C` (unless [`Target::BranchColumnsOnComposites`]), `B^C`, `F` over each
@@ -406,7 +408,7 @@ fn backward_pass_in(model: &Model, ws: &mut Workspace, target: Target) {
                     tau: tau.as_mut_slice(),
                     n,
                 };
-                sweep::<_, false>(model, &parts, ic, &[], b, f, &mut out);
+                sweep::<_, false, false>(model, &parts, ic, &[], b, f, &mut out);
             } else {
                 // Every entry on the tree's pattern is written once; those off it are zero
                 // from the workspace's allocation on, as only this pass writes `∂τ/∂q`,
@@ -418,7 +420,7 @@ fn backward_pass_in(model: &Model, ws: &mut Workspace, target: Target) {
                     tau: tau.as_mut_slice(),
                     n,
                 };
-                sweep::<_, false>(model, &parts, ic, &[], b, f, &mut out);
+                sweep::<_, false, false>(model, &parts, ic, &[], b, f, &mut out);
             }
         }
         Target::SolveRows => {
@@ -426,14 +428,18 @@ fn backward_pass_in(model: &Model, ws: &mut Workspace, target: Target) {
                 rows: &mut rhs[..3 * n * n],
                 nv: n,
             };
-            sweep::<_, false>(model, &parts, ic, &[], b, f, &mut out);
+            sweep::<_, false, false>(model, &parts, ic, &[], b, f, &mut out);
         }
-        Target::BranchColumnsOnComposites => {
+        Target::BranchColumnsOnComposites { free_root } => {
             let mut out = BranchColumns {
                 pairs: &mut rhs[..2 * n * n],
                 nv: n,
             };
-            sweep::<_, true>(model, &parts, composite, f_cols, b, f, &mut out);
+            if free_root {
+                sweep::<_, true, true>(model, &parts, composite, f_cols, b, f, &mut out);
+            } else {
+                sweep::<_, true, false>(model, &parts, composite, f_cols, b, f, &mut out);
+            }
         }
     }
 }
@@ -456,9 +462,12 @@ impl Parts<'_> {
 
 /// The backward pass proper, into `out`: the loops of the module's equations, leaves inward.
 /// With `COMPOSITES`, `ic` holds the subtree sums `I^C_i` already and `ic_s` the products
-/// `I^C_i S_ik` by coordinate; else `ic` holds each body's own `I_i`, summed here.
+/// `I^C_i S_ik` by coordinate; else `ic` holds each body's own `I_i`, summed here. With
+/// `FREE_ROOT`, body 0 is a free-floating root whose pose columns of `∂τ/∂q` and linear rate
+/// columns of `∂τ/∂q̇` are written as zero, not computed
+/// ([`Target::BranchColumnsOnComposites`]).
 #[inline(always)]
-fn sweep<O: Entries, const COMPOSITES: bool>(
+fn sweep<O: Entries, const COMPOSITES: bool, const FREE_ROOT: bool>(
     model: &Model,
     parts: &Parts<'_>,
     ic: &mut [Inertia],
@@ -472,6 +481,10 @@ fn sweep<O: Entries, const COMPOSITES: bool>(
         let series = in_series(&body.joint.kind);
         let nvi = parts.s[i].nv;
         let own = parts.columns(i);
+        // The right entries (column (i, n) against the rows above it) exist only below a
+        // parent or within a joint in series: a root's other joints have none.
+        let right = body.parent.is_some() || series;
+        let free_own = FREE_ROOT && i == 0 && nvi == 6;
         for (n_i, &s) in own.s.iter().enumerate() {
             let row = ci + n_i;
             if O::TAU_AND_H {
@@ -486,14 +499,32 @@ fn sweep<O: Entries, const COMPOSITES: bool>(
                     ic[i].apply(&s)
                 },
                 bt_s: b[i].tr_apply(&s),
-                w_q: s.cross_force(&f[i])
-                    + ic[i].apply(&own.alpha[n_i])
-                    + b[i].apply(&own.psi[n_i]),
-                w_v: ic[i].apply(&own.beta[n_i]) + b[i].apply(&s),
+                w_q: if right {
+                    s.cross_force(&f[i]) + ic[i].apply(&own.alpha[n_i]) + b[i].apply(&own.psi[n_i])
+                } else {
+                    Force::zero()
+                },
+                w_v: if right {
+                    ic[i].apply(&own.beta[n_i]) + b[i].apply(&s)
+                } else {
+                    Force::zero()
+                },
             };
             // i's own columns: all of them on the left, or in series those up to n on the left
             // and those before n on the right.
             let left = if series { n_i + 1 } else { nvi };
+            if free_own {
+                // The free root's own block: only its angular rate columns are read.
+                for m in 0..6 {
+                    let left_v = if m < 3 {
+                        0.0
+                    } else {
+                        r.left_v(own.beta[m], own.s[m])
+                    };
+                    out.add(row, ci + m, 0.0, left_v);
+                }
+                continue;
+            }
             for m in 0..left {
                 let col = ci + m;
                 out.add(
@@ -519,7 +550,7 @@ fn sweep<O: Entries, const COMPOSITES: bool>(
             for j in ancestors(model, i) {
                 let (cj, c) = (model.bodies[j].joint.coords.v_index, parts.columns(j));
                 if parts.halves[j] {
-                    columns_in_halves(row, cj, &c, &r, out);
+                    columns_in_halves(row, cj, &c, &r, out, FREE_ROOT && j == 0);
                 } else {
                     ancestor_columns(row, cj, &c, &r, out);
                 }
@@ -589,6 +620,9 @@ fn ancestor_columns<O: Entries>(
 /// `B^C_iᵀ S_i` (angular) none of them; an angular column `S = (s, 0)` has `Sᵀ w = s · w_ang`
 /// and general `ψ`, `α`, `β`. The same sums without their zero terms (3 multiplications for
 /// each product with a linear column's vectors, or with `S`, instead of 6).
+///
+/// With `free_root` (body 0's columns, [`Target::BranchColumnsOnComposites`]) the left entries
+/// of the pose columns and of the linear rate columns are written as zero, not computed.
 #[inline(always)]
 fn columns_in_halves<O: Entries>(
     row: usize,
@@ -596,9 +630,21 @@ fn columns_in_halves<O: Entries>(
     c: &Columns<'_>,
     r: &RowVectors,
     out: &mut O,
+    free_root: bool,
 ) {
     for m in 0..6 {
         let (col, s) = (cj + m, c.s[m]);
+        if free_root {
+            let (w_q, w_v, left_v) = if m < 3 {
+                (s.lin.dot(&r.w_q.lin), s.lin.dot(&r.w_v.lin), 0.0)
+            } else {
+                let left_v = c.beta[m].dot(&r.ic_s) + r.bt_s.dot(&s.ang);
+                (s.ang.dot(&r.w_q.ang), s.ang.dot(&r.w_v.ang), left_v)
+            };
+            out.add(row, col, 0.0, left_v);
+            out.add(col, row, w_q, w_v);
+            continue;
+        }
         let (left_q, left_v, w_q, w_v, h_ij) = if m < 3 {
             let (s, ic_s) = (s.lin, r.ic_s.lin);
             let left_q = c.alpha[m].lin.dot(&ic_s);
