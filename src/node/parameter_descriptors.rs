@@ -54,7 +54,7 @@ fn text(name: &str) -> (&'static str, &'static str, NumericRange) {
         "integrator" => ("Simulate mode: explicit_euler, semi_implicit_euler, rk4 or implicit_euler.", "one of explicit_euler, semi_implicit_euler, rk4, implicit_euler", NONE),
         "real_time_factor" => ("Simulate mode: simulated seconds per wall-clock second.", "> 0; at most 1e6 steps of sim_dt per joint_states message", POSITIVE),
         "publish_clock" => ("Simulate mode: publish the simulated time on /clock.", "", NONE),
-        "command_timeout" => ("Simulate mode: an effort command older than this (wall-clock s) drops to zero effort; 0: never.", "seconds >= 0", SECONDS),
+        "command_timeout" => ("Simulate mode: a command (effort, or position or velocity servo targets) older than this (wall-clock s) drops to zero effort, the servos off; 0: never; not used with step_mode on_command.", "seconds >= 0", SECONDS),
         "command_interface" => ("Simulate mode: what ~/commands and ~/joint_commands set on each command joint: effort (the effort itself), position (PD servo: kp (q_cmd - q) + kd (qd_cmd - qd)) or velocity (kd (qd_cmd - qd)).", "one of effort, position, velocity", NONE),
         "servo_kp" => ("Simulate mode, position interface: servo position gains, N*m/rad or N/m; one value for every command joint or one per command_joints entry.", "finite gains >= 0, one or as many as command joints", NONE),
         "servo_kd" => ("Simulate mode, position and velocity interfaces: servo rate gains, N*m*s/rad or N*s/m; one value for every command joint or one per command_joints entry.", "finite gains >= 0, one or as many as command joints", NONE),
