@@ -269,10 +269,10 @@ pub(crate) fn ltl_inverse_transpose(ancestors: &Ancestors, factor: &DMatrix<f64>
     }
 }
 
-/// The fewest coordinates for which [`ltl_inverse_transpose`] goes by rows: measured with fewer
-/// instructions by columns on UR5, Solo12 and ANYmal (6, 18, 18 coordinates), with more on TALOS
-/// (50), whose deep arms make the columns' sums long and scalar.
-const BY_COLUMNS_BELOW: usize = 32;
+/// The fewest coordinates for which [`ltl_inverse_transpose`] goes by rows: by columns measured
+/// faster on UR5, Baxter, Solo12, ANYmal and TALOS (6 to 50 coordinates); the rows' sweeps
+/// vectorise, so on longer models, not measured, they are kept.
+const BY_COLUMNS_BELOW: usize = 64;
 
 /// [`ltl_inverse_transpose`] column by column: column `k` of `Y` solves `Lᵀ y = e_k` from `k`
 /// up its path to the root (`y` is zero elsewhere), each ancestor `c` of `k` (parent first)
@@ -282,7 +282,9 @@ const BY_COLUMNS_BELOW: usize = 32;
 /// Y_kk = 1 / L_kk,   Y_ck = −(Σ_{m ∈ P(c)} L_mc Y_mk) / L_cc
 /// ```
 ///
-/// (`L_mc` non-zero only for `m` below `c`, `Y_mk` only for `m` on `k`'s path).
+/// (`L_mc` non-zero only for `m` below `c`, `Y_mk` only for `m` on `k`'s path), each sum in two
+/// halves (the path's even and odd places) so that a deep path's additions do not wait on one
+/// another one by one.
 #[inline(always)]
 fn inverse_transpose_by_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, y: &mut [f64]) {
     let n = ancestors.len();
@@ -294,11 +296,17 @@ fn inverse_transpose_by_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, y:
         y[k * n + k] = y_kk;
         for (j, &c) in path.iter().enumerate() {
             let column_c = &l[c * n..(c + 1) * n];
-            let mut sum = column_c[k] * y_kk;
-            for &m in &path[..j] {
-                sum += column_c[m] * y[m * n + k];
+            let below = &path[..j];
+            let (mut even, mut odd) = (column_c[k] * y_kk, 0.0);
+            let pairs = below.chunks_exact(2);
+            if let [m] = pairs.remainder() {
+                odd = column_c[*m] * y[m * n + k];
             }
-            y[c * n + k] = -sum * column_c[c];
+            for pair in pairs {
+                even += column_c[pair[0]] * y[pair[0] * n + k];
+                odd += column_c[pair[1]] * y[pair[1] * n + k];
+            }
+            y[c * n + k] = -(even + odd) * column_c[c];
         }
     }
 }
