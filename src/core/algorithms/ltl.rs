@@ -319,9 +319,8 @@ fn inverse_transpose_by_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, y:
 ///
 /// Row `i` gathers only rows of `D(i)`, each zero outside its own range within `i`'s, so only
 /// the columns `i .. e(i)` are written, from `e_iᵀ` (the other entries, zero, are read as a
-/// term's zeros). Every step is
-/// a whole-row update, contiguous and independent entry by entry, where a column-by-column
-/// solve waits on one division after another. Each row gathers its sum four rows at a time and
+/// term's zeros). Every step is a whole-row update, contiguous and independent entry by entry,
+/// which vectorises where the columns' sums over a path do not. Each row gathers its sum four rows at a time and
 /// multiplies by the stored `1 / L_ii` in the last sweep ([`subtract_combinations`]), reading
 /// and writing its own entries once per four terms; a sweep of four rows `m` of `D(i)` runs up
 /// to their largest `e(m)`. A coordinate and its parent go together ([`ChainPair`]) when the
