@@ -19,6 +19,7 @@
 //! features, so every operation is the same IEEE operation in every copy: only the instructions
 //! that carry it differ (a test holds every dispatched kernel to exact equality).
 
+use crate::mul_add::MulAdd;
 use crate::{Model, Workspace};
 
 /// The instruction set a workspace's passes run in
@@ -116,7 +117,7 @@ impl InstructionSet {
     /// so the compiler knows, as it does for any function taking `&mut Workspace`, that nothing
     /// else writes the workspace meanwhile.
     #[inline(always)]
-    pub(crate) fn run<A, R, P: FnOnce(&Model, &mut Workspace, A) -> R>(
+    pub(crate) fn run<A, R, P: FnOnce(&Model, &mut Workspace, A, MulAdd) -> R>(
         self,
         model: &Model,
         ws: &mut Workspace,
@@ -140,7 +141,7 @@ impl InstructionSet {
     /// [`run`](Self::run), but in the AVX-512 copy ([`x86_64_v4`]) where the set is
     /// [`InstructionSet::X86V4`] ([`run_wide_pass`]).
     #[inline(always)]
-    pub(crate) fn run_wide<A, R, P: FnOnce(&Model, &mut Workspace, A) -> R>(
+    pub(crate) fn run_wide<A, R, P: FnOnce(&Model, &mut Workspace, A, MulAdd) -> R>(
         self,
         model: &Model,
         ws: &mut Workspace,
@@ -177,18 +178,32 @@ impl InstructionSet {
 /// A/B on the benchmark machine's AMD EPYC, 2026-11-27).
 macro_rules! run_pass {
     ($pass:ident($model:ident, $ws:ident $(, $arg:ident)* $(,)?)) => {
-        $crate::instruction_set::run_pass!(run, $pass($model, $ws $(, $arg)*))
+        $crate::instruction_set::run_pass!(@in run, $pass($model, $ws $(, $arg)*), _, [])
     };
-    ($run:ident, $pass:ident($model:ident, $ws:ident $(, $arg:ident)* $(,)?)) => {{
+    ($pass:ident($model:ident, $ws:ident $(, $arg:ident)*; $mul_add:ident)) => {
+        $crate::instruction_set::run_pass!(@in run, $pass($model, $ws $(, $arg)*), $mul_add, [$mul_add])
+    };
+    ($run:ident, $pass:ident($model:ident, $ws:ident $(, $arg:ident)* $(,)?)) => {
+        $crate::instruction_set::run_pass!(@in $run, $pass($model, $ws $(, $arg)*), _, [])
+    };
+    ($run:ident, $pass:ident($model:ident, $ws:ident $(, $arg:ident)*; $mul_add:ident)) => {
+        $crate::instruction_set::run_pass!(@in $run, $pass($model, $ws $(, $arg)*), $mul_add, [$mul_add])
+    };
+    (@in $run:ident, $pass:ident($model:ident, $ws:ident $(, $arg:ident)*), $mul_add:pat,
+        [$($passed:ident)?]) => {{
         /// The pass compiled for the build target.
         #[inline(never)]
-        fn baseline<A, R, P: FnOnce(&$crate::Model, &mut $crate::Workspace, A) -> R>(
+        fn baseline<
+            A,
+            R,
+            P: FnOnce(&$crate::Model, &mut $crate::Workspace, A, $crate::mul_add::MulAdd) -> R,
+        >(
             model: &$crate::Model,
             ws: &mut $crate::Workspace,
             args: A,
             pass: P,
         ) -> R {
-            pass(model, ws, args)
+            pass(model, ws, args, $crate::mul_add::MulAdd::SEPARATE)
         }
 
         $ws.plan.instruction_set.$run(
@@ -196,7 +211,9 @@ macro_rules! run_pass {
             $ws,
             ($($arg,)*),
             #[inline(always)]
-            |$model, $ws, ($($arg,)*)| $pass($model, $ws $(, $arg)*),
+            |$model, $ws, ($($arg,)*), $mul_add: $crate::mul_add::MulAdd| {
+                $pass($model, $ws $(, $arg)* $(, $passed)?)
+            },
             baseline,
         )
     }};
@@ -209,6 +226,9 @@ macro_rules! run_wide_pass {
     ($pass:ident($model:ident, $ws:ident $(, $arg:ident)* $(,)?)) => {
         $crate::instruction_set::run_pass!(run_wide, $pass($model, $ws $(, $arg)*))
     };
+    ($pass:ident($model:ident, $ws:ident $(, $arg:ident)*; $mul_add:ident)) => {
+        $crate::instruction_set::run_pass!(run_wide, $pass($model, $ws $(, $arg)*; $mul_add))
+    };
 }
 pub(crate) use run_wide_pass;
 
@@ -220,9 +240,9 @@ fn x86_64_v3<A, R>(
     model: &Model,
     ws: &mut Workspace,
     args: A,
-    pass: impl FnOnce(&Model, &mut Workspace, A) -> R,
+    pass: impl FnOnce(&Model, &mut Workspace, A, MulAdd) -> R,
 ) -> R {
-    pass(model, ws, args)
+    pass(model, ws, args, MulAdd::FUSED)
 }
 
 /// The pass compiled with AVX-512 (and AVX2 and FMA).
@@ -233,7 +253,7 @@ fn x86_64_v4<A, R>(
     model: &Model,
     ws: &mut Workspace,
     args: A,
-    pass: impl FnOnce(&Model, &mut Workspace, A) -> R,
+    pass: impl FnOnce(&Model, &mut Workspace, A, MulAdd) -> R,
 ) -> R {
-    pass(model, ws, args)
+    pass(model, ws, args, MulAdd::FUSED)
 }

@@ -30,6 +30,7 @@ pub mod double_double;
 pub mod error;
 pub mod instruction_set;
 pub mod model;
+pub(crate) mod mul_add;
 pub(crate) mod plan;
 pub mod requests;
 pub mod sampling;

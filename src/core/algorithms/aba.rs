@@ -46,6 +46,7 @@ use super::Externals;
 use crate::error::DynamicsError;
 use crate::instruction_set::run_pass;
 use crate::model::{Body, JointKind, Model, MotionSubspace};
+use crate::mul_add::MulAdd;
 use crate::spatial::{Force, Matrix3, Matrix6, Motion, Translation, Vector3};
 use crate::Workspace;
 use nalgebra::Vector6;
@@ -255,7 +256,7 @@ pub(crate) fn articulated_pass(
     ws: &mut Workspace,
     tau: &[f64],
 ) -> Result<(), DynamicsError> {
-    run_pass!(articulated_pass_in(model, ws, tau))
+    run_pass!(articulated_pass_in(model, ws, tau; mul_add))
 }
 
 /// [`articulated_pass`]'s body, compiled once per instruction set ([`run_pass`]).
@@ -264,12 +265,13 @@ fn articulated_pass_in(
     model: &Model,
     ws: &mut Workspace,
     tau: &[f64],
+    mul_add: MulAdd,
 ) -> Result<(), DynamicsError> {
     let slots = &mut Slots::of(ws, model.bodies.len());
     for (i, body) in model.bodies.iter().enumerate().rev() {
         let tau_i = &tau[body.joint.coords.v_index..];
         let articulated = if slots.s_world[i].nv == 1 {
-            articulate_one_dof(slots, i, tau_i[0], body.parent)
+            articulate_one_dof(slots, i, tau_i[0], body.parent, mul_add)
         } else if is_floating_root(body) {
             articulate_floating_root(slots, i, tau_i)
         } else {
@@ -357,13 +359,14 @@ fn articulate_one_dof(
     i: usize,
     tau: f64,
     parent: Option<usize>,
+    mul_add: MulAdd,
 ) -> Result<(), (usize, f64)> {
     let s = slots.s_world[i].cols[0].to_vector();
     let ia = &slots.ia[i];
     // U_i = I^A_i S_i,   D_i = S_iᵀ U_i,   u_i = τ_i − S_iᵀ p^A_i   (RBDA Table 7.1)
-    let u_col = *ia * s;
-    let d = s.dot(&u_col);
-    let u = tau - slots.s_world[i].cols[0].dot(&slots.pa[i]);
+    let u_col = mul_add.matrix_vector(ia, &s);
+    let d = mul_add.dot(&s, &u_col);
+    let u = tau - mul_add.dot(&s, &slots.pa[i].to_vector());
     let d_inv = 1.0 / d;
     (slots.u[i][0], slots.d_inv[i][(0, 0)], slots.u_bias[i][0]) =
         (Force::from_vector(&u_col), d_inv, u);
@@ -385,7 +388,7 @@ fn articulate_one_dof(
         slots.pa[i] += bias + joint_force;
         add_to_parent(slots, i, p);
     } else {
-        let bias = add_one_dof_to_parent(slots, i, p, &u_col, &w);
+        let bias = add_one_dof_to_parent(slots, i, p, (&u_col, &w), mul_add);
         slots.pa[i] += bias + joint_force;
         let pa_i = slots.pa[i];
         slots.pa[p] += pa_i;
@@ -402,21 +405,21 @@ fn add_one_dof_to_parent(
     slots: &mut Slots<'_>,
     i: usize,
     p: usize,
-    u_col: &Vector6<f64>,
-    w: &Vector6<f64>,
+    (u_col, w): (&Vector6<f64>, &Vector6<f64>),
+    mul_add: MulAdd,
 ) -> Force {
     let c = slots.c[i].to_vector();
     let (before, from_i) = slots.ia.split_at_mut(i);
     let (parent, ia) = (&mut before[p], &from_i[0]);
     let mut bias = Vector6::zeros();
     for j in 0..6 {
-        let column = ia.column(j) - u_col * w[j];
+        let column = mul_add.sub_scaled(&ia.column(j).into(), w[j], u_col);
         let mut parent_column = parent.column_mut(j);
         parent_column += column;
         if j == 0 {
             bias = column * c[0];
         } else {
-            bias += column * c[j];
+            bias = mul_add.axpy(c[j], &column, &bias);
         }
     }
     Force::from_vector(&bias)

@@ -23,6 +23,7 @@
 use super::pivot_is_sound;
 use crate::error::DynamicsError;
 use crate::model::Model;
+use crate::mul_add::MulAdd;
 use crate::plan::Ancestors;
 use nalgebra::{DMatrix, DVector};
 
@@ -261,9 +262,14 @@ fn solve(ancestors: &Ancestors, l: &[f64], x: &mut [f64]) {
 /// ([`inverse_transpose_by_rows`], whole-row sweeps that vectorise but also sweep the zeros of
 /// each row they gather from).
 #[inline(always)]
-pub(crate) fn ltl_inverse_transpose(ancestors: &Ancestors, factor: &DMatrix<f64>, y: &mut [f64]) {
+pub(crate) fn ltl_inverse_transpose(
+    ancestors: &Ancestors,
+    factor: &DMatrix<f64>,
+    y: &mut [f64],
+    mul_add: MulAdd,
+) {
     if ancestors.len() < BY_COLUMNS_BELOW {
-        inverse_transpose_by_columns(ancestors, factor, y)
+        inverse_transpose_by_columns(ancestors, factor, y, mul_add)
     } else {
         inverse_transpose_by_rows(ancestors, factor, y)
     }
@@ -286,7 +292,12 @@ const BY_COLUMNS_BELOW: usize = 64;
 /// halves (the path's even and odd places) so that a deep path's additions do not wait on one
 /// another one by one.
 #[inline(always)]
-fn inverse_transpose_by_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, y: &mut [f64]) {
+fn inverse_transpose_by_columns(
+    ancestors: &Ancestors,
+    factor: &DMatrix<f64>,
+    y: &mut [f64],
+    mul_add: MulAdd,
+) {
     let n = ancestors.len();
     let l = factor.as_slice();
     debug_assert_eq!(y.len(), n * n, "n rows of n");
@@ -303,8 +314,8 @@ fn inverse_transpose_by_columns(ancestors: &Ancestors, factor: &DMatrix<f64>, y:
                 odd = column_c[*m] * y[m * n + k];
             }
             for pair in pairs {
-                even += column_c[pair[0]] * y[pair[0] * n + k];
-                odd += column_c[pair[1]] * y[pair[1] * n + k];
+                even = mul_add.mul_add(column_c[pair[0]], y[pair[0] * n + k], even);
+                odd = mul_add.mul_add(column_c[pair[1]], y[pair[1] * n + k], odd);
             }
             y[c * n + k] = -(even + odd) * column_c[c];
         }
@@ -611,11 +622,13 @@ mod tests {
                 "{}: |H x − b| = {err:e}",
                 model.name
             );
-            // Y = L⁻ᵀ from zeros: Lᵀ Y = 1, by rows and by columns.
-            for by_columns in [false, true] {
+            // Y = L⁻ᵀ from zeros: Lᵀ Y = 1, by rows and by columns (multiply-adds separate
+            // and fused).
+            let by_columns = [None, Some(MulAdd::SEPARATE), Some(MulAdd::FUSED)];
+            for by_columns in by_columns {
                 let mut rows = vec![0.0; n * n];
-                if by_columns {
-                    inverse_transpose_by_columns(&ancestors, &factor, &mut rows);
+                if let Some(mul_add) = by_columns {
+                    inverse_transpose_by_columns(&ancestors, &factor, &mut rows, mul_add);
                 } else {
                     inverse_transpose_by_rows(&ancestors, &factor, &mut rows);
                 }
@@ -624,7 +637,7 @@ mod tests {
                 let err = (l.transpose() * &y - DMatrix::identity(n, n)).amax();
                 assert!(
                     y.iter().all(|x| x.is_finite()) && err < 1e-12 * (l.amax() * y.amax()),
-                    "{} (by columns {by_columns}): |Lᵀ Y − 1| = {err:e}",
+                    "{} (by columns {by_columns:?}): |Lᵀ Y − 1| = {err:e}",
                     model.name
                 );
             }

@@ -83,6 +83,7 @@ use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::instruction_set::{run_pass, run_wide_pass};
 use crate::model::{JointKind, Model};
+use crate::mul_add::MulAdd;
 use crate::spatial::Vector3;
 use crate::Workspace;
 use nalgebra::{DMatrix, DVector};
@@ -371,9 +372,9 @@ fn identity_and_zeros(rows: &mut [f64], nv: usize) {
 /// it ([`run_wide_pass`]), with its wider blocks.
 fn solve_with_factor(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>) {
     if model.nv >= WIDE_FROM && ws.plan.instruction_set.is_wide() {
-        run_wide_pass!(solve_wide(model, ws, free_root))
+        run_wide_pass!(solve_wide(model, ws, free_root; mul_add))
     } else {
-        run_pass!(solve_narrow(model, ws, free_root))
+        run_pass!(solve_narrow(model, ws, free_root; mul_add))
     }
 }
 
@@ -384,14 +385,14 @@ const WIDE_FROM: usize = 32;
 
 /// [`solve_with_factor_in`] with the AVX-512 copy's blocks.
 #[inline(always)]
-fn solve_wide(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>) {
-    solve_with_factor_in::<true>(model, ws, free_root)
+fn solve_wide(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>, mul_add: MulAdd) {
+    solve_with_factor_in::<true>(model, ws, free_root, mul_add)
 }
 
 /// [`solve_with_factor_in`] with the blocks of the other copies.
 #[inline(always)]
-fn solve_narrow(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>) {
-    solve_with_factor_in::<false>(model, ws, free_root)
+fn solve_narrow(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>, mul_add: MulAdd) {
+    solve_with_factor_in::<false>(model, ws, free_root, mul_add)
 }
 
 /// [`solve_with_factor`]'s body, compiled once per instruction set ([`run_pass`]): a pass of
@@ -401,6 +402,7 @@ fn solve_with_factor_in<const WIDE: bool>(
     model: &Model,
     ws: &mut Workspace,
     free_root: Option<FreeRoot>,
+    mul_add: MulAdd,
 ) {
     let (plan, factor, d) = (&ws.plan, &ws.factor, &mut ws.derivatives);
     let nv = model.nv;
@@ -413,12 +415,13 @@ fn solve_with_factor_in<const WIDE: bool>(
             let (y, minv) = (&mut y[..nv * nv], d.minv.as_mut_slice());
             // Y = L⁻ᵀ: the entries it does not write are zero from the allocation on (nothing
             // else writes this part of `rhs` on a tree).
-            ltl_inverse_transpose(ancestors, factor, y);
-            inverse_from_rows::<WIDE>(ancestors, y, minv);
+            ltl_inverse_transpose(ancestors, factor, y, mul_add);
+            inverse_from_rows::<WIDE>(ancestors, y, minv, mul_add);
             let (ddq_dq, ddq_dv) = (d.ddq_dq.as_mut_slice(), d.ddq_dv.as_mut_slice());
             // A free root's rate columns 0..3 and pose columns 0..6 in closed form.
             let (v_from, q_from) = if free_root.is_some() { (3, 6) } else { (0, 0) };
-            branch_products::<WIDE>(ancestors, minv, pairs, ddq_dq, ddq_dv, v_from, q_from);
+            let x = (&mut *ddq_dq, &mut *ddq_dv);
+            branch_products::<WIDE>(ancestors, minv, pairs, x, (v_from, q_from), mul_add);
             if let Some(free_root) = free_root {
                 free_root.write_columns(ddq_dq, ddq_dv, nv);
             }

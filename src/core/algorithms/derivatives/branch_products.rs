@@ -16,6 +16,7 @@
 //! A column is summed in blocks of its rows held in registers, stored once when its branch is
 //! done: the loop has no stores, and the two products share each block of `H⁻¹` they read.
 
+use crate::mul_add::MulAdd;
 use crate::plan::Ancestors;
 
 /// `H⁻¹ = L⁻¹ L⁻ᵀ = Yᵀ Y` into `minv` (`n × n`, column-major, full) from the rows of
@@ -33,6 +34,7 @@ pub(super) fn inverse_from_rows<const WIDE: bool>(
     ancestors: &Ancestors,
     y: &[f64],
     minv: &mut [f64],
+    mul_add: MulAdd,
 ) {
     let n = ancestors.len();
     for (s, column) in minv.chunks_exact_mut(n).enumerate() {
@@ -43,6 +45,7 @@ pub(super) fn inverse_from_rows<const WIDE: bool>(
             stride: n,
             ancestors: ancestors.of(s),
             own_and_below: s..s + 1,
+            mul_add,
         };
         sum.fill::<WIDE>([column]);
     }
@@ -59,10 +62,9 @@ pub(super) fn branch_products<const WIDE: bool>(
     ancestors: &Ancestors,
     minv: &[f64],
     b: &[f64],
-    x_q: &mut [f64],
-    x_v: &mut [f64],
-    v_from: usize,
-    q_from: usize,
+    (x_q, x_v): (&mut [f64], &mut [f64]),
+    (v_from, q_from): (usize, usize),
+    mul_add: MulAdd,
 ) {
     let n = ancestors.len();
     let columns = x_q.chunks_exact_mut(n).zip(x_v.chunks_exact_mut(n));
@@ -77,6 +79,7 @@ pub(super) fn branch_products<const WIDE: bool>(
                 stride: 2,
                 ancestors,
                 own_and_below,
+                mul_add,
             };
             sum.fill::<WIDE>([x_v]);
         } else {
@@ -87,6 +90,7 @@ pub(super) fn branch_products<const WIDE: bool>(
                 stride: 2,
                 ancestors,
                 own_and_below,
+                mul_add,
             };
             sum.fill::<WIDE>([x_q, x_v]);
         }
@@ -103,6 +107,7 @@ struct Column<'a, const K: usize> {
     stride: usize,
     ancestors: &'a [usize],
     own_and_below: std::ops::Range<usize>,
+    mul_add: MulAdd,
 }
 
 impl<const K: usize> Column<'_, K> {
@@ -163,7 +168,7 @@ impl<const K: usize> Column<'_, K> {
             .expect("K coefficients");
         for t in 0..W {
             for k in 0..K {
-                sums[k][t] += m[t] * c[k];
+                sums[k][t] = self.mul_add.mul_add(m[t], c[k], sums[k][t]);
             }
         }
     }
@@ -174,6 +179,7 @@ mod tests {
     use super::branch_products;
     use crate::model::examples::pendulum_urdf;
     use crate::model::ModelOptions;
+    use crate::mul_add::MulAdd;
     use crate::plan::Ancestors;
     use crate::sampling::Rng;
     use crate::urdf::model_from_str;
@@ -199,18 +205,25 @@ mod tests {
             let model = model_from_str(&text, &options).unwrap();
             let ancestors = Workspace::new(&model).plan.dof_ancestors.expect("a tree");
             assert_eq!(ancestors.len(), nv);
-            products_match::<false>(&ancestors, 0, 0);
-            products_match::<true>(&ancestors, 0, 0);
-            if options.floating_base {
-                products_match::<false>(&ancestors, 3, 6);
-                products_match::<true>(&ancestors, 3, 6);
+            for mul_add in [MulAdd::SEPARATE, MulAdd::FUSED] {
+                products_match::<false>(&ancestors, 0, 0, mul_add);
+                products_match::<true>(&ancestors, 0, 0, mul_add);
+                if options.floating_base {
+                    products_match::<false>(&ancestors, 3, 6, mul_add);
+                    products_match::<true>(&ancestors, 3, 6, mul_add);
+                }
             }
         }
     }
 
     /// Columns `j < q_from` of `x_q` and `j < v_from` of `x_v` are left as they were (NaN), and
     /// their entries of `B_q`, `B_v` are not read (NaN too).
-    fn products_match<const WIDE: bool>(ancestors: &Ancestors, v_from: usize, q_from: usize) {
+    fn products_match<const WIDE: bool>(
+        ancestors: &Ancestors,
+        v_from: usize,
+        q_from: usize,
+        mul_add: MulAdd,
+    ) {
         let n = ancestors.len();
         let on_branch = |i: usize, j: usize| {
             ancestors.of(j).contains(&i) || (j..ancestors.below(j).end).contains(&i)
@@ -234,7 +247,8 @@ mod tests {
         }
         let (mut x_q, mut x_v) = (vec![f64::NAN; n * n], vec![f64::NAN; n * n]);
         let (minv, b) = (m.as_slice(), &b);
-        branch_products::<WIDE>(ancestors, minv, b, &mut x_q, &mut x_v, v_from, q_from);
+        let x = (&mut x_q[..], &mut x_v[..]);
+        branch_products::<WIDE>(ancestors, minv, b, x, (v_from, q_from), mul_add);
         assert!(x_q[..q_from * n].iter().all(|x| x.is_nan()));
         assert!(x_v[..v_from * n].iter().all(|x| x.is_nan()));
         for (got, want, skip) in [(&x_q, &m * &b_q, q_from * n), (&x_v, &m * &b_v, v_from * n)] {

@@ -1,0 +1,71 @@
+//! How a pass rounds `a b + c`: as one fused operation (one rounding) in the copies compiled
+//! for processors with FMA, as a multiplication then an addition (two roundings) in the
+//! baseline copy, which has no fused instruction.
+//!
+//! A pass compiled once per instruction set ([`run_pass`](crate::instruction_set::run_pass))
+//! receives its copy's [`MulAdd`] as a constant; the loops it inlines fold the choice away, so
+//! each copy's loop holds only its own instructions. The fused operation is exact before its
+//! one rounding, so both forms agree to within a rounding of each product; the AVX2 and
+//! AVX-512 copies fuse the same operations and compute the same bits as each other.
+
+use crate::spatial::Matrix6;
+use nalgebra::Vector6;
+
+/// The rounding of the multiply-adds of one instruction set's copy of a pass.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct MulAdd {
+    fused: bool,
+}
+
+impl MulAdd {
+    /// A multiplication, then an addition: what every processor computes alike.
+    pub(crate) const SEPARATE: MulAdd = MulAdd { fused: false };
+    /// One fused multiply-add, for copies compiled with FMA: in a copy without it
+    /// `f64::mul_add` would be a call into the C library.
+    pub(crate) const FUSED: MulAdd = MulAdd { fused: true };
+
+    /// `a b + c`.
+    #[inline(always)]
+    pub(crate) fn mul_add(self, a: f64, b: f64, c: f64) -> f64 {
+        if self.fused {
+            a.mul_add(b, c)
+        } else {
+            a * b + c
+        }
+    }
+
+    /// `c − a b`.
+    #[inline(always)]
+    pub(crate) fn sub_mul(self, c: f64, a: f64, b: f64) -> f64 {
+        if self.fused {
+            (-a).mul_add(b, c)
+        } else {
+            c - a * b
+        }
+    }
+
+    /// `y + a x`, entry by entry.
+    #[inline(always)]
+    pub(crate) fn axpy(self, a: f64, x: &Vector6<f64>, y: &Vector6<f64>) -> Vector6<f64> {
+        Vector6::from_fn(|r, _| self.mul_add(a, x[r], y[r]))
+    }
+
+    /// `y − a x`, entry by entry.
+    #[inline(always)]
+    pub(crate) fn sub_scaled(self, y: &Vector6<f64>, a: f64, x: &Vector6<f64>) -> Vector6<f64> {
+        Vector6::from_fn(|r, _| self.sub_mul(y[r], a, x[r]))
+    }
+
+    /// `xᵀ y = Σ_r x_r y_r`, from the first entry on.
+    #[inline(always)]
+    pub(crate) fn dot(self, x: &Vector6<f64>, y: &Vector6<f64>) -> f64 {
+        (1..6).fold(x[0] * y[0], |sum, r| self.mul_add(x[r], y[r], sum))
+    }
+
+    /// `m x = Σ_j m[:, j] x_j`, a column at a time.
+    #[inline(always)]
+    pub(crate) fn matrix_vector(self, m: &Matrix6, x: &Vector6<f64>) -> Vector6<f64> {
+        let first = m.column(0) * x[0];
+        (1..6).fold(first, |sum, j| self.axpy(x[j], &m.column(j).into(), &sum))
+    }
+}
