@@ -14,10 +14,12 @@
 //! through [`InstructionSet::run_wide`] instead, which has a third copy compiled with AVX-512,
 //! where a loop can hold a whole column of fifty rows in registers.
 //!
-//! **The copies compute the same bits.** Rust neither contracts a multiplication and an
-//! addition into one fused rounding nor reorders floating-point operations, whatever the target
-//! features, so every operation is the same IEEE operation in every copy: only the instructions
-//! that carry it differ (a test holds every dispatched kernel to exact equality).
+//! **The fused copies compute the same bits.** A pass that asks for it receives its copy's
+//! [`MulAdd`]: the AVX2 and AVX-512 copies round a multiply-add once (fused), the baseline twice
+//! (it has no fused instruction). Otherwise Rust neither contracts a multiplication and an
+//! addition nor reorders floating-point operations, whatever the target features, so the AVX2
+//! and AVX-512 copies perform the same IEEE operations and agree bit for bit, and the baseline
+//! agrees with them to within rounding (a test holds every dispatched kernel to both).
 
 use crate::mul_add::MulAdd;
 use crate::{Model, Workspace};
@@ -166,6 +168,9 @@ impl InstructionSet {
 /// `run_pass!(pass(model, ws, args…))`: `pass(model, ws, args…)` in `ws`'s instruction set
 /// ([`InstructionSet::run`]), `pass` taking the model, the workspace and any further arguments
 /// (plain identifiers). `pass` is inlined into each of the set's copies.
+/// `run_pass!(pass(model, ws, args…; mul_add))` also passes the copy's [`MulAdd`] last, a
+/// constant in each copy ([`MulAdd::SEPARATE`] in the baseline, [`MulAdd::FUSED`] in the
+/// others).
 ///
 /// The baseline copy is a generic function defined where the macro is used: the compiler
 /// places a generic function's instances in the codegen unit of the module that defines it, so

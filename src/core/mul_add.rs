@@ -4,7 +4,11 @@
 //!
 //! A pass compiled once per instruction set ([`run_pass`](crate::instruction_set::run_pass))
 //! receives its copy's [`MulAdd`] as a constant; the loops it inlines fold the choice away, so
-//! each copy's loop holds only its own instructions. The fused operation is exact before its
+//! each copy's loop holds only its own instructions. What takes a [`MulAdd`] must be inlined
+//! into the copy: a function left out of line is compiled for the baseline, where a fused
+//! multiply-add is a call into the C library's `fma` (many times slower). So the helpers here
+//! are `#[inline(always)]` plain loops, never iterator adaptors such as `fold`, whose instances
+//! the compiler may share out of line. The fused operation is exact before its
 //! one rounding, so both forms agree to within a rounding of each product; the AVX2 and
 //! AVX-512 copies fuse the same operations and compute the same bits as each other.
 
@@ -47,25 +51,40 @@ impl MulAdd {
     /// `y + a x`, entry by entry.
     #[inline(always)]
     pub(crate) fn axpy(self, a: f64, x: &Vector6<f64>, y: &Vector6<f64>) -> Vector6<f64> {
-        Vector6::from_fn(|r, _| self.mul_add(a, x[r], y[r]))
+        let mut out = *y;
+        for r in 0..6 {
+            out[r] = self.mul_add(a, x[r], y[r]);
+        }
+        out
     }
 
     /// `y − a x`, entry by entry.
     #[inline(always)]
     pub(crate) fn sub_scaled(self, y: &Vector6<f64>, a: f64, x: &Vector6<f64>) -> Vector6<f64> {
-        Vector6::from_fn(|r, _| self.sub_mul(y[r], a, x[r]))
+        let mut out = *y;
+        for r in 0..6 {
+            out[r] = self.sub_mul(y[r], a, x[r]);
+        }
+        out
     }
 
     /// `xᵀ y = Σ_r x_r y_r`, from the first entry on.
     #[inline(always)]
     pub(crate) fn dot(self, x: &Vector6<f64>, y: &Vector6<f64>) -> f64 {
-        (1..6).fold(x[0] * y[0], |sum, r| self.mul_add(x[r], y[r], sum))
+        let mut sum = x[0] * y[0];
+        for r in 1..6 {
+            sum = self.mul_add(x[r], y[r], sum);
+        }
+        sum
     }
 
     /// `m x = Σ_j m[:, j] x_j`, a column at a time.
     #[inline(always)]
     pub(crate) fn matrix_vector(self, m: &Matrix6, x: &Vector6<f64>) -> Vector6<f64> {
-        let first = m.column(0) * x[0];
-        (1..6).fold(first, |sum, j| self.axpy(x[j], &m.column(j).into(), &sum))
+        let mut sum = m.column(0) * x[0];
+        for j in 1..6 {
+            sum = self.axpy(x[j], &m.column(j).into(), &sum);
+        }
+        sum
     }
 }

@@ -381,10 +381,11 @@ fn articulate_one_dof(
     let joint_force = Force::from_vector(&(u_col * (d_inv * u)));
     if slots.anchors[i] {
         let ia = &mut slots.ia[i];
-        for (mut column, w_j) in ia.column_iter_mut().zip(w.iter()) {
-            column -= u_col * *w_j;
+        for j in 0..6 {
+            let column = mul_add.sub_scaled(&ia.column(j).into(), w[j], &u_col);
+            ia.set_column(j, &column);
         }
-        let bias = Force::from_vector(&(*ia * slots.c[i].to_vector()));
+        let bias = Force::from_vector(&mul_add.matrix_vector(ia, &slots.c[i].to_vector()));
         slots.pa[i] += bias + joint_force;
         add_to_parent(slots, i, p);
     } else {
