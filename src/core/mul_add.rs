@@ -12,7 +12,7 @@
 //! one rounding, so both forms agree to within a rounding of each product; the AVX2 and
 //! AVX-512 copies fuse the same operations and compute the same bits as each other.
 
-use crate::spatial::Matrix6;
+use crate::spatial::{Matrix3, Matrix6, Vector3};
 use nalgebra::Vector6;
 
 /// The rounding of the multiply-adds of one instruction set's copy of a pass.
@@ -27,6 +27,12 @@ impl MulAdd {
     /// One fused multiply-add, for copies compiled with FMA: in a copy without it
     /// `f64::mul_add` would be a call into the C library.
     pub(crate) const FUSED: MulAdd = MulAdd { fused: true };
+
+    /// Whether `a b + c` is rounded once.
+    #[inline(always)]
+    pub(crate) fn is_fused(self) -> bool {
+        self.fused
+    }
 
     /// `a b + c`.
     #[inline(always)]
@@ -84,6 +90,28 @@ impl MulAdd {
         let mut sum = m.column(0) * x[0];
         for j in 1..6 {
             sum = self.axpy(x[j], &m.column(j).into(), &sum);
+        }
+        sum
+    }
+
+    /// `a × b`, each component `a_j b_k − a_k b_j` as one multiply-add.
+    #[inline(always)]
+    pub(crate) fn cross(self, a: &Vector3, b: &Vector3) -> Vector3 {
+        Vector3::new(
+            self.mul_add(a.y, b.z, -(a.z * b.y)),
+            self.mul_add(a.z, b.x, -(a.x * b.z)),
+            self.mul_add(a.x, b.y, -(a.y * b.x)),
+        )
+    }
+
+    /// `m x` for a 3×3 `m`, a column at a time.
+    #[inline(always)]
+    pub(crate) fn matrix3_vector(self, m: &Matrix3, x: &Vector3) -> Vector3 {
+        let mut sum = m.column(0) * x.x;
+        for j in 1..3 {
+            for r in 0..3 {
+                sum[r] = self.mul_add(m[(r, j)], x[j], sum[r]);
+            }
         }
         sum
     }

@@ -198,19 +198,19 @@ fn rigid_inertias_in(model: &Model, ws: &mut Workspace) {
 /// Pass 1's initial articulated bias forces `p^A_i` from the velocities and the rigid inertias
 /// in world coordinates ([`rigid_inertias`]).
 fn rigid_bias_forces(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
-    run_pass!(rigid_bias_forces_in(model, ws, ext))
+    run_pass!(rigid_bias_forces_in(model, ws, ext; mul_add))
 }
 
 /// [`rigid_bias_forces`]'s body, compiled once per instruction set ([`run_pass`]).
 #[inline(always)]
-fn rigid_bias_forces_in(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) {
+fn rigid_bias_forces_in(model: &Model, ws: &mut Workspace, ext: &Externals<'_>, mul_add: MulAdd) {
     let n = model.bodies.len();
     // Zipped slices: one pointer step per body.
     let bodies = ws.x_aligned[..n].iter().zip(&ws.ic).zip(&ws.v_world);
     for (i, (((x, inertia), v_i), pa)) in bodies.zip(ws.pa.iter_mut()).enumerate() {
         // p^A_i = v_i ×* I_i v_i − ⁱX*_0 f^x_i   (RBDA Table 7.1): f^x_i is given in body i's
         // frame, carried into world coordinates by ⁱX_0ᵀ
-        *pa = v_i.cross_force(&inertia.apply(v_i));
+        *pa = v_i.cross_force_with(&inertia.apply_with(v_i, mul_add), mul_add);
         if let Some(w) = ext.wrenches {
             *pa -= x.transpose_apply_force(&w[i]);
         }

@@ -1,6 +1,7 @@
 //! Rigid-body spatial inertia.
 
 use super::{skew, Force, Matrix3, Matrix6, Motion, Vector3};
+use crate::mul_add::MulAdd;
 
 /// The spatial inertia of a rigid body about the origin of the frame it is expressed in
 /// (handout eq. 39):
@@ -39,10 +40,29 @@ impl Inertia {
     /// `I v = [Ī ω + h × v; m v − h × ω]`: the momentum of a body moving with velocity `v`
     /// (or the force needed to give it acceleration `v`).
     pub fn apply(&self, v: &Motion) -> Force {
-        Force::new(
-            self.i_bar * v.ang + self.h.cross(&v.lin),
-            v.lin * self.mass - self.h.cross(&v.ang),
-        )
+        self.apply_with(v, MulAdd::SEPARATE)
+    }
+
+    /// [`apply`](Self::apply) with the multiply-adds of `mul_add`: separate, as nalgebra's
+    /// vectorised products; fused, a component at a time.
+    #[inline(always)]
+    pub(crate) fn apply_with(&self, v: &Motion, mul_add: MulAdd) -> Force {
+        if !mul_add.is_fused() {
+            return Force::new(
+                self.i_bar * v.ang + self.h.cross(&v.lin),
+                v.lin * self.mass - self.h.cross(&v.ang),
+            );
+        }
+        let (h, m) = (&self.h, self.mass);
+        let h_v = mul_add.cross(h, &v.lin);
+        let h_w = mul_add.cross(h, &v.ang);
+        let mut ang = mul_add.matrix3_vector(&self.i_bar, &v.ang);
+        let mut lin = Vector3::zeros();
+        for r in 0..3 {
+            ang[r] += h_v[r];
+            lin[r] = mul_add.mul_add(v.lin[r], m, -h_w[r]);
+        }
+        Force::new(ang, lin)
     }
 
     /// `I e_j`, column `j` of [`to_matrix`](Self::to_matrix): for an angular unit vector

@@ -1,6 +1,7 @@
 //! Motion and force vectors and the two spatial cross products.
 
 use super::Vector3;
+use crate::mul_add::MulAdd;
 use nalgebra::Vector6;
 use std::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
 
@@ -117,9 +118,22 @@ impl Motion {
     /// Spatial cross product for forces (Featherstone's `crf`, `v ×* f = −(v ×̂)ᵀ f`):
     /// `[ω; v] ×* [n; f] = [ω × n + v × f; ω × f]`.
     pub fn cross_force(&self, f: &Force) -> Force {
+        self.cross_force_with(f, MulAdd::SEPARATE)
+    }
+
+    /// [`cross_force`](Self::cross_force) with the multiply-adds of `mul_add`: separate, as
+    /// nalgebra's cross products; fused, a component at a time.
+    #[inline(always)]
+    pub(crate) fn cross_force_with(&self, f: &Force, mul_add: MulAdd) -> Force {
+        if !mul_add.is_fused() {
+            return Force::new(
+                self.ang.cross(&f.ang) + self.lin.cross(&f.lin),
+                self.ang.cross(&f.lin),
+            );
+        }
         Force::new(
-            self.ang.cross(&f.ang) + self.lin.cross(&f.lin),
-            self.ang.cross(&f.lin),
+            mul_add.cross(&self.ang, &f.ang) + mul_add.cross(&self.lin, &f.lin),
+            mul_add.cross(&self.ang, &f.lin),
         )
     }
 
