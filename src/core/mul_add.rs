@@ -1,6 +1,8 @@
 //! How a pass rounds `a b + c`: as one fused operation (one rounding) in the copies compiled
 //! for processors with FMA, as a multiplication then an addition (two roundings) in the
-//! baseline copy, which has no fused instruction.
+//! baseline copy, which has no fused instruction. The fused operation is exact before its one
+//! rounding, so both forms agree to within a rounding of each product; the AVX2 and AVX-512
+//! copies fuse the same operations and compute the same bits as each other.
 //!
 //! A pass compiled once per instruction set ([`run_pass`](crate::instruction_set::run_pass))
 //! receives its copy's [`MulAdd`] as a constant; the loops it inlines fold the choice away, so
@@ -8,9 +10,7 @@
 //! into the copy: a function left out of line is compiled for the baseline, where a fused
 //! multiply-add is a call into the C library's `fma` (many times slower). So the helpers here
 //! are `#[inline(always)]` plain loops, never iterator adaptors such as `fold`, whose instances
-//! the compiler may share out of line. The fused operation is exact before its
-//! one rounding, so both forms agree to within a rounding of each product; the AVX2 and
-//! AVX-512 copies fuse the same operations and compute the same bits as each other.
+//! the compiler may share out of line.
 
 use crate::spatial::{Matrix3, Matrix6, Vector3};
 use nalgebra::Vector6;
@@ -114,5 +114,53 @@ impl MulAdd {
             }
         }
         sum
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::MulAdd;
+    use crate::spatial::{Matrix3, Matrix6, Vector3};
+    use nalgebra::Vector6;
+
+    /// `(1 + 2⁻³⁰)(1 − 2⁻³⁰) − 1 = −2⁻⁶⁰` exactly: the product rounds to 1 when it is rounded
+    /// on its own, so the separate form gives 0 and the fused one the exact value.
+    #[test]
+    fn fused_rounds_once_and_separate_twice() {
+        let (a, b) = (1.0 + 2f64.powi(-30), 1.0 - 2f64.powi(-30));
+        let exact = -(2f64.powi(-60));
+        assert_eq!(MulAdd::FUSED.mul_add(a, b, -1.0), exact);
+        assert_eq!(MulAdd::SEPARATE.mul_add(a, b, -1.0), 0.0);
+        assert_eq!(MulAdd::FUSED.sub_mul(1.0, a, b), -exact);
+        assert_eq!(MulAdd::SEPARATE.sub_mul(1.0, a, b), 0.0);
+    }
+
+    /// The helpers are the products they name, in either rounding (to within rounding of
+    /// nalgebra's).
+    #[test]
+    fn helpers_are_their_products() {
+        let m6 = Matrix6::from_fn(|r, c| ((r * 6 + c) as f64 * 0.37).sin());
+        let (x6, y6) = (
+            Vector6::from_fn(|r, _| r as f64 - 2.5),
+            Vector6::from_fn(|r, _| 0.3 * r as f64),
+        );
+        let m3 = Matrix3::from_fn(|r, c| ((r * 3 + c) as f64 * 0.71).cos());
+        let (a3, b3) = (Vector3::new(0.2, -1.3, 2.1), Vector3::new(-0.7, 0.4, 1.9));
+        let close =
+            |got: f64, want: f64| assert!((got - want).abs() <= 1e-14, "{got} against {want}");
+        for m in [MulAdd::SEPARATE, MulAdd::FUSED] {
+            let near6 = |got: Vector6<f64>, want: Vector6<f64>| {
+                got.iter().zip(&want).for_each(|(g, w)| close(*g, *w))
+            };
+            near6(m.axpy(1.7, &x6, &y6), y6 + x6 * 1.7);
+            near6(m.sub_scaled(&y6, 1.7, &x6), y6 - x6 * 1.7);
+            near6(m.matrix_vector(&m6, &x6), m6 * x6);
+            close(m.dot(&x6, &y6), x6.dot(&y6));
+            let near3 = |got: Vector3, want: Vector3| {
+                got.iter().zip(&want).for_each(|(g, w)| close(*g, *w))
+            };
+            near3(m.cross(&a3, &b3), a3.cross(&b3));
+            near3(m.matrix3_vector(&m3, &a3), m3 * a3);
+        }
     }
 }
