@@ -59,10 +59,10 @@
 //! Those nine columns are written so, with `(g_b)_k = S_0k,lin · (g − a_lin)` from the root's
 //! linear columns in world axes; the products make only `∂q̈/∂q̇` in the angular columns and
 //! nothing in the linear ones, and backward pass B does not make `∂τ/∂q`'s and `∂τ/∂q̇`'s
-//! entries in those nine columns (it writes them as zero). In a moving or turning world the root's velocity
-//! `X v_0 + S_0 q̇_0` and acceleration `X a_0 + …` in its own axes depend on its pose (`X` the
-//! world-to-root transform): then, and for any other root, every column goes through the
-//! products.
+//! entries in those nine columns (it writes them as zero). In a moving or turning world the
+//! root's velocity `X v_0 + S_0 q̇_0` and acceleration `X a_0 + …` in its own axes depend on its
+//! pose (`X` the world-to-root transform): then, and for any other root, every column goes
+//! through the products.
 //!
 //! With mimic joints (whose shared coordinates break the tree pattern of `H`) `q̈` comes from
 //! CRBA, a bias RNEA and a dense Cholesky factor instead, and the passes of `rnea_derivatives`
