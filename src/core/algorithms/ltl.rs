@@ -328,15 +328,15 @@ fn inverse_transpose_by_columns(
 /// Y_i = (e_iᵀ − Σ_{m ∈ D(i)} L_mi Y_m) / L_ii
 /// ```
 ///
-/// Row `i` gathers only rows of `D(i)`, each zero outside its own range within `i`'s, so only
-/// the columns `i .. e(i)` are written, from `e_iᵀ` (the other entries, zero, are read as a
-/// term's zeros). Every step is a whole-row update, contiguous and independent entry by entry,
-/// which vectorises where the columns' sums over a path do not. Each row gathers its sum four
-/// rows at a time and multiplies by the stored `1 / L_ii` in the last sweep
-/// ([`subtract_combinations`]), reading and writing its own entries once per four terms; a
-/// sweep of four rows `m` of `D(i)` runs up to their largest `e(m)`. A coordinate and its parent go together ([`ChainPair`]) when the
-/// coordinate is the parent's only child (`c = p + 1`, `D(p) = {c} ∪ D(c)`), so each row of
-/// their shared sum is loaded once for both, from column `p` on (`c`'s column `p` stays zero).
+/// Row `i` gathers only rows of `D(i)`, each zero outside its own range within `i`'s, so only the
+/// columns `i .. e(i)` are written, from `e_iᵀ` (the other entries, zero, are read as a term's
+/// zeros). Every step is a whole-row update, contiguous and independent entry by entry, which
+/// vectorises where the columns' sums over a path do not. Each row gathers its sum four rows at a
+/// time and multiplies by the stored `1 / L_ii` in the last sweep ([`subtract_combinations`]),
+/// reading and writing its own entries once per four terms; a sweep of four rows `m` of `D(i)` runs
+/// up to their largest `e(m)`. A coordinate and its parent go together ([`ChainPair`]) when the
+/// coordinate is the parent's only child (`c = p + 1`, `D(p) = {c} ∪ D(c)`), so each row of their
+/// shared sum is loaded once for both, from column `p` on (`c`'s column `p` stays zero).
 #[inline(always)]
 fn inverse_transpose_by_rows(ancestors: &Ancestors, factor: &DMatrix<f64>, y: &mut [f64]) {
     let n = ancestors.len();
