@@ -255,12 +255,14 @@ impl Workspace {
 
     /// The instruction set the dispatched passes run in: the fastest this processor runs
     /// ([`InstructionSet::best`]) unless [`set_instruction_set`](Self::set_instruction_set) chose
-    /// another. Every set computes the same bits ([`crate::instruction_set`]).
+    /// another. The AVX2 and AVX-512 sets compute the same bits, the baseline the same values
+    /// to within rounding ([`crate::instruction_set`]).
     pub fn instruction_set(&self) -> InstructionSet {
         self.plan.instruction_set
     }
 
-    /// Runs the dispatched passes in `set` from now on (benchmarks and tests compare the sets).
+    /// Runs the dispatched passes in `set` from now on (benchmarks and tests compare the sets;
+    /// [`InstructionSet::Baseline`] gives the bits every x86-64 processor reproduces).
     pub fn set_instruction_set(&mut self, set: InstructionSet) {
         self.plan.instruction_set = set;
     }
