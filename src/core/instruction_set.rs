@@ -183,10 +183,10 @@ impl InstructionSet {
 /// A/B on the benchmark machine's AMD EPYC, 2026-11-27).
 macro_rules! run_pass {
     ($pass:ident($model:ident, $ws:ident $(, $arg:ident)* $(,)?)) => {
-        $crate::instruction_set::run_pass!(@in run, $pass($model, $ws $(, $arg)*), _, [])
+        $crate::instruction_set::run_pass!(run, $pass($model, $ws $(, $arg)*))
     };
     ($pass:ident($model:ident, $ws:ident $(, $arg:ident)*; $mul_add:ident)) => {
-        $crate::instruction_set::run_pass!(@in run, $pass($model, $ws $(, $arg)*), $mul_add, [$mul_add])
+        $crate::instruction_set::run_pass!(run, $pass($model, $ws $(, $arg)*; $mul_add))
     };
     ($run:ident, $pass:ident($model:ident, $ws:ident $(, $arg:ident)* $(,)?)) => {
         $crate::instruction_set::run_pass!(@in $run, $pass($model, $ws $(, $arg)*), _, [])

@@ -202,6 +202,8 @@ mod tests {
         let crf = -crm.transpose();
         assert!((v.cross_motion(&m).to_vector() - crm * m.to_vector()).norm() < 1e-14);
         assert!((v.cross_force(&f).to_vector() - crf * f.to_vector()).norm() < 1e-14);
+        let fused = v.cross_force_with(&f, crate::mul_add::MulAdd::FUSED);
+        assert!((fused.to_vector() - crf * f.to_vector()).norm() < 1e-14);
         // v ×̂ v = 0, and the power of m ×̂ v against f equals −(power of v against m ×* f)... the
         // duality (v ×̂ m)·f = −m·(v ×* f).
         assert!(v.cross_motion(&v).to_vector().norm() < 1e-15);
