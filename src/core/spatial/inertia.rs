@@ -147,6 +147,8 @@ mod tests {
         );
         let v = Motion::new(Vector3::new(0.3, -0.2, 0.9), Vector3::new(1.0, 2.0, -1.0));
         assert!((i.apply(&v).to_vector() - i.to_matrix() * v.to_vector()).norm() < 1e-14);
+        let fused = i.apply_with(&v, MulAdd::FUSED);
+        assert!((fused.to_vector() - i.to_matrix() * v.to_vector()).norm() < 1e-14);
         assert!((i.com() - Vector3::new(0.0, 0.0, l)).norm() < 1e-15);
         let general = Inertia::from_com(
             1.5,
