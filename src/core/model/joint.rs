@@ -1,7 +1,7 @@
 //! Joint kinds and `jcalc`: the only place that knows what each kind of joint does.
 
 use crate::spatial::{sin_cos, Force, Matrix3, Motion, Transform, Vector3};
-use nalgebra::{Quaternion, Rotation3, Unit, UnitQuaternion};
+use nalgebra::{Rotation3, Unit};
 
 /// The kinds of joint a body can hang from. Fixed joints never appear here: their child links
 /// are fused into the parent body when the model is built.
@@ -302,31 +302,7 @@ impl JointKind {
     /// (SE(3) exponential) and the quaternion renormalised; every other kind adds `v·dt`.
     pub fn integrate(&self, q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
         match self {
-            JointKind::Floating => {
-                let quat = UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5]));
-                let lin = Vector3::new(v[0], v[1], v[2]) * dt;
-                let ang = Vector3::new(v[3], v[4], v[5]) * dt;
-                // p' = p + R V(ω dt) v dt, R' = R exp(ω dt), V = 1 + (1−cos θ)/θ² ω× + (θ−sin θ)/θ³ ω×².
-                let theta = ang.norm();
-                let (a, b) = if theta < 1e-6 {
-                    (
-                        0.5 - theta * theta / 24.0,
-                        1.0 / 6.0 - theta * theta / 120.0,
-                    )
-                } else {
-                    (
-                        (1.0 - theta.cos()) / (theta * theta),
-                        (theta - theta.sin()) / (theta * theta * theta),
-                    )
-                };
-                let wx = crate::spatial::skew(&ang);
-                let step = lin + wx * lin * a + wx * wx * lin * b;
-                let p = Vector3::new(q[0], q[1], q[2]) + quat * step;
-                let quat = quat * UnitQuaternion::from_scaled_axis(ang);
-                let quat = UnitQuaternion::new_normalize(quat.into_inner());
-                out[..3].copy_from_slice(p.as_slice());
-                out[3..7].copy_from_slice(&[quat.i, quat.j, quat.k, quat.w]);
-            }
+            JointKind::Floating => integrate_floating(q, v, dt, out),
             _ => {
                 for ((o, x), r) in out.iter_mut().zip(q).zip(v) {
                     *o = x + r * dt;
@@ -335,6 +311,96 @@ impl JointKind {
         }
     }
 }
+
+/// A floating joint's `q ⊕ v·dt` (`q = [p; x y z w]`, `v = [v_B; ω_B]` in the body frame): with
+/// `ψ = ω_B dt`, `θ = |ψ|`, the SE(3) exponential of the body twist `dt [v_B; ω_B]` gives
+/// ```text
+/// p' = p + R V(ψ) v_B dt,   V(ψ) = 1 + a ψ× + b ψ×²,   a = (1 − cos θ)/θ²,  b = (θ − sin θ)/θ³,
+/// R' = R exp(ψ),            exp(ψ) = [cos θ/2; h ψ]  (quaternion, w first),  h = sin(θ/2)/θ,
+/// ```
+/// `R'` renormalised. The quaternion of `q` may have any norm (the library normalises it, as
+/// everywhere): `R x = (q x q*)/|q|²`. The coefficients are [`exp_coefficients`].
+fn integrate_floating(q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
+    let (w, u) = (q[6], Vector3::new(q[3], q[4], q[5]));
+    let lin = Vector3::new(v[0], v[1], v[2]) * dt;
+    let psi = Vector3::new(v[3], v[4], v[5]) * dt;
+    let [a, b, c, h] = exp_coefficients(psi.norm_squared());
+    let turned = psi.cross(&lin);
+    let step = lin + turned * a + psi.cross(&turned) * b;
+    // q x q* = (w² − u·u) x + 2 (u·x) u + 2 w u × x
+    let (uu, n2) = (u.norm_squared(), w * w + u.norm_squared());
+    let rotated = step * (w * w - uu) + u * (2.0 * u.dot(&step)) + u.cross(&step) * (2.0 * w);
+    let p = Vector3::new(q[0], q[1], q[2]) + rotated * (1.0 / n2);
+    // q exp(ψ) = [w c − u·e; w e + c u + u × e] with e = h ψ
+    let e = psi * h;
+    let (w_moved, u_moved) = (w * c - u.dot(&e), e * w + u * c + u.cross(&e));
+    let scale = 1.0 / (w_moved * w_moved + u_moved.norm_squared()).sqrt();
+    out[..3].copy_from_slice(p.as_slice());
+    out[3..6].copy_from_slice((u_moved * scale).as_slice());
+    out[6] = w_moved * scale;
+}
+
+/// `[a, b, c, h]` of [`integrate_floating`] for `x = θ²`: `a = (1 − cos θ)/θ²`,
+/// `b = (θ − sin θ)/θ³`, `c = cos(θ/2)`, `h = sin(θ/2)/θ`. For `θ ≤ 0.2` (a step turning the
+/// body by 0.2 rad: 200 rad/s at 1 ms) each is its Taylor series in `x` to `x⁵`, whose first
+/// term left out is below `10⁻¹⁹` of the sum: no square root, division or cancellation. Above,
+/// from one [`sin_cos`] of `θ/2`: `sin θ = 2 s c` and `1 − cos θ = 2 s²`.
+fn exp_coefficients(x: f64) -> [f64; 4] {
+    if x <= SERIES_LIMIT {
+        let series = |coeffs: &[f64; 6]| coeffs.iter().rev().fold(0.0, |sum, k| sum * x + k);
+        return [
+            series(&SERIES[0]),
+            series(&SERIES[1]),
+            series(&SERIES[2]),
+            series(&SERIES[3]),
+        ];
+    }
+    let theta = x.sqrt();
+    let (s, c) = sin_cos(0.5 * theta);
+    let r = 1.0 / theta;
+    let h = s * r;
+    [2.0 * h * h, (theta - 2.0 * s * c) * (r * r * r), c, h]
+}
+
+/// `θ² = 0.04`: below it [`exp_coefficients`] sums series.
+const SERIES_LIMIT: f64 = 0.04;
+
+/// The Taylor coefficients of [`exp_coefficients`]' `a`, `b`, `c`, `h` in `x = θ²`, `k = 0, …, 5`:
+/// `(−1)ᵏ/(2k+2)!`, `(−1)ᵏ/(2k+3)!`, `(−1)ᵏ/(4ᵏ (2k)!)`, `(−1)ᵏ/(2·4ᵏ (2k+1)!)`.
+const SERIES: [[f64; 6]; 4] = [
+    [
+        1.0 / 2.0,
+        -1.0 / 24.0,
+        1.0 / 720.0,
+        -1.0 / 40320.0,
+        1.0 / 3628800.0,
+        -1.0 / 479001600.0,
+    ],
+    [
+        1.0 / 6.0,
+        -1.0 / 120.0,
+        1.0 / 5040.0,
+        -1.0 / 362880.0,
+        1.0 / 39916800.0,
+        -1.0 / 6227020800.0,
+    ],
+    [
+        1.0,
+        -1.0 / 8.0,
+        1.0 / 384.0,
+        -1.0 / 46080.0,
+        1.0 / 10321920.0,
+        -1.0 / 3715891200.0,
+    ],
+    [
+        1.0 / 2.0,
+        -1.0 / 48.0,
+        1.0 / 3840.0,
+        -1.0 / 645120.0,
+        1.0 / 185794560.0,
+        -1.0 / 81749606400.0,
+    ],
+];
 
 /// The form of a body's `ⁱX_λ` known when the model is built ([`JointKind::up_shape`]), so that
 /// a pass can use the cheaper actions of [`Translation`](crate::spatial::Translation) and
@@ -483,6 +549,7 @@ pub fn quaternion_rotation(q: &[f64]) -> Matrix3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{Quaternion, UnitQuaternion};
 
     /// The fast paths of `jcalc_up` give what the general `jcalc` composed with `X_tree` gives.
     #[test]
@@ -514,6 +581,49 @@ mod tests {
             assert!((fast.trans - reference.trans).norm() < 1e-15, "{kind:?}");
             assert_eq!(s_fast.nv, s_ref.nv);
             assert_eq!(s_fast.cols[0], s_ref.cols[0]);
+        }
+    }
+
+    /// A floating joint's `q ⊕ v·dt` is the pose `[R p; 0 1] expm(dt [ω×  v; 0 0])`, the 4×4
+    /// matrix exponential (nalgebra's Padé approximant, no trigonometry) of the body twist: on
+    /// both sides of the series' limit (`θ = 0.2`) and at the trigonometric range, from a
+    /// quaternion of norm 3 (normalised as everywhere). Position and rotation within 1e-14.
+    #[test]
+    fn floating_integrate_is_the_exponential_of_the_twist() {
+        let (p, quat) = (Vector3::new(0.3, -1.2, 0.5), [1.0, -2.0, 0.0, 2.0]);
+        let norm = quat.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let r =
+            UnitQuaternion::from_quaternion(Quaternion::new(quat[3], quat[0], quat[1], quat[2]))
+                .to_rotation_matrix()
+                .into_inner();
+        assert!((norm - 3.0).abs() < 1e-12);
+        let direction = Vector3::new(0.4, -0.3, 0.5).normalize();
+        for theta in [0.0, 1e-9, 1e-3, 0.05, 0.1999, 0.2, 0.2001, 0.7, 2.5] {
+            let dt = 0.01;
+            let (lin, ang) = (Vector3::new(1.0, -0.5, 2.0), direction * (theta / dt));
+            let mut twist = nalgebra::Matrix4::zeros();
+            twist
+                .fixed_view_mut::<3, 3>(0, 0)
+                .copy_from(&(crate::spatial::skew(&ang) * dt));
+            twist.fixed_view_mut::<3, 1>(0, 3).copy_from(&(lin * dt));
+            let mut pose = nalgebra::Matrix4::identity();
+            pose.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
+            pose.fixed_view_mut::<3, 1>(0, 3).copy_from(&p);
+            let expected = pose * twist.exp();
+            let q = [p.x, p.y, p.z, quat[0], quat[1], quat[2], quat[3]];
+            let v = [lin.x, lin.y, lin.z, ang.x, ang.y, ang.z];
+            let mut out = [0.0; 7];
+            JointKind::Floating.integrate(&q, &v, dt, &mut out);
+            let moved = Quaternion::new(out[6], out[3], out[4], out[5]);
+            assert!((moved.norm() - 1.0).abs() < 1e-15, "θ = {theta}");
+            let rotation = UnitQuaternion::new_unchecked(moved).to_rotation_matrix();
+            let dr = (rotation.matrix() - expected.fixed_view::<3, 3>(0, 0)).amax();
+            let dp =
+                (Vector3::new(out[0], out[1], out[2]) - expected.fixed_view::<3, 1>(0, 3)).amax();
+            assert!(
+                dr < 1e-14 && dp < 1e-14,
+                "θ = {theta}: ΔR {dr:e}, Δp {dp:e}"
+            );
         }
     }
 
