@@ -320,8 +320,8 @@ impl JointKind {
 /// ```
 /// `R'` renormalised. The quaternion of `q` may have any norm (the library normalises it, as
 /// everywhere): `R x = (q x q*)/|q|²`, [`quaternion_rotation`]'s matrix applied without being
-/// built (building it took Solo12's semi-implicit Euler step 1.02–1.04× the time, 2026-11-29).
-/// The coefficients are [`exp_coefficients`].
+/// built, which is faster (docs/performance.md, "Simulation against MuJoCo"). The coefficients
+/// are [`exp_coefficients`].
 fn integrate_floating(q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
     let (w, u) = (q[6], Vector3::new(q[3], q[4], q[5]));
     let lin = Vector3::new(v[0], v[1], v[2]) * dt;
