@@ -330,9 +330,9 @@ fn integrate_floating(q: &[f64], v: &[f64], dt: f64, out: &mut [f64]) {
     let turned = psi.cross(&lin);
     let step = lin + turned * a + psi.cross(&turned) * b;
     // q x q* = (w² − u·u) x + 2 (u·x) u + 2 w u × x
-    let (uu, n2) = (u.norm_squared(), w * w + u.norm_squared());
+    let uu = u.norm_squared();
     let rotated = step * (w * w - uu) + u * (2.0 * u.dot(&step)) + u.cross(&step) * (2.0 * w);
-    let p = Vector3::new(q[0], q[1], q[2]) + rotated * (1.0 / n2);
+    let p = Vector3::new(q[0], q[1], q[2]) + rotated * (1.0 / (w * w + uu));
     // q exp(ψ) = [w c − u·e; w e + c u + u × e] with e = h ψ
     let e = psi * h;
     let (w_moved, u_moved) = (w * c - u.dot(&e), e * w + u * c + u.cross(&e));
