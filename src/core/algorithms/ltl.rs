@@ -288,9 +288,11 @@ const BY_COLUMNS_BELOW: usize = 64;
 /// Y_kk = 1 / L_kk,   Y_ck = −(Σ_{m ∈ P(c)} L_mc Y_mk) / L_cc
 /// ```
 ///
-/// (`L_mc` non-zero only for `m` below `c`, `Y_mk` only for `m` on `k`'s path), each sum in two
-/// halves (the path's even and odd places) so that a deep path's additions do not wait on one
-/// another one by one.
+/// (`L_mc` non-zero only for `m` below `c`, `Y_mk` only for `m` on `k`'s path). Each entry
+/// waits on the one made just before it, a chain of dependent sums ([`up_the_path`] keeps each
+/// link short). A coordinate and the next, when it is the next's parent, go together
+/// ([`ChainColumns`]): their two columns walk the first's path side by side, two independent
+/// chains sharing the loads of `L`.
 #[inline(always)]
 fn inverse_transpose_by_columns(
     ancestors: &Ancestors,
@@ -299,25 +301,114 @@ fn inverse_transpose_by_columns(
     mul_add: MulAdd,
 ) {
     let n = ancestors.len();
-    let l = factor.as_slice();
     debug_assert_eq!(y.len(), n * n, "n rows of n");
-    for k in 0..n {
+    let mut k = 0;
+    while k < n {
+        let columns = ChainColumns {
+            n,
+            l: factor.as_slice(),
+            first: k,
+            mul_add,
+        };
         let path = ancestors.of(k);
-        let y_kk = l[k + k * n];
-        y[k * n + k] = y_kk;
+        if k + 1 < n && ancestors.of(k + 1).first() == Some(&k) {
+            columns.solve::<2>(path, y);
+            k += 2;
+        } else {
+            columns.solve::<1>(path, y);
+            k += 1;
+        }
+    }
+}
+
+/// Columns of `Y` for a coordinate `first` and the coordinates that follow it in a chain (each
+/// the parent of the next), `l` their factor (`n × n`, column-major, the diagonal holding
+/// `1 / L_kk`).
+struct ChainColumns<'a> {
+    n: usize,
+    l: &'a [f64],
+    first: usize,
+    mul_add: MulAdd,
+}
+
+impl ChainColumns<'_> {
+    /// Columns `k .. k + W` of `Y` (`k = first`), `path` the ancestors of `k`, parent first.
+    /// Their entries in the chain's own rows come first, up the chain (`i < g`):
+    ///
+    /// ```text
+    /// Y_{k+g, k+g} = 1 / L_{k+g, k+g},   Y_{k+i, k+g} = −(Σ_{i < m ≤ g} L_{k+m, k+i} Y_{k+m, k+g}) / L_{k+i, k+i}
+    /// ```
+    ///
+    /// then the rows of `path` ([`ChainColumns::up_the_path`]).
+    #[inline(always)]
+    fn solve<const W: usize>(&self, path: &[usize], y: &mut [f64]) {
+        let (n, l, k) = (self.n, self.l, self.first);
+        // own[g][i] = Y_{k+i, k+g}
+        let mut own = [[0.0; W]; W];
+        for (g, own) in own.iter_mut().enumerate() {
+            own[g] = l[(k + g) * (n + 1)];
+            for i in (0..g).rev() {
+                let column = &l[(k + i) * n..(k + i + 1) * n];
+                let mut sum = 0.0;
+                for m in i + 1..=g {
+                    sum = self.mul_add.mul_add(column[k + m], own[m], sum);
+                }
+                own[i] = -sum * column[k + i];
+            }
+            for (i, y_ig) in own[..=g].iter().enumerate() {
+                y[(k + i) * n + k + g] = *y_ig;
+            }
+        }
+        self.up_the_path(path, y, &own);
+    }
+
+    /// Rows `c` of `path` of the columns `k .. k + W`, parent first: entry `(c, k + g)` is
+    ///
+    /// ```text
+    /// −(Σ_{i ≤ g} L_{k+i, c} Y_{k+i, k+g} + Σ_{m ∈ path below c} L_mc Y_{m, k+g}) / L_cc
+    /// ```
+    ///
+    /// (`own[g][i] = Y_{k+i, k+g}`). Each entry waits on the one made just before it. Each sum
+    /// runs in two halves (the path's even and odd places), so that a deep path's additions do
+    /// not all wait on one another, and its last term is the entry made just before, kept in a
+    /// register: a link of the chain is one multiply-add, an addition and a multiplication. The
+    /// `W` columns' chains are independent and share each load of `L`.
+    #[inline(always)]
+    fn up_the_path<const W: usize>(&self, path: &[usize], y: &mut [f64], own: &[[f64; W]; W]) {
+        let (n, l, k, mul_add) = (self.n, self.l, self.first, self.mul_add);
+        let mut last = [0.0; W];
         for (j, &c) in path.iter().enumerate() {
             let column_c = &l[c * n..(c + 1) * n];
-            let below = &path[..j];
-            let (mut even, mut odd) = (column_c[k] * y_kk, 0.0);
-            let pairs = below.chunks_exact(2);
-            if let [m] = pairs.remainder() {
-                odd = column_c[*m] * y[m * n + k];
+            let (mut even, mut odd) = ([0.0; W], [0.0; W]);
+            for g in 0..W {
+                for (i, y_ig) in own[g][..=g].iter().enumerate() {
+                    even[g] = mul_add.mul_add(column_c[k + i], *y_ig, even[g]);
+                }
             }
-            for pair in pairs {
-                even = mul_add.mul_add(column_c[pair[0]], y[pair[0] * n + k], even);
-                odd = mul_add.mul_add(column_c[pair[1]], y[pair[1] * n + k], odd);
+            if let Some((&just_before, earlier)) = path[..j].split_last() {
+                let row = |m: usize| -> &[f64; W] { y[m * n + k..][..W].try_into().expect("W") };
+                let pairs = earlier.chunks_exact(2);
+                if let [m] = pairs.remainder() {
+                    let y_m = row(*m);
+                    for g in 0..W {
+                        odd[g] = mul_add.mul_add(column_c[*m], y_m[g], odd[g]);
+                    }
+                }
+                for pair in pairs {
+                    let (y_0, y_1) = (row(pair[0]), row(pair[1]));
+                    for g in 0..W {
+                        even[g] = mul_add.mul_add(column_c[pair[0]], y_0[g], even[g]);
+                        odd[g] = mul_add.mul_add(column_c[pair[1]], y_1[g], odd[g]);
+                    }
+                }
+                for g in 0..W {
+                    even[g] = mul_add.mul_add(column_c[just_before], last[g], even[g]);
+                }
             }
-            y[c * n + k] = -(even + odd) * column_c[c];
+            for g in 0..W {
+                last[g] = -(even[g] + odd[g]) * column_c[c];
+            }
+            y[c * n + k..][..W].copy_from_slice(&last);
         }
     }
 }
