@@ -28,6 +28,9 @@ use crate::plan::Ancestors;
 /// H⁻¹[:, s] = Σ_{c ∈ ancestors(s) ∪ {s}} (row c of Y)ᵀ Y_cs
 /// ```
 ///
+/// A coordinate and the next, when it is the next's parent (`s + 1` with parent `s`), go
+/// together: the next's ancestors are `s` and `s`'s, so the two columns are sums over the same
+/// rows of `Y` (with row `s + 1` for both, `Y_{s+1,s}` being zero), each row read once for both.
 /// With `WIDE` the blocks are those of the AVX-512 copy ([`Column::fill`]).
 #[inline(always)]
 pub(super) fn inverse_from_rows<const WIDE: bool>(
@@ -37,17 +40,18 @@ pub(super) fn inverse_from_rows<const WIDE: bool>(
     mul_add: MulAdd,
 ) {
     let n = ancestors.len();
-    for (s, column) in minv.chunks_exact_mut(n).enumerate() {
-        let sum = Column::<1> {
-            n,
-            columns: y,
-            coefficients: &y[s..],
-            stride: n,
-            ancestors: ancestors.of(s),
-            own_and_below: s..s + 1,
-            mul_add,
-        };
-        sum.fill::<WIDE>([column]);
+    let mut s = 0;
+    while s < n {
+        let pair = s + 1 < n && ancestors.of(s + 1).first() == Some(&s);
+        let width = if pair { 2 } else { 1 };
+        let columns = &mut minv[s * n..(s + width) * n];
+        if pair {
+            let (column, next) = columns.split_at_mut(n);
+            Column::<2>::of_inverse(ancestors, y, s, mul_add).fill::<WIDE>([column, next]);
+        } else {
+            Column::<1>::of_inverse(ancestors, y, s, mul_add).fill::<WIDE>([columns]);
+        }
+        s += width;
     }
 }
 
@@ -110,7 +114,23 @@ struct Column<'a, const K: usize> {
     mul_add: MulAdd,
 }
 
-impl<const K: usize> Column<'_, K> {
+impl<'a, const K: usize> Column<'a, K> {
+    /// Columns `s .. s + K` of `H⁻¹ = Yᵀ Y` ([`inverse_from_rows`]), `y` the rows of `Y`: the
+    /// rows of `Y` over `s`'s ancestors and `s .. s + K`, scaled by their entries in columns
+    /// `s .. s + K`.
+    #[inline(always)]
+    fn of_inverse(ancestors: &'a Ancestors, y: &'a [f64], s: usize, mul_add: MulAdd) -> Self {
+        Column {
+            n: ancestors.len(),
+            columns: y,
+            coefficients: &y[s..],
+            stride: ancestors.len(),
+            ancestors: ancestors.of(s),
+            own_and_below: s..s + K,
+            mul_add,
+        }
+    }
+
     /// The `K` columns into `out`, by blocks of 16 rows while more than 20 are left, then the
     /// rest (1 to 20 rows) as one block: a block's loop costs about the same bookkeeping
     /// whatever its width, so a short block of its own would cost nearly what a full one does.
