@@ -333,10 +333,11 @@ struct ChainColumns<'a> {
 
 impl ChainColumns<'_> {
     /// Columns `k .. k + W` of `Y` (`k = first`), `path` the ancestors of `k`, parent first.
-    /// Their entries in the chain's own rows come first, up the chain (`i < g`):
+    /// Their entries in the chain's own rows come first, up the chain:
     ///
     /// ```text
-    /// Y_{k+g, k+g} = 1 / L_{k+g, k+g},   Y_{k+i, k+g} = −(Σ_{i < m ≤ g} L_{k+m, k+i} Y_{k+m, k+g}) / L_{k+i, k+i}
+    /// Y_{k+g, k+g} = 1 / L_{k+g, k+g}
+    /// Y_{k+i, k+g} = −(Σ_{i < m ≤ g} L_{k+m, k+i} Y_{k+m, k+g}) / L_{k+i, k+i}   (i < g)
     /// ```
     ///
     /// then the rows of `path` ([`ChainColumns::up_the_path`]).
