@@ -98,7 +98,12 @@ impl EnergyGuard {
         let energy = kinetic + potential;
         let bound = self.bound(energy);
         if energy > bound {
-            return Err(SimError::EnergyBlowUp { t, energy, bound });
+            return Err(SimError::EnergyBlowUp {
+                t,
+                energy,
+                bound,
+                stalled: None,
+            });
         }
         Ok(())
     }

@@ -89,8 +89,14 @@ pub enum SimError {
     Dynamics { t: f64, source: DynamicsError },
     /// The state stopped being finite.
     NonFinite { t: f64, coordinate: String },
-    /// The energy grew beyond what the initial energy and the work of the commands allow.
-    EnergyBlowUp { t: f64, energy: f64, bound: f64 },
+    /// The energy grew beyond what the initial energy and the work of the commands allow;
+    /// `stalled`, a coordinate whose position the step could not move, when one is why.
+    EnergyBlowUp {
+        t: f64,
+        energy: f64,
+        bound: f64,
+        stalled: Option<Stalled>,
+    },
     /// Implicit Euler's Newton iterations did not converge on the step from time `t`, even
     /// halved `MAX_HALVINGS` times (`residual`: relative, at the last iterate of the last try).
     NotConverged { t: f64, residual: f64 },
@@ -107,15 +113,60 @@ impl fmt::Display for SimError {
                 integrator::MAX_HALVINGS,
                 integrator::MAX_NEWTON_ITERATIONS
             ),
-            SimError::EnergyBlowUp { t, energy, bound } => write!(
-                f,
-                "at t = {t:.6} s: the energy rose to {energy:.6e} J, above {bound:.6e} J (the initial energy plus the work of the commands plus a tolerance): the integrator is creating energy"
-            ),
+            SimError::EnergyBlowUp { t, energy, bound, stalled } => {
+                write!(
+                    f,
+                    "at t = {t:.6} s: the energy rose to {energy:.6e} J, above {bound:.6e} J (the initial energy plus the work of the commands plus a tolerance): the integrator is creating energy"
+                )?;
+                match stalled {
+                    Some(Stalled { coordinate, position, spacing }) => write!(
+                        f,
+                        "; '{coordinate}' is at {position:e}, where the spacing of floating-point numbers ({spacing:e}) is more than a step moves it, so its position cannot follow its velocity: start it nearer zero (an angle of a continuous joint modulo 2π)"
+                    ),
+                    None => Ok(()),
+                }
+            }
         }
     }
 }
 
 impl std::error::Error for SimError {}
+
+/// A coordinate whose position a step cannot move: at `position` the spacing of adjacent
+/// floating-point numbers, `spacing`, is more than its velocity times the step, so `q + v h`
+/// rounds back to `q` while the velocity changes, and the energy no longer balances.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stalled {
+    pub coordinate: String,
+    pub position: f64,
+    pub spacing: f64,
+}
+
+impl Stalled {
+    /// Among the coordinates whose velocity is their position's rate (revolute, continuous,
+    /// prismatic and planar joints), the one furthest from zero that is moving but that a step of
+    /// `h` cannot move, if any.
+    fn find(model: &Model, state: &State, h: f64) -> Option<Stalled> {
+        let euclidean = model
+            .coordinate_joints()
+            .filter(|j| !matches!(j.kind, crate::model::JointKind::Floating) && j.nq == j.nv);
+        let coordinates =
+            euclidean.flat_map(|j| (0..j.nv).map(move |k| (j.q_index + k, j.v_index + k)));
+        coordinates
+            .filter_map(|(iq, iv)| {
+                let (q, v) = (state.q[iq], state.v[iv]);
+                // The next float above |q| (q is finite here), less |q|.
+                let spacing = f64::from_bits(q.abs().to_bits() + 1) - q.abs();
+                (v != 0.0 && spacing > (v * h).abs()).then_some((iv, q, spacing))
+            })
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            .map(|(iv, position, spacing)| Stalled {
+                coordinate: model.v_name(iv),
+                position,
+                spacing,
+            })
+    }
+}
 
 /// Forward dynamics with the passive forces added: `a(q, v) = FD(q, v, clamp(τ_cmd) + τ_passive)`.
 pub(crate) struct Evaluator {
@@ -353,7 +404,22 @@ impl Simulator {
             if self.guard.due() {
                 let evaluated = matches!(evaluated, Ok(true));
                 let (kinetic, potential) = self.energy_at_start(model, state, evaluated)?;
-                self.guard.record(state.t, kinetic, potential)?;
+                self.guard
+                    .record(state.t, kinetic, potential)
+                    .map_err(|e| match e {
+                        SimError::EnergyBlowUp {
+                            t, energy, bound, ..
+                        } => {
+                            let stalled = Stalled::find(model, state, h);
+                            SimError::EnergyBlowUp {
+                                t,
+                                energy,
+                                bound,
+                                stalled,
+                            }
+                        }
+                        other => other,
+                    })?;
             }
             let t = state.t;
             evaluated

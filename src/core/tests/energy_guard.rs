@@ -5,7 +5,7 @@
 
 use spatial_dynamics_core::model::examples::{pendulum_urdf, DEFAULT_ARM_URDF};
 use spatial_dynamics_core::sim::{
-    Integrator, SimConfig, SimError, Simulator, State, ENERGY_CHECK_INTERVAL_S,
+    Integrator, SimConfig, SimError, Simulator, Stalled, State, ENERGY_CHECK_INTERVAL_S,
 };
 use spatial_dynamics_core::{urdf, ForwardDynamicsMethod, Model, ModelOptions};
 
@@ -160,7 +160,9 @@ fn semi_implicit_euler_creates_energy_on_the_spinning_arm_and_is_stopped() {
     let (model, q0, mut sim, e0) = falling_arm();
     let (end, err) = run(&model, Integrator::SemiImplicitEuler, 1e-3, 20_000, &q0);
     match err {
-        Some(SimError::EnergyBlowUp { t, energy, bound }) => {
+        Some(SimError::EnergyBlowUp {
+            t, energy, bound, ..
+        }) => {
             assert!(
                 energy > bound && energy > 1.5 * e0,
                 "{energy} J, E(0) = {e0} J"
@@ -228,4 +230,35 @@ fn work_done_from_rest_is_counted() {
             "{integrator}: {e} J, {expected} J"
         );
     }
+}
+
+/// A pendulum started at 1e17 rad (float spacing 16 rad) cannot move: `q + v h` rounds back to
+/// `q` while gravity speeds `v` up, and the energy grows without the potential changing. The stop
+/// names the joint, its position and the spacing. A run that creates energy by its integrator
+/// alone (explicit Euler at 10 ms on the arm, every position moving) names none.
+#[test]
+fn a_position_too_far_from_zero_to_move_is_named_when_the_guard_stops() {
+    let model = load(&pendulum_urdf(1, 1.0, 1.0));
+    let (_, err) = run(&model, Integrator::SemiImplicitEuler, 1e-3, 20_000, &[1e17]);
+    let Some(err @ SimError::EnergyBlowUp { stalled, .. }) = &err else {
+        panic!("1e17 rad: not stopped as creating energy: {err:?}");
+    };
+    let want = Stalled {
+        coordinate: "joint1".into(),
+        position: 1e17,
+        spacing: 16.0,
+    };
+    assert_eq!(stalled.as_ref(), Some(&want));
+    let message = err.to_string();
+    assert!(
+        message.contains("'joint1' is at 1e17")
+            && message.contains("spacing of floating-point numbers (1.6e1)"),
+        "{message}"
+    );
+    let arm = load(DEFAULT_ARM_URDF);
+    let (_, err) = run(&arm, Integrator::ExplicitEuler, 1e-2, 2000, &arm.neutral());
+    assert!(
+        matches!(err, Some(SimError::EnergyBlowUp { stalled: None, .. })),
+        "explicit Euler at 10 ms on the arm: {err:?}"
+    );
 }
