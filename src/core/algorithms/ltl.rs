@@ -289,10 +289,10 @@ const BY_COLUMNS_BELOW: usize = 64;
 /// ```
 ///
 /// (`L_mc` non-zero only for `m` below `c`, `Y_mk` only for `m` on `k`'s path). Each entry
-/// waits on the one made just before it, a chain of dependent sums ([`up_the_path`] keeps each
-/// link short). A coordinate and the next, when it is the next's parent, go together
-/// ([`ChainColumns`]): their two columns walk the first's path side by side, two independent
-/// chains sharing the loads of `L`.
+/// waits on the one made just before it, a chain of dependent sums
+/// ([`ChainColumns::up_the_path`] keeps each link short). A coordinate and the next, when it is
+/// the next's parent, go together ([`ChainColumns`]): their two columns walk the first's path
+/// side by side, two independent chains sharing the loads of `L`.
 #[inline(always)]
 fn inverse_transpose_by_columns(
     ancestors: &Ancestors,

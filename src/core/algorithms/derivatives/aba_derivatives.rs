@@ -357,9 +357,9 @@ fn identity_and_zeros(rows: &mut [f64], nv: usize) {
 /// `H⁻¹` into `ws.derivatives.minv` and `−H⁻¹ ∂τ/∂q`, `−H⁻¹ ∂τ/∂q̇` into `ddq_dq`, `ddq_dv`,
 /// with the factor of `H` in `ws.factor`.
 ///
-/// On a tree (`ws.plan.dof_ancestors`), `Y = L⁻ᵀ` by rows along the tree
-/// ([`ltl_inverse_transpose`], in the last `nv²` entries of `ws.derivatives.rhs`), then
-/// `H⁻¹ = Yᵀ Y` column by column ([`inverse_from_rows`]), then each column of the products as
+/// On a tree (`ws.plan.dof_ancestors`), `Y = L⁻ᵀ` along the tree ([`ltl_inverse_transpose`],
+/// in the last `nv²` entries of `ws.derivatives.rhs`), then `H⁻¹ = Yᵀ Y` by columns, two at a
+/// time along a chain ([`inverse_from_rows`]), then each column of the products as
 /// the sum of the columns of `H⁻¹` over its branch ([`branch_products`]), from `−∂τ/∂q`,
 /// `−∂τ/∂q̇` held by column in the first `2 nv²` entries of `ws.derivatives.rhs`.
 ///
