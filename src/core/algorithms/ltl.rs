@@ -346,17 +346,17 @@ impl ChainColumns<'_> {
         let (n, l, k) = (self.n, self.l, self.first);
         // own[g][i] = Y_{k+i, k+g}
         let mut own = [[0.0; W]; W];
-        for (g, own) in own.iter_mut().enumerate() {
-            own[g] = l[(k + g) * (n + 1)];
+        for (g, column_g) in own.iter_mut().enumerate() {
+            column_g[g] = l[(k + g) * (n + 1)];
             for i in (0..g).rev() {
                 let column = &l[(k + i) * n..(k + i + 1) * n];
                 let mut sum = 0.0;
                 for m in i + 1..=g {
-                    sum = self.mul_add.mul_add(column[k + m], own[m], sum);
+                    sum = self.mul_add.mul_add(column[k + m], column_g[m], sum);
                 }
-                own[i] = -sum * column[k + i];
+                column_g[i] = -sum * column[k + i];
             }
-            for (i, y_ig) in own[..=g].iter().enumerate() {
+            for (i, y_ig) in column_g[..=g].iter().enumerate() {
                 y[(k + i) * n + k + g] = *y_ig;
             }
         }
