@@ -147,9 +147,7 @@ impl Stalled {
     /// prismatic and planar joints), the one furthest from zero that is moving but that a step of
     /// `h` cannot move, if any.
     fn find(model: &Model, state: &State, h: f64) -> Option<Stalled> {
-        let euclidean = model
-            .coordinate_joints()
-            .filter(|j| !matches!(j.kind, crate::model::JointKind::Floating) && j.nq == j.nv);
+        let euclidean = model.coordinate_joints().filter(|j| j.nq == j.nv);
         let coordinates =
             euclidean.flat_map(|j| (0..j.nv).map(move |k| (j.q_index + k, j.v_index + k)));
         coordinates
@@ -404,22 +402,11 @@ impl Simulator {
             if self.guard.due() {
                 let evaluated = matches!(evaluated, Ok(true));
                 let (kinetic, potential) = self.energy_at_start(model, state, evaluated)?;
-                self.guard
-                    .record(state.t, kinetic, potential)
-                    .map_err(|e| match e {
-                        SimError::EnergyBlowUp {
-                            t, energy, bound, ..
-                        } => {
-                            let stalled = Stalled::find(model, state, h);
-                            SimError::EnergyBlowUp {
-                                t,
-                                energy,
-                                bound,
-                                stalled,
-                            }
-                        }
-                        other => other,
-                    })?;
+                let mut checked = self.guard.record(state.t, kinetic, potential);
+                if let Err(SimError::EnergyBlowUp { stalled, .. }) = &mut checked {
+                    *stalled = Stalled::find(model, state, h);
+                }
+                checked?;
             }
             let t = state.t;
             evaluated
