@@ -74,24 +74,32 @@ impl MulAdd {
         out
     }
 
-    /// `xᵀ y = Σ_r x_r y_r`, from the first entry on.
+    /// `xᵀ y = Σ_r x_r y_r`, as the sum of two halves, `r < 3` and `r ≥ 3`, each from its
+    /// first entry on: the halves are independent, so the result waits on three products and
+    /// an addition, not six products in a row.
     #[inline(always)]
     pub(crate) fn dot(self, x: &Vector6<f64>, y: &Vector6<f64>) -> f64 {
-        let mut sum = x[0] * y[0];
-        for r in 1..6 {
-            sum = self.mul_add(x[r], y[r], sum);
-        }
-        sum
+        let low = self.mul_add(x[2], y[2], self.mul_add(x[1], y[1], x[0] * y[0]));
+        let high = self.mul_add(x[5], y[5], self.mul_add(x[4], y[4], x[3] * y[3]));
+        low + high
     }
 
-    /// `m x = Σ_j m[:, j] x_j`, a column at a time.
+    /// `m x = Σ_j m[:, j] x_j`, as the sum of two halves, `j < 3` and `j ≥ 3`, each a column
+    /// at a time (independent, as in [`dot`](Self::dot)).
     #[inline(always)]
     pub(crate) fn matrix_vector(self, m: &Matrix6, x: &Vector6<f64>) -> Vector6<f64> {
-        let mut sum = m.column(0) * x[0];
-        for j in 1..6 {
-            sum = self.axpy(x[j], &m.column(j).into(), &sum);
-        }
-        sum
+        let column = |j: usize| -> Vector6<f64> { m.column(j).into() };
+        let low = self.axpy(
+            x[2],
+            &column(2),
+            &self.axpy(x[1], &column(1), &(column(0) * x[0])),
+        );
+        let high = self.axpy(
+            x[5],
+            &column(5),
+            &self.axpy(x[4], &column(4), &(column(3) * x[3])),
+        );
+        low + high
     }
 
     /// `a × b`, each component `a_j b_k − a_k b_j` as one multiply-add.

@@ -28,8 +28,11 @@
 //! a' = xlt(r_i) a_λ + c_i,   q̈_i = D_i⁻¹ (u_i − U_iᵀ a'),   a_i = a' + S_i q̈_i
 //! ```
 //! (`c_i` in the world frame: the world-frame `S` moves with the body, `d(⁰X_i S_i)/dt =
-//! v_i ×̂ ⁰X_i S_i + ⁰X_i S̊_i`.) Passes 2 and 3 take these equations in one of three forms by
-//! joint: one degree of freedom (`D_i` a scalar, `articulate_one_dof`), a floating root
+//! v_i ×̂ ⁰X_i S_i + ⁰X_i S̊_i`.) Down a chain of one-dof joints pass 3 writes
+//! `U_iᵀ a' = U_iᵀ (a'_λ + c_i) + (U_iᵀ S_λ) q̈_λ`, all of it known but one multiply-add before
+//! the parent's `q̈_λ` ([`accelerate_one_dof_below_one_dof`]). Passes 2 and 3 take these
+//! equations in one of three forms by joint: one degree of freedom (`D_i` a scalar,
+//! `articulate_one_dof`), a floating root
 //! (`S_i` invertible and orthonormal in world axes: `a_i = (I^A_i)⁻¹ (S_i τ_i − p^A_i)`,
 //! `q̈_i = S_iᵀ (a_i − a')`, `articulate_floating_root`), any other
 //! (`articulate`). Mimic joints tie coordinates across bodies, which the
@@ -660,17 +663,38 @@ fn acceleration_pass_in(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) 
     // The previous body's acceleration, kept for a child that follows its parent (a chain):
     // not read back from `a_world` just after it was stored.
     let mut a_previous = a_root;
+    // The previous body's `a'`, `S` and `q̈` when it has one degree of freedom.
+    let mut one_dof_previous: Option<(Motion, Motion, f64)> = None;
     for (i, ((body, (&anchor, shift)), ((c_i, s), ((u, d_inv), u_bias)))) in
         bodies.zip(slots).enumerate()
     {
-        let a_parent = match body.parent {
-            Some(p) if p + 1 == i => a_previous,
-            Some(p) => a_world[p],
-            None => a_root,
-        };
-        // a' = ⁱX_λ(i) a_λ(i) + c_i   (RBDA Table 7.1; ⁱX_λ(i) as for v_i)
-        let a_prime = motion_across_anchor(anchor, shift, a_parent) + *c_i;
         let v_index = body.joint.coords.v_index;
+        let follows_previous = matches!(body.parent, Some(p) if p + 1 == i);
+        let a_prime = match one_dof_previous {
+            Some((a_prime_parent, s_parent, qdd_parent))
+                if s.nv == 1 && follows_previous && !anchor =>
+            {
+                let (a_prime, qdd_i) = accelerate_one_dof_below_one_dof(
+                    (&u[0], d_inv[(0, 0)], u_bias[0]),
+                    c_i,
+                    (&a_prime_parent, &s_parent, qdd_parent),
+                );
+                qdd[v_index] = qdd_i;
+                a_previous = a_prime + s.cols[0] * qdd_i;
+                a_world[i] = a_previous;
+                one_dof_previous = Some((a_prime, s.cols[0], qdd_i));
+                continue;
+            }
+            _ => {
+                let a_parent = match body.parent {
+                    Some(p) if p + 1 == i => a_previous,
+                    Some(p) => a_world[p],
+                    None => a_root,
+                };
+                // a' = ⁱX_λ(i) a_λ(i) + c_i   (RBDA Table 7.1; ⁱX_λ(i) as for v_i)
+                motion_across_anchor(anchor, shift, a_parent) + *c_i
+            }
+        };
         a_previous = if s.nv == 1 {
             accelerate_one_dof(
                 s,
@@ -692,8 +716,27 @@ fn acceleration_pass_in(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) 
                 &mut qdd.as_mut_slice()[v_index..],
             )
         };
+        one_dof_previous = (s.nv == 1).then(|| (a_prime, s.cols[0], qdd[v_index]));
         a_world[i] = a_previous;
     }
+}
+
+/// Pass 3 at a one-dof body `i` whose parent is the body before it, also of one degree of
+/// freedom, in the same aligned frame: from the parent's `a'_λ`, `S_λ` and `q̈_λ` (so that
+/// `a_λ = a'_λ + S_λ q̈_λ`), `a'_i = a'_λ + c_i + S_λ q̈_λ` and
+/// `q̈_i = D_i⁻¹ (u_i − U_iᵀ (a'_λ + c_i) − (U_iᵀ S_λ) q̈_λ)`, returned as `(a'_i, q̈_i)`.
+/// The same equations as [`accelerate_one_dof`]'s, with `U_iᵀ a'_i` split so that all of it but
+/// one multiply-add is made before `q̈_λ` is known: down a chain each `q̈` waits on its
+/// parent's by that multiply-add and `D_i⁻¹`, not by a whole 6-vector sum and dot product.
+#[inline(always)]
+fn accelerate_one_dof_below_one_dof(
+    (u, d_inv, u_bias): (&Force, f64, f64),
+    c: &Motion,
+    (a_prime_parent, s_parent, qdd_parent): (&Motion, &Motion, f64),
+) -> (Motion, f64) {
+    let before_parent = *a_prime_parent + *c;
+    let qdd = d_inv * (u_bias - before_parent.dot(u) - s_parent.dot(u) * qdd_parent);
+    (before_parent + *s_parent * qdd_parent, qdd)
 }
 
 /// Pass 3 at a joint of any number of degrees of freedom, from `a' = ⁱX_λ(i) a_λ(i) + c_i` and
