@@ -660,10 +660,8 @@ fn acceleration_pass_in(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) 
         .iter()
         .zip(plan.anchors.iter().zip(anchor_shift.iter()));
     let slots = (c.iter().zip(s_world.iter())).zip(u.iter().zip(d_inv.iter()).zip(u_bias.iter()));
-    // The previous body's acceleration, kept for a child that follows its parent (a chain):
-    // not read back from `a_world` just after it was stored.
-    let mut a_previous = a_root;
-    // The previous body's `a'`, `S` and `q̈` when it has one degree of freedom.
+    // The previous body's `a'`, `S` and `q̈` when it has one degree of freedom, kept for a
+    // child that follows it (a chain), which reads neither `a_world` nor a copy of `a_λ`.
     let mut one_dof_previous: Option<(Motion, Motion, f64)> = None;
     for (i, ((body, (&anchor, shift)), ((c_i, s), ((u, d_inv), u_bias)))) in
         bodies.zip(slots).enumerate()
@@ -680,22 +678,17 @@ fn acceleration_pass_in(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) 
                     (&a_prime_parent, &s_parent, qdd_parent),
                 );
                 qdd[v_index] = qdd_i;
-                a_previous = a_prime + s.cols[0] * qdd_i;
-                a_world[i] = a_previous;
+                a_world[i] = a_prime + s.cols[0] * qdd_i;
                 one_dof_previous = Some((a_prime, s.cols[0], qdd_i));
                 continue;
             }
             _ => {
-                let a_parent = match body.parent {
-                    Some(p) if p + 1 == i => a_previous,
-                    Some(p) => a_world[p],
-                    None => a_root,
-                };
+                let a_parent = body.parent.map_or(a_root, |p| a_world[p]);
                 // a' = ⁱX_λ(i) a_λ(i) + c_i   (RBDA Table 7.1; ⁱX_λ(i) as for v_i)
                 motion_across_anchor(anchor, shift, a_parent) + *c_i
             }
         };
-        a_previous = if s.nv == 1 {
+        a_world[i] = if s.nv == 1 {
             accelerate_one_dof(
                 s,
                 &u[0],
@@ -717,7 +710,6 @@ fn acceleration_pass_in(model: &Model, ws: &mut Workspace, ext: &Externals<'_>) 
             )
         };
         one_dof_previous = (s.nv == 1).then(|| (a_prime, s.cols[0], qdd[v_index]));
-        a_world[i] = a_previous;
     }
 }
 
