@@ -201,8 +201,12 @@ pub(super) fn forward_terms(
     update_world_axes(ws, i, &[], 1.0);
     let s = &mut ws.s_world[i];
     let nv = s.nv;
-    for col in &mut s.cols[..nv] {
-        *col = *col * c.scale;
+    // A mimic follower's columns scaled by its multiplier; the others' left as they were
+    // stored (read back to be multiplied by one, they would wait for those stores).
+    if c.scale != 1.0 {
+        for col in &mut s.cols[..nv] {
+            *col = *col * c.scale;
+        }
     }
     let v_parent = parent_motion(ws, &ws.v_world, i, body.parent, &root.v);
     let a_parent = parent_motion(ws, &ws.a_world, i, body.parent, &root.a);
