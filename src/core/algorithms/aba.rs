@@ -442,7 +442,7 @@ fn is_floating_root(body: &Body) -> bool {
 /// `q̈_i = D_i⁻¹ (u_i − U_iᵀ a') = S_i⁻¹ (I^A_i)⁻¹ S_i⁻ᵀ u_i − S_i⁻¹ a'`, so
 /// `a_i = a' + S_i q̈_i = (I^A_i)⁻¹ S_i⁻ᵀ u_i = (I^A_i)⁻¹ (S_i⁻ᵀ τ_i − p^A_i)`: the root's
 /// acceleration is its articulated inertia's answer to the forces alone, and `S_i⁻ᵀ = S_i`. It
-/// is solved by one Cholesky factorisation ([`cholesky_by_blocks`]) of `I^A_i` with its
+/// is solved by one `L D Lᵀ` factorisation ([`ldlt_by_blocks`]) of `I^A_i` with its
 /// translations first (`[C Bᵀ; B A]` for `I^A_i = [A B; Bᵀ C]`, angular rows first), as the
 /// joint orders its coordinates: no 3×3 block is turned into the body's axes. A pivot that
 /// fails is named as `D_i` in the body's axes names it ([`floating_root_pivot`]). Not inlined:
@@ -463,27 +463,31 @@ fn articulate_floating_root(
     let b = Force::new(s_tau.ang, s_tau.lin) - slots.pa[i];
     let y = &mut slots.u_bias[i];
     *y = [b.lin.x, b.lin.y, b.lin.z, b.ang.x, b.ang.y, b.ang.z];
-    let solved = cholesky_by_blocks::solve(ia, |pivot| pivot_is_sound_for(pivot, ia), y);
+    let solved = ldlt_by_blocks::solve(ia, |pivot| pivot_is_sound_for(pivot, ia), y);
     solved.map_err(|world| floating_root_pivot(slots, i).unwrap_or(world))
 }
 
 /// The floating root's `I^A y = b` with its translations first, `[C Bᵀ; B A] y = b` for
-/// `I^A = [A B; Bᵀ C]` (angular rows first), by the Cholesky factorisation of
-/// [`spd_solve`] taken in blocks of three, so that every loop has a fixed length of at most
-/// three and unrolls: with `M = [P Qᵀ; Q R]` (`P = C`, `Q = B`, `R = A`),
+/// `I^A = [A B; Bᵀ C]` (angular rows first), by the square-root-free Cholesky factorisation
+/// `M = L D Lᵀ` (`L` unit lower triangular) taken in blocks of three, so that every loop has a
+/// fixed length of at most three and unrolls: with `M = [P Qᵀ; Q R]` (`P = C`, `Q = B`,
+/// `R = A`),
 /// ```text
-/// P = L₁ L₁ᵀ,   L₂₁ = Q L₁⁻ᵀ,   R − L₂₁ L₂₁ᵀ = L₂ L₂ᵀ,
-/// L₁ y₁ = b₁,   L₂ y₂ = b₂ − L₂₁ y₁,   L₂ᵀ x₂ = y₂,   L₁ᵀ x₁ = y₁ − L₂₁ᵀ x₂
+/// P = L₁ D₁ L₁ᵀ,   T = Q L₁⁻ᵀ,   L₂₁ = T D₁⁻¹,   R − L₂₁ Tᵀ = L₂ D₂ L₂ᵀ,
+/// L₁ z₁ = b₁,   L₂ z₂ = b₂ − L₂₁ z₁,   L₂ᵀ x₂ = D₂⁻¹ z₂,   L₁ᵀ x₁ = D₁⁻¹ z₁ − L₂₁ᵀ x₂
 /// ```
-/// the same operations as the 6×6 factorisation, each pivot tested by `sound` in the same
-/// order (`Err((k, pivot))`, `k` the row of `M`).
-mod cholesky_by_blocks {
+/// Each pivot `D_jj` is the square of the Cholesky factor's diagonal entry that
+/// [`spd_solve`] makes, tested by `sound` in the same order (`Err((k, pivot))`, `k` the row of
+/// `M`); a pivot costs one division and no square root, which the chain of pivots would wait
+/// on.
+mod ldlt_by_blocks {
     use crate::spatial::Matrix6;
 
-    /// A lower-triangular 3×3 factor, row by row, and the reciprocals of its diagonal.
+    /// A unit lower-triangular 3×3 factor, row by row (the entries below the diagonal), and
+    /// the reciprocals of its pivots `D_jj`.
     struct Factor {
         l: [[f64; 3]; 3],
-        inv_diag: [f64; 3],
+        inv_d: [f64; 3],
     }
 
     /// `I^A y = b` in the order of the floating joint's coordinates (see the module above);
@@ -496,27 +500,33 @@ mod cholesky_by_blocks {
     ) -> Result<(), (usize, f64)> {
         // P = C (rows and columns 3..6 of I^A), Q = B (rows 0..3, columns 3..6), R = A.
         let first = factor(|j, k| ia[(3 + j, 3 + k)], &sound, 0)?;
+        // T = Q L₁⁻ᵀ row by row, L₂₁ = T D₁⁻¹
+        let mut t = [[0.0; 3]; 3];
         let mut l21 = [[0.0; 3]; 3];
-        for (r, row) in l21.iter_mut().enumerate() {
-            *row = forward(&first, [ia[(r, 3)], ia[(r, 4)], ia[(r, 5)]]);
+        for r in 0..3 {
+            t[r] = forward(&first, [ia[(r, 3)], ia[(r, 4)], ia[(r, 5)]]);
+            for k in 0..3 {
+                l21[r][k] = t[r][k] * first.inv_d[k];
+            }
         }
         let schur = |j: usize, k: usize| {
             let mut s = ia[(j, k)];
             for m in 0..3 {
-                s -= l21[j][m] * l21[k][m];
+                s -= l21[j][m] * t[k][m];
             }
             s
         };
         let second = factor(schur, &sound, 3)?;
-        let y1 = forward(&first, [b[0], b[1], b[2]]);
+        let z1 = forward(&first, [b[0], b[1], b[2]]);
         let mut b2 = [b[3], b[4], b[5]];
         for (r, b2_r) in b2.iter_mut().enumerate() {
             for k in 0..3 {
-                *b2_r -= l21[r][k] * y1[k];
+                *b2_r -= l21[r][k] * z1[k];
             }
         }
-        let x2 = backward(&second, forward(&second, b2));
-        let mut y1 = y1;
+        let z2 = forward(&second, b2);
+        let x2 = backward(&second, scaled(&second, z2));
+        let mut y1 = scaled(&first, z1);
         for (j, y1_j) in y1.iter_mut().enumerate() {
             for r in 0..3 {
                 *y1_j -= l21[r][j] * x2[r];
@@ -527,9 +537,9 @@ mod cholesky_by_blocks {
         Ok(())
     }
 
-    /// The Cholesky factor of the 3×3 block whose lower triangle `m(j, k)` (`j ≥ k`) gives,
-    /// as [`spd_solve`](super::spd_solve) makes it; `Err((offset + j, pivot))` for the first
-    /// pivot that fails `sound`.
+    /// The `L D Lᵀ` factors of the 3×3 block whose lower triangle `m(j, k)` (`j ≥ k`) gives:
+    /// `D_jj = m_jj − Σ_k L_jk² D_kk`, `L_ij = (m_ij − Σ_k L_ik L_jk D_kk) / D_jj`;
+    /// `Err((offset + j, pivot))` for the first pivot `D_jj` that fails `sound`.
     #[inline(always)]
     fn factor(
         m: impl Fn(usize, usize) -> f64,
@@ -538,50 +548,55 @@ mod cholesky_by_blocks {
     ) -> Result<Factor, (usize, f64)> {
         let mut f = Factor {
             l: [[0.0; 3]; 3],
-            inv_diag: [0.0; 3],
+            inv_d: [0.0; 3],
         };
+        // L_jk D_kk, kept so that each term of a sum is one multiplication
+        let mut ld = [[0.0; 3]; 3];
         for j in 0..3 {
             let mut pivot = m(j, j);
             for k in 0..j {
-                pivot -= f.l[j][k] * f.l[j][k];
+                pivot -= f.l[j][k] * ld[j][k];
             }
             if !sound(pivot) {
                 return Err((offset + j, pivot));
             }
-            f.inv_diag[j] = 1.0 / pivot.sqrt();
+            f.inv_d[j] = 1.0 / pivot;
             for i in j + 1..3 {
                 let mut s = m(i, j);
                 for k in 0..j {
-                    s -= f.l[i][k] * f.l[j][k];
+                    s -= f.l[i][k] * ld[j][k];
                 }
-                f.l[i][j] = s * f.inv_diag[j];
+                ld[i][j] = s;
+                f.l[i][j] = s * f.inv_d[j];
             }
         }
         Ok(f)
     }
 
-    /// `L⁻¹ b` by forward substitution.
+    /// `L⁻¹ b` by forward substitution (`L` with a unit diagonal).
     #[inline(always)]
     fn forward(f: &Factor, mut b: [f64; 3]) -> [f64; 3] {
         for j in 0..3 {
-            let mut s = b[j];
             for k in 0..j {
-                s -= f.l[j][k] * b[k];
+                b[j] -= f.l[j][k] * b[k];
             }
-            b[j] = s * f.inv_diag[j];
         }
         b
+    }
+
+    /// `D⁻¹ z`.
+    #[inline(always)]
+    fn scaled(f: &Factor, z: [f64; 3]) -> [f64; 3] {
+        [z[0] * f.inv_d[0], z[1] * f.inv_d[1], z[2] * f.inv_d[2]]
     }
 
     /// `L⁻ᵀ y` by back substitution.
     #[inline(always)]
     fn backward(f: &Factor, mut y: [f64; 3]) -> [f64; 3] {
         for j in (0..3).rev() {
-            let mut s = y[j];
             for k in j + 1..3 {
-                s -= f.l[k][j] * y[k];
+                y[j] -= f.l[k][j] * y[k];
             }
-            y[j] = s * f.inv_diag[j];
         }
         y
     }
@@ -890,7 +905,7 @@ mod tests {
         let ia = inertia.to_matrix();
         let b = [0.4, -1.3, 2.2, 0.7, 0.1, -0.5];
         let (mut ours, mut reference) = (b, b);
-        cholesky_by_blocks::solve(&ia, sound, &mut ours).unwrap();
+        ldlt_by_blocks::solve(&ia, sound, &mut ours).unwrap();
         spd_solve(&swapped(&ia), 6, sound, &mut reference).unwrap();
         for (x, r) in ours.iter().zip(&reference) {
             assert!(
@@ -910,7 +925,7 @@ mod tests {
                 &Matrix3::from_diagonal(&Vector3::from(moments)),
             )
             .to_matrix();
-            let ours = cholesky_by_blocks::solve(&singular, sound, &mut [1.0; 6]).unwrap_err();
+            let ours = ldlt_by_blocks::solve(&singular, sound, &mut [1.0; 6]).unwrap_err();
             let reference = spd_solve(&swapped(&singular), 6, sound, &mut [1.0; 6]).unwrap_err();
             assert_eq!(ours, reference);
         }

@@ -127,10 +127,10 @@ fn aba_one_dof(has_parent: bool) -> Flops {
 /// ABA's passes 2 and 3 at a floating root (`aba::articulate_floating_root`,
 /// `accelerate_floating_root`), beyond [`aba_passes`]' shared terms (whose `u = τ − Sᵀ p^A`
 /// stands for the right-hand side `S τ − p^A`, the same 36 m + 36 a): `a = (I^A)⁻¹ (S τ − p^A)`
-/// by a Cholesky solve in world axes (its pivots checked against one scale); then
+/// by an `L D Lᵀ` solve in world axes (its pivots checked against one scale); then
 /// `q̈ = Sᵀ (a − a')`.
 fn aba_floating_root() -> Flops {
-    let pass_2 = spd_solve(6) + Flops::new(1, 0);
+    let pass_2 = ldlt_solve(6) + Flops::new(1, 0);
     pass_2 + Flops::new(0, 6) + DOT6 * 6
 }
 

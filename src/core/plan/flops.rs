@@ -206,15 +206,22 @@ pub fn spd_inverse(n: usize) -> Flops {
     total
 }
 
-/// `cholesky::spd_solve` of an `n × n` block: the factor `L`, then `L y = b` and `Lᵀ x = y`,
-/// `n − 1` products subtracted from each right-hand side in all and one scaling per entry
-/// each way.
-pub fn spd_solve(n: usize) -> Flops {
+/// The square-root-free `L D Lᵀ` solve of an `n × n` block (ABA's floating root,
+/// `aba::ldlt_by_blocks` for `n = 6`): the factor's operations are those of `L` in
+/// [`spd_inverse`] with a reciprocal of each pivot and no square root, then `L z = b`, `D⁻¹ z`
+/// and `Lᵀ x = D⁻¹ z`, `n − 1` products subtracted from each right-hand side in all and one
+/// scaling per entry.
+pub fn ldlt_solve(n: usize) -> Flops {
     let n = n as u64;
-    spd_factor(n as usize) + Flops::new(n * (n - 1) + 2 * n, n * (n - 1))
+    let factor = spd_factor(n as usize);
+    let factor = Flops {
+        sqrt: factor.sqrt - n,
+        ..factor
+    };
+    factor + Flops::new(n * (n - 1) + n, n * (n - 1))
 }
 
-/// The factor `L` of `cholesky::spd_inverse` and `spd_solve`: for each column the pivot, its
+/// The factor `L` of `cholesky::spd_inverse`: for each column the pivot, its
 /// root's reciprocal and the column below it.
 fn spd_factor(n: usize) -> Flops {
     let mut total = Flops::new(0, 0);
