@@ -68,7 +68,7 @@
 //! CRBA, a bias RNEA and a dense Cholesky factor instead, and the passes of `rnea_derivatives`
 //! run whole at `(q, q̇, q̈)`.
 
-use super::branch_products::{branch_products, inverse_from_rows};
+use super::branch_products::{branch_products, inverse_from_rows, Probe};
 use super::rnea_derivatives::{
     acceleration_terms, ancestors, backward_pass, check_matrix, derivative_passes, dot_in_halves,
     forward_terms, Accelerations, RootMotion, Target,
@@ -78,7 +78,9 @@ use crate::algorithms::cholesky::cholesky_solve_rows;
 use crate::algorithms::forward_dynamics::crba_solve_on_joints;
 use crate::algorithms::kinematics::{update_aligned_placements, update_joints, Anchors};
 use crate::algorithms::ltl::{ltl_factor, ltl_inverse_transpose, ltl_solve};
-use crate::algorithms::validate::{all_finite_long, check_forward_inputs, check_result};
+use crate::algorithms::validate::{
+    all_finite, all_finite_long, check_forward_inputs, check_result,
+};
 use crate::algorithms::Externals;
 use crate::error::DynamicsError;
 use crate::instruction_set::{run_pass, run_wide_pass};
@@ -144,15 +146,14 @@ fn derivatives_of_checked(
         ws.qdd = qdd;
         None
     };
-    solve_with_factor(model, ws, free_root);
-    let d = &ws.derivatives;
-    // One branch-free pass over each result; the coordinate is looked for only on failure.
-    for (quantity, m) in [
-        ("ddq_dq", &d.ddq_dq),
-        ("ddq_dv", &d.ddq_dv),
-        ("Minv", &d.minv),
-    ] {
-        if !all_finite_long(m.as_slice()) {
+    if !solve_with_factor(model, ws, free_root) {
+        // The coordinate of a value that is not finite is looked for only on failure.
+        let d = &ws.derivatives;
+        for (quantity, m) in [
+            ("ddq_dq", &d.ddq_dq),
+            ("ddq_dv", &d.ddq_dv),
+            ("Minv", &d.minv),
+        ] {
             check_matrix(model, quantity, m)?;
         }
     }
@@ -370,7 +371,11 @@ fn identity_and_zeros(rows: &mut [f64], nv: usize) {
 ///
 /// A model of [`WIDE_FROM`] coordinates or more runs the AVX-512 copy where the processor has
 /// it ([`run_wide_pass`]), with its wider blocks.
-fn solve_with_factor(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>) {
+///
+/// Returns whether every value of the three results is finite: on a tree from the [`Probe`]
+/// that the inverse and the products add each block to as they store it (and the closed
+/// form's columns), with mimic joints from one pass over each result.
+fn solve_with_factor(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>) -> bool {
     if model.nv >= WIDE_FROM && ws.plan.instruction_set.is_wide() {
         run_wide_pass!(solve_wide(model, ws, free_root; mul_add))
     } else {
@@ -385,13 +390,23 @@ const WIDE_FROM: usize = 32;
 
 /// [`solve_with_factor_in`] with the AVX-512 copy's blocks.
 #[inline(always)]
-fn solve_wide(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>, mul_add: MulAdd) {
+fn solve_wide(
+    model: &Model,
+    ws: &mut Workspace,
+    free_root: Option<FreeRoot>,
+    mul_add: MulAdd,
+) -> bool {
     solve_with_factor_in::<true>(model, ws, free_root, mul_add)
 }
 
 /// [`solve_with_factor_in`] with the blocks of the other copies.
 #[inline(always)]
-fn solve_narrow(model: &Model, ws: &mut Workspace, free_root: Option<FreeRoot>, mul_add: MulAdd) {
+fn solve_narrow(
+    model: &Model,
+    ws: &mut Workspace,
+    free_root: Option<FreeRoot>,
+    mul_add: MulAdd,
+) -> bool {
     solve_with_factor_in::<false>(model, ws, free_root, mul_add)
 }
 
@@ -403,11 +418,11 @@ fn solve_with_factor_in<const WIDE: bool>(
     ws: &mut Workspace,
     free_root: Option<FreeRoot>,
     mul_add: MulAdd,
-) {
+) -> bool {
     let (plan, factor, d) = (&ws.plan, &ws.factor, &mut ws.derivatives);
     let nv = model.nv;
     if nv == 0 {
-        return; // no columns (and `chunks_exact(0)` would panic)
+        return true; // no columns (and `chunks_exact(0)` would panic)
     }
     match &plan.dof_ancestors {
         Some(ancestors) => {
@@ -416,21 +431,29 @@ fn solve_with_factor_in<const WIDE: bool>(
             // Y = L⁻ᵀ: the entries it does not write are zero from the allocation on (nothing
             // else writes this part of `rhs` on a tree).
             ltl_inverse_transpose(ancestors, factor, y, mul_add);
-            inverse_from_rows::<WIDE>(ancestors, y, minv, mul_add);
+            let probe = &mut Probe::new(mul_add);
+            inverse_from_rows::<WIDE>(ancestors, y, minv, probe, mul_add);
             let (ddq_dq, ddq_dv) = (d.ddq_dq.as_mut_slice(), d.ddq_dv.as_mut_slice());
             // A free root's rate columns 0..3 and pose columns 0..6 in closed form.
             let (v_from, q_from) = if free_root.is_some() { (3, 6) } else { (0, 0) };
             let x = (&mut *ddq_dq, &mut *ddq_dv);
-            branch_products::<WIDE>(ancestors, minv, pairs, x, (v_from, q_from), mul_add);
+            branch_products::<WIDE>(ancestors, minv, pairs, x, (v_from, q_from), probe, mul_add);
             if let Some(free_root) = free_root {
                 free_root.write_columns(ddq_dq, ddq_dv, nv);
             }
+            // Every value of the results went through the probe but the closed form's.
+            probe.all_finite()
+                && all_finite(&ddq_dq[..q_from * nv])
+                && all_finite(&ddq_dv[..v_from * nv])
         }
         None => {
             let k = 3 * nv;
             let rows = &mut d.rhs[..k * nv];
             cholesky_solve_rows(factor, rows, k);
             copy_out(d, nv);
+            [&d.ddq_dq, &d.ddq_dv, &d.minv]
+                .iter()
+                .all(|m| all_finite_long(m.as_slice()))
         }
     }
 }

@@ -15,6 +15,8 @@
 //!
 //! A column is summed in blocks of its rows held in registers, stored once when its branch is
 //! done: the loop has no stores, and the two products share each block of `H⁻¹` they read.
+//! Each block is added to a finiteness [`Probe`] as it is stored, so that no pass reads the
+//! results again to check them.
 
 use crate::mul_add::MulAdd;
 use crate::plan::Ancestors;
@@ -31,12 +33,14 @@ use crate::plan::Ancestors;
 /// A coordinate and the next, when it is the next's parent (`s + 1` with parent `s`), go
 /// together: the next's ancestors are `s` and `s`'s, so the two columns are sums over the same
 /// rows of `Y` (with row `s + 1` for both, `Y_{s+1,s}` being zero), each row read once for both.
-/// With `WIDE` the blocks are those of the AVX-512 copy ([`Column::fill`]).
+/// With `WIDE` the blocks are those of the AVX-512 copy ([`Column::fill`]). Every value stored
+/// is added to `probe`.
 #[inline(always)]
 pub(super) fn inverse_from_rows<const WIDE: bool>(
     ancestors: &Ancestors,
     y: &[f64],
     minv: &mut [f64],
+    probe: &mut Probe,
     mul_add: MulAdd,
 ) {
     let n = ancestors.len();
@@ -47,9 +51,9 @@ pub(super) fn inverse_from_rows<const WIDE: bool>(
         let columns = &mut minv[s * n..(s + width) * n];
         if pair {
             let (column, next) = columns.split_at_mut(n);
-            Column::<2>::of_inverse(ancestors, y, s, mul_add).fill::<WIDE>([column, next]);
+            Column::<2>::of_inverse(ancestors, y, s, mul_add).fill::<WIDE>([column, next], probe);
         } else {
-            Column::<1>::of_inverse(ancestors, y, s, mul_add).fill::<WIDE>([columns]);
+            Column::<1>::of_inverse(ancestors, y, s, mul_add).fill::<WIDE>([columns], probe);
         }
         s += width;
     }
@@ -60,7 +64,8 @@ pub(super) fn inverse_from_rows<const WIDE: bool>(
 /// it for every `i` in `branch(j)` (other entries are not read). Columns `j < q_from` of
 /// `X_q` and `j < v_from` of `X_v` are the caller's to write (a free-floating root's closed
 /// form, `v_from ≤ q_from`): they are not made, nor their entries of `B` read. With `WIDE`
-/// the blocks are those of the AVX-512 copy ([`Column::fill`]).
+/// the blocks are those of the AVX-512 copy ([`Column::fill`]). Every value stored is added to
+/// `probe`.
 #[inline(always)]
 pub(super) fn branch_products<const WIDE: bool>(
     ancestors: &Ancestors,
@@ -68,6 +73,7 @@ pub(super) fn branch_products<const WIDE: bool>(
     b: &[f64],
     (x_q, x_v): (&mut [f64], &mut [f64]),
     (v_from, q_from): (usize, usize),
+    probe: &mut Probe,
     mul_add: MulAdd,
 ) {
     let n = ancestors.len();
@@ -85,7 +91,7 @@ pub(super) fn branch_products<const WIDE: bool>(
                 own_and_below,
                 mul_add,
             };
-            sum.fill::<WIDE>([x_v]);
+            sum.fill::<WIDE>([x_v], probe);
         } else {
             let sum = Column::<2> {
                 n,
@@ -96,8 +102,53 @@ pub(super) fn branch_products<const WIDE: bool>(
                 own_and_below,
                 mul_add,
             };
-            sum.fill::<WIDE>([x_q, x_v]);
+            sum.fill::<WIDE>([x_q, x_v], probe);
         }
+    }
+}
+
+/// The finiteness probe of the values the products store: `Σ x · 0` in eight lanes, each
+/// block of a column added just after it is stored (a read the store forwards), so that no
+/// pass over the results reads them back from memory. `x · 0` is zero for a finite `x` and
+/// NaN for an infinite or NaN one, so the sum stays zero while every value is finite (as
+/// `validate::all_finite` sums it over a slice). With fused multiply-adds each `x · 0 + lane`
+/// is one instruction.
+pub(super) struct Probe {
+    lanes: [f64; 8],
+    mul_add: MulAdd,
+}
+
+impl Probe {
+    /// A probe that has seen no value.
+    pub(super) fn new(mul_add: MulAdd) -> Self {
+        Probe {
+            lanes: [0.0; 8],
+            mul_add,
+        }
+    }
+
+    /// Adds `x · 0` for each of `values`: summed in lanes of their own first, so that the
+    /// lanes carried from block to block wait on one addition a block.
+    #[inline(always)]
+    fn add<const W: usize>(&mut self, values: &[f64; W]) {
+        let mut block = [0.0; 8];
+        let chunks = values.chunks_exact(8);
+        for (b, x) in block.iter_mut().zip(chunks.remainder()) {
+            *b = self.mul_add.mul_add(*x, 0.0, *b);
+        }
+        for chunk in chunks {
+            for (b, x) in block.iter_mut().zip(chunk) {
+                *b = self.mul_add.mul_add(*x, 0.0, *b);
+            }
+        }
+        for (lane, b) in self.lanes.iter_mut().zip(block) {
+            *lane += b;
+        }
+    }
+
+    /// Whether every value added was finite.
+    pub(super) fn all_finite(&self) -> bool {
+        self.lanes.iter().sum::<f64>() == 0.0
     }
 }
 
@@ -138,17 +189,17 @@ impl<'a, const K: usize> Column<'a, K> {
     /// values hold 56 rows of two products) by blocks of 32 while more than 56 are left, then
     /// the rest as one block: a column of up to 56 rows walks its branch once.
     #[inline(always)]
-    fn fill<const WIDE: bool>(&self, mut out: [&mut [f64]; K]) {
+    fn fill<const WIDE: bool>(&self, mut out: [&mut [f64]; K], probe: &mut Probe) {
         let n = self.n;
         let mut r = 0;
         macro_rules! blocks {
             ($width:literal, $longest_last:literal, $($w:literal)*) => {{
                 while n - r > $longest_last {
-                    self.rows::<$width>(r, &mut out);
+                    self.rows::<$width>(r, &mut out, probe);
                     r += $width;
                 }
                 match n - r {
-                    $($w => self.rows::<$w>(r, &mut out),)*
+                    $($w => self.rows::<$w>(r, &mut out, probe),)*
                     _ => {} // no rows left (n = 0)
                 }
             }};
@@ -162,9 +213,10 @@ impl<'a, const K: usize> Column<'a, K> {
         }
     }
 
-    /// Rows `r .. r + W` of the `K` columns, summed in registers over the branch.
+    /// Rows `r .. r + W` of the `K` columns, summed in registers over the branch, stored and
+    /// added to `probe`.
     #[inline(always)]
-    fn rows<const W: usize>(&self, r: usize, out: &mut [&mut [f64]; K]) {
+    fn rows<const W: usize>(&self, r: usize, out: &mut [&mut [f64]; K], probe: &mut Probe) {
         let mut sums = [[0.0; W]; K];
         for &i in self.ancestors {
             self.add::<W>(&mut sums, r, i);
@@ -173,7 +225,9 @@ impl<'a, const K: usize> Column<'a, K> {
             self.add::<W>(&mut sums, r, i);
         }
         for (out, sum) in out.iter_mut().zip(&sums) {
-            out[r..r + W].copy_from_slice(sum);
+            let out: &mut [f64; W] = (&mut out[r..r + W]).try_into().expect("W rows");
+            *out = *sum;
+            probe.add(out);
         }
     }
 
@@ -196,7 +250,7 @@ impl<'a, const K: usize> Column<'a, K> {
 
 #[cfg(test)]
 mod tests {
-    use super::branch_products;
+    use super::{branch_products, inverse_from_rows, Probe};
     use crate::model::examples::pendulum_urdf;
     use crate::model::ModelOptions;
     use crate::mul_add::MulAdd;
@@ -268,7 +322,9 @@ mod tests {
         let (mut x_q, mut x_v) = (vec![f64::NAN; n * n], vec![f64::NAN; n * n]);
         let (minv, b) = (m.as_slice(), &b);
         let x = (&mut x_q[..], &mut x_v[..]);
-        branch_products::<WIDE>(ancestors, minv, b, x, (v_from, q_from), mul_add);
+        let probe = &mut Probe::new(mul_add);
+        branch_products::<WIDE>(ancestors, minv, b, x, (v_from, q_from), probe, mul_add);
+        assert!(probe.all_finite());
         assert!(x_q[..q_from * n].iter().all(|x| x.is_nan()));
         assert!(x_v[..v_from * n].iter().all(|x| x.is_nan()));
         for (got, want, skip) in [(&x_q, &m * &b_q, q_from * n), (&x_v, &m * &b_v, v_from * n)] {
@@ -276,6 +332,73 @@ mod tests {
             for (k, (g, w)) in got.iter().zip(want.as_slice()).enumerate().skip(skip) {
                 assert!((g - w).abs() <= 1e-14 * scale, "entry {k}: {g} against {w}");
             }
+        }
+    }
+
+    /// The probe says the results are finite exactly when they are. On the floating tree and
+    /// on chains of 20 and 57 coordinates (the narrow and wide blocks' widths), in either
+    /// blocking, one input entry at a time is made infinite: of `H⁻¹` in row `r` of the root's
+    /// column (on every branch: row `r` of every product), of `B_q` on column `j`'s diagonal
+    /// (column `j` of `X_q` alone), of `Y` in row `r` of its first row (row `r` of `H⁻¹`).
+    #[test]
+    fn the_probe_sees_every_value_that_is_not_finite() {
+        let tree = include_str!("../../tests/models/tree.urdf");
+        let floating = ModelOptions {
+            floating_base: true,
+            ..Default::default()
+        };
+        let chain = |n| (pendulum_urdf(n, 0.3, 0.5), ModelOptions::default());
+        for (text, options) in [(tree.to_string(), floating), chain(20), chain(57)] {
+            let model = model_from_str(&text, &options).unwrap();
+            let ancestors = Workspace::new(&model).plan.dof_ancestors.expect("a tree");
+            probe_sees::<false>(&ancestors);
+            probe_sees::<true>(&ancestors);
+        }
+    }
+
+    fn probe_sees<const WIDE: bool>(ancestors: &Ancestors) {
+        let n = ancestors.len();
+        let mul_add = MulAdd::FUSED;
+        let mut rng = Rng::new(5);
+        let m: Vec<f64> = (0..n * n).map(|_| 1.0 + rng.uniform()).collect();
+        let b: Vec<f64> = (0..2 * n * n).map(|_| 1.0 + rng.uniform()).collect();
+        let products = |m: &[f64], b: &[f64]| {
+            let (mut x_q, mut x_v) = (vec![0.0; n * n], vec![0.0; n * n]);
+            let probe = &mut Probe::new(mul_add);
+            branch_products::<WIDE>(
+                ancestors,
+                m,
+                b,
+                (&mut x_q, &mut x_v),
+                (0, 0),
+                probe,
+                mul_add,
+            );
+            let finite = x_q.iter().chain(&x_v).all(|x| x.is_finite());
+            (probe.all_finite(), finite)
+        };
+        assert_eq!(products(&m, &b), (true, true));
+        for r in 0..n {
+            let mut poisoned = m.clone();
+            poisoned[r] = f64::INFINITY;
+            assert_eq!(products(&poisoned, &b), (false, false), "row {r}");
+        }
+        for j in 0..n {
+            let mut poisoned = b.clone();
+            poisoned[2 * (j * n + j)] = f64::INFINITY;
+            assert_eq!(products(&m, &poisoned), (false, false), "column {j}");
+        }
+        let inverse = |y: &[f64]| {
+            let mut minv = vec![0.0; n * n];
+            let probe = &mut Probe::new(mul_add);
+            inverse_from_rows::<WIDE>(ancestors, y, &mut minv, probe, mul_add);
+            (probe.all_finite(), minv.iter().all(|x| x.is_finite()))
+        };
+        assert_eq!(inverse(&m), (true, true));
+        for r in 0..n {
+            let mut poisoned = m.clone();
+            poisoned[r] = f64::INFINITY;
+            assert_eq!(inverse(&poisoned), (false, false), "row {r} of Y");
         }
     }
 }
