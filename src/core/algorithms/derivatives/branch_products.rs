@@ -260,6 +260,18 @@ mod tests {
     use crate::Workspace;
     use nalgebra::DMatrix;
 
+    /// The branched test tree (14 coordinates) on a floating base: its URDF and options.
+    fn floating_tree() -> (String, ModelOptions) {
+        let options = ModelOptions {
+            floating_base: true,
+            ..Default::default()
+        };
+        (
+            include_str!("../../tests/models/tree.urdf").to_string(),
+            options,
+        )
+    }
+
     /// Against the dense products `M B_q`, `M B_v` with `B` zero off the branches, on a
     /// branched tree with a floating base (14 coordinates) and on chains of 1 to 40, 55 to 60
     /// and 87 to 90 (every width of the last narrow block after none, one or two blocks of 16,
@@ -268,14 +280,10 @@ mod tests {
     /// its first three floating-base columns not made and the next three made of `X_v` alone.
     #[test]
     fn the_products_over_the_branches_are_the_dense_products() {
-        let tree = include_str!("../../tests/models/tree.urdf");
-        let floating = ModelOptions {
-            floating_base: true,
-            ..Default::default()
-        };
+        let (tree, floating) = floating_tree();
         let lengths = (1..=40).chain(55..=60).chain(87..=90);
         let chains = lengths.map(|n| (pendulum_urdf(n, 0.3, 0.5), ModelOptions::default(), n));
-        for (text, options, nv) in [(tree.to_string(), floating, 14)].into_iter().chain(chains) {
+        for (text, options, nv) in [(tree, floating, 14)].into_iter().chain(chains) {
             let model = model_from_str(&text, &options).unwrap();
             let ancestors = Workspace::new(&model).plan.dof_ancestors.expect("a tree");
             assert_eq!(ancestors.len(), nv);
@@ -342,13 +350,8 @@ mod tests {
     /// (column `j` of `X_q` alone), of `Y` in row `r` of its first row (row `r` of `H⁻¹`).
     #[test]
     fn the_probe_sees_every_value_that_is_not_finite() {
-        let tree = include_str!("../../tests/models/tree.urdf");
-        let floating = ModelOptions {
-            floating_base: true,
-            ..Default::default()
-        };
         let chain = |n| (pendulum_urdf(n, 0.3, 0.5), ModelOptions::default());
-        for (text, options) in [(tree.to_string(), floating), chain(20), chain(57)] {
+        for (text, options) in [floating_tree(), chain(20), chain(57)] {
             let model = model_from_str(&text, &options).unwrap();
             let ancestors = Workspace::new(&model).plan.dof_ancestors.expect("a tree");
             probe_sees::<false>(&ancestors);
