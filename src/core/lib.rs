@@ -36,6 +36,8 @@ pub mod requests;
 pub mod sampling;
 pub mod sim;
 pub mod spatial;
+#[cfg(test)]
+mod test_models;
 pub mod urdf;
 mod workspace;
 

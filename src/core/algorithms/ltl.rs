@@ -636,6 +636,7 @@ fn subtract_combinations<'a, R: Rows>(
 mod tests {
     use super::*;
     use crate::model::examples;
+    use crate::test_models::{floating, TREE_URDF};
     use crate::{urdf, ModelOptions};
 
     /// A tree numbered depth-first has contiguous subtrees; numbered breadth-first it does not.
@@ -661,16 +662,11 @@ mod tests {
     /// apart ([`short_row`], [`subtract_dot`]), with and without ancestors.
     #[test]
     fn factor_rebuilds_h_and_solve_inverts_it() {
-        let text = include_str!("../tests/models/tree.urdf");
-        let floating = ModelOptions {
-            floating_base: true,
-            ..ModelOptions::default()
-        };
         let mut lengths = std::collections::BTreeSet::new();
         let models = [
-            urdf::model_from_str(text, &ModelOptions::default()).unwrap(),
+            urdf::model_from_str(TREE_URDF, &ModelOptions::default()).unwrap(),
             urdf::model_from_str(examples::DEFAULT_ARM_URDF, &ModelOptions::default()).unwrap(),
-            urdf::model_from_str(examples::DEFAULT_ARM_URDF, &floating).unwrap(),
+            urdf::model_from_str(examples::DEFAULT_ARM_URDF, &floating()).unwrap(),
         ];
         // Short chains: a root with one, two, three descendants.
         let chains = (2..=4).map(crate::plan::flops::tests::chain);

@@ -497,6 +497,7 @@ mod tests {
     use crate::model::ModelOptions;
     use crate::sampling::{random_q, Rng};
     use crate::spatial::{Force, Motion, Vector3};
+    use crate::test_models::{floating, TREE_URDF};
     use crate::urdf::model_from_str;
     use crate::Workspace;
 
@@ -507,7 +508,7 @@ mod tests {
     /// every other algorithm that writes `H` ran on the workspace at another state.
     #[test]
     fn the_shared_passes_leave_h_the_bias_forces_and_the_accelerations() {
-        let tree = include_str!("../../tests/models/tree.urdf");
+        let tree = TREE_URDF;
         for text in [
             tree.to_string(),
             tree.replace(r#"type="planar""#, r#"type="floating""#),
@@ -627,14 +628,10 @@ mod tests {
     /// `tests/derivatives.rs`' check of every entry against central differences.
     #[test]
     fn columns_of_the_inverse_dynamics_derivatives_are_zero_off_their_branch() {
-        let tree = include_str!("../../tests/models/tree.urdf");
-        let floating = ModelOptions {
-            floating_base: true,
-            ..Default::default()
-        };
+        let tree = TREE_URDF;
         for (text, options) in [
             (tree.to_string(), ModelOptions::default()),
-            (tree.to_string(), floating),
+            (tree.to_string(), floating()),
             (
                 tree.replace(r#"type="planar""#, r#"type="floating""#),
                 ModelOptions::default(),

@@ -256,20 +256,14 @@ mod tests {
     use crate::mul_add::MulAdd;
     use crate::plan::Ancestors;
     use crate::sampling::Rng;
+    use crate::test_models::{floating, TREE_URDF};
     use crate::urdf::model_from_str;
     use crate::Workspace;
     use nalgebra::DMatrix;
 
     /// The branched test tree (14 coordinates) on a floating base: its URDF and options.
     fn floating_tree() -> (String, ModelOptions) {
-        let options = ModelOptions {
-            floating_base: true,
-            ..Default::default()
-        };
-        (
-            include_str!("../../tests/models/tree.urdf").to_string(),
-            options,
-        )
+        (TREE_URDF.to_string(), floating())
     }
 
     /// Against the dense products `M B_q`, `M B_v` with `B` zero off the branches, on a

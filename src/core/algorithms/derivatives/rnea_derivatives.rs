@@ -107,8 +107,11 @@ fn passes_of_checked(
     ext: &Externals<'_>,
 ) -> Result<(), DynamicsError> {
     update_joints(model, ws, q);
-    derivative_passes(model, ws, v, a, ext, Target::Matrices);
+    let known_finite = derivative_passes(model, ws, v, a, ext, Target::Matrices);
     check_result(model, "tau", ws.tau.as_slice())?;
+    if known_finite {
+        return Ok(());
+    }
     let d = &ws.derivatives;
     check_matrix(model, "dtau_dq", &d.dtau_dq)?;
     check_matrix(model, "dtau_dv", &d.dtau_dv)?;
@@ -120,7 +123,7 @@ fn passes_of_checked(
 /// derivatives of `ws.derivatives`; with [`Target::SolveRows`] `−∂τ/∂q` and `−∂τ/∂q̇` straight
 /// into the right-hand sides of `aba_derivatives`' dense solve, `ws.derivatives.rhs` laid out as
 /// [`SolveRows`] says, which must already hold zeros there, and neither `τ` nor `H` (CRBA made
-/// `H`, and `q̈` from `τ`).
+/// `H`, and `q̈` from `τ`). Returns what [`backward_pass`] returns.
 pub(crate) fn derivative_passes(
     model: &Model,
     ws: &mut Workspace,
@@ -128,9 +131,9 @@ pub(crate) fn derivative_passes(
     a: &[f64],
     ext: &Externals<'_>,
     target: Target,
-) {
+) -> bool {
     forward_pass(model, ws, v, a, ext);
-    backward_pass(model, ws, target);
+    backward_pass(model, ws, target)
 }
 
 /// A planar joint's columns act in series (translations fixed to the parent, the turn to the
@@ -351,13 +354,17 @@ pub(crate) enum Target {
 /// Backward pass: sums `I^C` (unless [`Target::BranchColumnsOnComposites`]), `B^C`, `F` over each
 /// subtree and fills the entries of `∂τ/∂q`, `∂τ/∂q̇` (and of `τ` and `H` into [`Matrices`]),
 /// each from the row's and the column's bodies (one an ancestor of the other).
-pub(crate) fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) {
+///
+/// Returns whether every entry of `∂τ/∂q`, `∂τ/∂q̇` and `H` is known finite without reading
+/// them back: with [`Target::Matrices`] on a model without mimic joints, from the probe of
+/// [`Matrices`]; `false` (not known) otherwise.
+pub(crate) fn backward_pass(model: &Model, ws: &mut Workspace, target: Target) -> bool {
     run_pass!(backward_pass_in(model, ws, target))
 }
 
 /// [`backward_pass`]'s body, compiled once per instruction set ([`run_pass`]).
 #[inline(always)]
-fn backward_pass_in(model: &Model, ws: &mut Workspace, target: Target) {
+fn backward_pass_in(model: &Model, ws: &mut Workspace, target: Target) -> bool {
     let Workspace {
         s_world,
         ic,
@@ -405,26 +412,16 @@ fn backward_pass_in(model: &Model, ws: &mut Workspace, target: Target) {
                 dq.fill(0.0);
                 dv.fill(0.0);
                 tau.fill(0.0);
-                let mut out = Matrices::<false> {
-                    dq,
-                    dv,
-                    h,
-                    tau: tau.as_mut_slice(),
-                    n,
-                };
+                let mut out = Matrices::<false>::new(dq, dv, h, tau.as_mut_slice());
                 sweep::<_, false, false>(model, &parts, ic, &[], b, f, &mut out);
+                out.known_finite()
             } else {
                 // Every entry on the tree's pattern is written once; those off it are zero
                 // from the workspace's allocation on, as only this pass writes `∂τ/∂q`,
                 // `∂τ/∂q̇` (and a workspace serves one model).
-                let mut out = Matrices::<true> {
-                    dq,
-                    dv,
-                    h,
-                    tau: tau.as_mut_slice(),
-                    n,
-                };
+                let mut out = Matrices::<true>::new(dq, dv, h, tau.as_mut_slice());
                 sweep::<_, false, false>(model, &parts, ic, &[], b, f, &mut out);
+                out.known_finite()
             }
         }
         Target::SolveRows => {
@@ -433,6 +430,7 @@ fn backward_pass_in(model: &Model, ws: &mut Workspace, target: Target) {
                 nv: n,
             };
             sweep::<_, false, false>(model, &parts, ic, &[], b, f, &mut out);
+            false
         }
         Target::BranchColumnsOnComposites { free_root } => {
             let mut out = BranchColumns {
@@ -444,6 +442,7 @@ fn backward_pass_in(model: &Model, ws: &mut Workspace, target: Target) {
             } else {
                 sweep::<_, true, false>(model, &parts, composite, f_cols, b, f, &mut out);
             }
+            false
         }
     }
 }
@@ -697,13 +696,38 @@ trait Entries {
 
 /// The `n × n` column-major storage of `∂τ/∂q`, `∂τ/∂q̇`, `H` (entry `(r, c)` at `c n + r`)
 /// and `τ`. With `ASSIGN` each entry is written once (no mimic joints) and stored as it
-/// comes; without, entries add to what is there.
+/// comes, and added to `probe` as `x · 0` (zero for a finite `x`, NaN otherwise; one lane a
+/// matrix), so that the matrices need no pass reading them back to be known finite: the
+/// entries off the tree's pattern are zero. Without, entries add to what is there (a sum can
+/// overflow where no term does: the probe is not kept).
 struct Matrices<'a, const ASSIGN: bool> {
     dq: &'a mut [f64],
     dv: &'a mut [f64],
     h: &'a mut [f64],
     tau: &'a mut [f64],
     n: usize,
+    probe: [f64; 3],
+}
+
+impl<'a, const ASSIGN: bool> Matrices<'a, ASSIGN> {
+    /// The storage of the three matrices (`n × n` each) and of `τ`, nothing probed yet.
+    fn new(dq: &'a mut [f64], dv: &'a mut [f64], h: &'a mut [f64], tau: &'a mut [f64]) -> Self {
+        let n = tau.len();
+        Matrices {
+            dq,
+            dv,
+            h,
+            tau,
+            n,
+            probe: [0.0; 3],
+        }
+    }
+
+    /// Whether every entry of the three matrices is known finite: with `ASSIGN`, from the
+    /// probe; without, never (the caller checks the storage).
+    fn known_finite(&self) -> bool {
+        ASSIGN && self.probe.iter().sum::<f64>() == 0.0
+    }
 }
 
 /// `*y = x` with `ASSIGN`, else `*y += x`.
@@ -723,10 +747,17 @@ impl<const ASSIGN: bool> Entries for Matrices<'_, ASSIGN> {
         let at = c * self.n + r;
         put::<ASSIGN>(&mut self.dq[at], dq);
         put::<ASSIGN>(&mut self.dv[at], dv);
+        if ASSIGN {
+            self.probe[0] += dq * 0.0;
+            self.probe[1] += dv * 0.0;
+        }
     }
     #[inline(always)]
     fn add_h(&mut self, r: usize, c: usize, h: f64) {
         put::<ASSIGN>(&mut self.h[c * self.n + r], h);
+        if ASSIGN {
+            self.probe[2] += h * 0.0;
+        }
     }
     #[inline(always)]
     fn tau(&mut self, r: usize, x: f64) {
@@ -846,6 +877,7 @@ pub(crate) fn check_matrix(
 mod tests {
     use super::*;
     use crate::model::ModelOptions;
+    use crate::test_models::{floating, TREE_URDF};
     use crate::urdf::model_from_str;
 
     /// A non-finite entry anywhere fails the whole-storage probe and is named by its row's
@@ -867,6 +899,83 @@ mod tests {
                 other => panic!("{value} at ({row}, {col}): {other:?}"),
             }
             m[(row, col)] = 1e300;
+        }
+    }
+
+    /// The probe of [`Matrices`] sees a value that is not finite in any of its three lanes
+    /// (`∂τ/∂q`, `∂τ/∂q̇`, `H`), and only with `ASSIGN`.
+    #[test]
+    fn the_matrices_probe_sees_each_lane() {
+        let n = 3;
+        let storage = || {
+            (
+                vec![0.0; n * n],
+                vec![0.0; n * n],
+                vec![0.0; n * n],
+                vec![0.0; n],
+            )
+        };
+        for (dq, dv, h) in [
+            (f64::INFINITY, 1.0, 1.0),
+            (1.0, f64::NAN, 1.0),
+            (1.0, 1.0, f64::NEG_INFINITY),
+            (1e300, -1e300, 1e300),
+        ] {
+            let finite = [dq, dv, h].iter().all(|x| x.is_finite());
+            let (mut m_dq, mut m_dv, mut m_h, mut tau) = storage();
+            let mut out = Matrices::<true>::new(&mut m_dq, &mut m_dv, &mut m_h, &mut tau);
+            out.add(1, 0, 2.0, 3.0);
+            out.add(2, 1, dq, dv);
+            out.add_h(2, 1, h);
+            out.add_h(0, 0, 4.0);
+            assert_eq!(out.known_finite(), finite, "{dq} {dv} {h}");
+            let (mut m_dq, mut m_dv, mut m_h, mut tau) = storage();
+            let mut out = Matrices::<false>::new(&mut m_dq, &mut m_dv, &mut m_h, &mut tau);
+            out.add(2, 1, 1.0, 1.0);
+            assert!(!out.known_finite());
+        }
+    }
+
+    /// The backward pass knows its matrices finite exactly when they are: on the branched tree
+    /// on a floating base, with each body's `α`, `β` (its first column) or mass made infinite in
+    /// turn, the pass does not know the matrices finite and one of them has a value that is
+    /// not; untouched, it knows them finite.
+    #[test]
+    fn the_backward_pass_knows_its_matrices_finite_only_when_they_are() {
+        let model = model_from_str(TREE_URDF, &floating()).unwrap();
+        let mut ws = Workspace::new(&model);
+        let mut rng = crate::sampling::Rng::new(11);
+        let q = crate::sampling::random_q(&model, &mut rng);
+        let (v, a) = (rng.vector(model.nv, 1.0), rng.vector(model.nv, 1.0));
+        let ext = Externals::none();
+        let matrices_finite = |ws: &Workspace| {
+            let d = &ws.derivatives;
+            [&d.dtau_dq, &d.dtau_dv, &ws.mass_matrix]
+                .iter()
+                .all(|m| m.iter().all(|x| x.is_finite()))
+        };
+        update_joints(&model, &mut ws, &q);
+        assert!(derivative_passes(
+            &model,
+            &mut ws,
+            &v,
+            &a,
+            &ext,
+            Target::Matrices
+        ));
+        assert!(matrices_finite(&ws));
+        let inf = Motion::new(Vector3::new(f64::INFINITY, 0.0, 0.0), Vector3::zeros());
+        for i in 0..model.bodies.len() {
+            for poison in 0..3 {
+                forward_pass(&model, &mut ws, &v, &a, &ext);
+                match poison {
+                    0 => ws.derivatives.alpha[i][0] = inf,
+                    1 => ws.derivatives.beta[i][0] = inf,
+                    _ => ws.ic[i].mass = f64::INFINITY,
+                }
+                let known = backward_pass(&model, &mut ws, Target::Matrices);
+                assert!(!known && !matrices_finite(&ws), "body {i}, poison {poison}");
+            }
         }
     }
 }
